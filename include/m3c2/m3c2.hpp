@@ -1,0 +1,51 @@
+#pragma once
+// The M3C2 engine (Lague, Brodu & Leroux 2013): pure computation on float64 arrays.
+// Every function is deterministic: the same inputs give the same bits for any thread count.
+// See docs/algorithm.md for each equation, its paper reference and the choices made.
+
+#include <m3c2/errors.hpp>
+#include <m3c2/params.hpp>
+#include <m3c2/points_view.hpp>
+#include <m3c2/result.hpp>
+#include <m3c2/run_options.hpp>
+
+#include <cstdint>
+#include <vector>
+
+namespace m3c2 {
+
+/// M3C2 distance, LOD and significance at each core point (sections 3.1-3.3, Appendix B).
+/// `core_normals` (3 per core point) is read only with NormalSource::kCorePoints.
+/// Throws InvalidArgument on bad parameters or inputs, Cancelled if the progress callback says so.
+Result compute(PointsView reference, PointsView compared, PointsView core_points,
+               const Params& params, const RunOptions& run = {},
+               const std::vector<double>& core_normals = {});
+
+/// Normals of `cloud` at `core_points` with params.normal_diameters (one scale or multi-scale),
+/// oriented by params.orientation, with roughness sigma(D) (sections 3.1.2, 3.2, 6.3).
+/// Reads normal_diameters, scale_selection, min_points_normal, min_points_multiscale,
+/// normal_subsample_spacing, orientation and variance.
+NormalsResult compute_normals(PointsView cloud, PointsView core_points, const Params& params,
+                              const RunOptions& run = {});
+
+/// Roughness sigma(D) at each core point for each diameter (section 5.1, Fig. 6a): row-major
+/// [core point][scale], NaN where fewer than `min_points` neighbours.
+std::vector<double> roughness_by_scale(PointsView cloud, PointsView core_points,
+                                       const std::vector<double>& diameters, Variance variance,
+                                       std::uint32_t min_points, const RunOptions& run = {});
+
+/// Indices of a subset of `points` in which no two points are closer than `min_spacing`,
+/// chosen greedily in input order (the first point of a cluster is kept). Serial and
+/// deterministic; the result is sorted.
+std::vector<std::uint64_t> subsample_min_spacing(PointsView points, double min_spacing);
+
+/// Regular grid of core points over the XY extent of `points` (2D use, section 3.1.1 and 6.1.2).
+struct Grid {
+  double x0 = 0, y0 = 0, cell = 0;  ///< centre of cell (row r, col c) is (x0 + (c + .5) cell, y0 + (r + .5) cell)
+  std::uint64_t rows = 0, cols = 0;
+  std::vector<double> core_points;       ///< row-major xyz: one per non-empty cell, z = median z there
+  std::vector<std::uint64_t> row, col;   ///< cell of each core point
+};
+Grid grid_core_points(PointsView points, double cell);
+
+}  // namespace m3c2

@@ -1,0 +1,80 @@
+#pragma once
+// Parameters of an M3C2 run (Lague et al. 2013). Lengths are in the clouds' unit.
+// D and d are DIAMETERS, as in the paper and CloudCompare; max_depth is a half-length.
+
+#include <cstdint>
+#include <vector>
+
+namespace m3c2 {
+
+/// Where the normal of each core point comes from (section 3.1.2).
+enum class NormalSource : std::uint8_t {
+  kReference,   ///< PCA of the reference cloud (the paper's default)
+  kCompared,    ///< PCA of the compared cloud
+  kMean,        ///< normalised sum of both oriented normals: the reversible measurement
+  kVertical,    ///< imposed (0, 0, 1): the 2D / DEM-of-difference mode
+  kHorizontal,  ///< reference normal with z dropped, renormalised (vertical faces, CloudCompare mode 4)
+  kCorePoints,  ///< one normal per core point supplied by the caller
+};
+
+/// Central position and spread of the points in a cylinder (section 3.1.3).
+enum class Statistic : std::uint8_t {
+  kMean,    ///< mean and standard deviation
+  kMedian,  ///< median and interquartile range; the LOD uses sigma = IQR / kIqrToSigma
+};
+
+/// Denominator of every variance: sample (n - 1, as py4dgeo) or population (n, as CloudCompare).
+enum class Variance : std::uint8_t { kSample, kPopulation };
+
+/// How the cylinder's length is searched (sections 3.1.3 and 5.3).
+enum class DepthSearch : std::uint8_t {
+  kSinglePass,   ///< one cylinder of half-length max_depth
+  kTwoPass,      ///< half-length first_pass_depth first; max_depth where that found no point in a cloud
+  kProgressive,  ///< CloudCompare's: grow by d/2 per pass until |i| + 2 sigma fits in both clouds
+};
+
+/// Scale selection rule of multi-scale normals (section 3.2).
+enum class ScaleSelection : std::uint8_t {
+  kMostPlanar,    ///< smallest lambda3 / (lambda1 + lambda2 + lambda3), the paper's rule
+  kCloudCompare,  ///< CloudCompare's largest 2 s0 + 4 s1 - 2 with s_k = lambda_k^2 / sum lambda^2
+};
+
+/// Orientation of normals (section 3.1.2): towards the closest orientation point when any are
+/// given (the paper's scanner positions), otherwise along `direction` (+Z by default).
+struct Orientation {
+  double direction[3] = {0.0, 0.0, 1.0};
+  std::vector<double> points;  ///< row-major x, y, z of orientation points; may be empty
+};
+
+/// IQR of a normal distribution in units of its standard deviation: 2 * Phi^-1(0.75).
+inline constexpr double kIqrToSigma = 1.3489795003921634;
+
+struct Params {
+  // Normals (3.1.2, 3.2)
+  std::vector<double> normal_diameters;      ///< D; several values = multi-scale
+  NormalSource normal_source = NormalSource::kReference;
+  ScaleSelection scale_selection = ScaleSelection::kMostPlanar;
+  std::uint32_t min_points_normal = 3;       ///< fewest neighbours for a plane fit (one scale)
+  std::uint32_t min_points_multiscale = 10;  ///< fewest neighbours at a chosen scale (3.2)
+  double normal_subsample_spacing = 0.0;     ///< > 0: normals on a copy subsampled to this spacing (5.1)
+  Orientation orientation;
+
+  // Projection (3.1.3)
+  double projection_diameter = 0.0;  ///< d: cylinder diameter
+  double max_depth = 0.0;            ///< cylinder half-length along the normal, on each side
+  DepthSearch depth_search = DepthSearch::kSinglePass;
+  double first_pass_depth = 0.0;     ///< kTwoPass: half-length of the first, short cylinder
+  bool positive_search_only = false; ///< search only t in [0, max_depth] (CloudCompare option)
+  Statistic statistic = Statistic::kMean;
+  Variance variance = Variance::kSample;
+
+  // Confidence (3.3, Appendix B)
+  double registration_error = 0.0;   ///< reg in eq. (1)
+  double confidence = 0.95;          ///< two-tailed level of the LOD
+  std::uint32_t min_points = 4;      ///< per cylinder, below it no LOD and not significant (5.2.1)
+  bool t_statistic = false;          ///< Welch t with eq. (2)'s DF when n1 or n2 < 30
+  std::uint32_t bootstrap_samples = 0;  ///< > 0: LOD = z (sd of resampled distances + reg), App. B
+  std::uint64_t bootstrap_seed = 0;
+};
+
+}  // namespace m3c2

@@ -1,0 +1,50 @@
+#pragma once
+// Per-core-point outcome of an M3C2 run. Index i of every vector refers to core point i.
+
+#include <cstdint>
+#include <string_view>
+#include <vector>
+
+namespace m3c2 {
+
+/// Why a core point has no distance or no LOD. Numeric values are part of the file formats.
+enum class PointStatus : std::uint8_t {
+  kOk = 0,                 ///< distance and LOD computed
+  kTooFewNormalPoints = 1, ///< fewer neighbours than needed for the plane fit at every scale
+  kDegenerateNormal = 2,   ///< collinear / coincident neighbours, or an unusable imposed normal
+  kEmptyCylinder1 = 3,     ///< no reference point in the cylinder: no distance
+  kEmptyCylinder2 = 4,     ///< no compared point in the cylinder: no distance
+  kTooFewPointsForLod = 5, ///< distance computed, but n1 or n2 < min_points: LOD NaN, not significant
+};
+
+std::string_view status_name(PointStatus s);
+
+struct Result {
+  std::vector<double> distance;        ///< i2 - i1 along the oriented normal; NaN if not computed
+  std::vector<double> lod;             ///< level of detection at the confidence level; NaN if not computed
+  std::vector<std::uint8_t> significant;  ///< 1 iff n1, n2 >= min_points and |distance| > lod
+  std::vector<std::uint32_t> n1, n2;   ///< points in each cylinder (0 where no cylinder was searched)
+  std::vector<double> sigma1, sigma2;  ///< spread along the normal (std, or IQR / kIqrToSigma); NaN if undefined
+  std::vector<double> i1, i2;          ///< central positions along the normal, from the core point
+  std::vector<double> normal;          ///< 3 per core point, unit, oriented; NaN if not computed
+  std::vector<double> normal_scale;    ///< D used (the chosen one with multi-scale)
+  std::vector<double> roughness;       ///< sigma(D): spread of the normal neighbours about their plane
+  std::vector<PointStatus> status;
+
+  std::size_t size() const { return distance.size(); }
+  void resize(std::size_t n);
+};
+
+/// Normals of one cloud at core points (section 3.1.2, 6.3).
+struct NormalsResult {
+  std::vector<double> normal;        ///< 3 per core point; NaN if not computed
+  std::vector<double> normal_scale;  ///< D chosen
+  std::vector<double> roughness;     ///< sigma(D)
+  std::vector<std::uint32_t> count;  ///< neighbours at the chosen scale
+  std::vector<PointStatus> status;   ///< kOk, kTooFewNormalPoints or kDegenerateNormal
+
+  std::size_t size() const { return normal_scale.size(); }
+  void resize(std::size_t n);
+};
+
+}  // namespace m3c2

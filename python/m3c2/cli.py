@@ -1,0 +1,235 @@
+"""The `m3c2` command line: parse, read, compute, write. Exit 0 on success, 2 for usage errors,
+1 for failures (unreadable input, unwritable output, interruption); no partial output file."""
+from __future__ import annotations
+
+import argparse
+import signal
+import sys
+from pathlib import Path
+
+import numpy as np
+
+from . import api
+from .cloudcompare_params import read_cloudcompare_params
+from .errors import M3C2Error, UsageError
+from .io import info as file_info
+from .io import read_cloud, write_cloud_table
+from .progress import ProgressBar
+from .summary import summary_lines
+from .writing import write
+
+SCALE_HELP = ("D, the normal scale: DIAMETER of the sphere of neighbours (as in the paper and CloudCompare). "
+              "One value, a list '0.5,1,2' or a range 'MIN:MAX:STEP' (multi-scale: the most planar scale wins)")
+
+
+class Interrupted(M3C2Error):
+    """SIGINT or SIGTERM during a run."""
+
+
+class ArgumentParser(argparse.ArgumentParser):
+    def error(self, message):  # argparse's own usage errors: exit 2 with one clear line
+        self.print_usage(sys.stderr)
+        raise UsageError(message)
+
+
+def _compare_parser(sub) -> None:
+    p = sub.add_parser("compare", help="M3C2 distances between two clouds",
+                       description="M3C2 change between REFERENCE and COMPARED at core points. "
+                                   "D and d are diameters; --max-depth is the half-length of the cylinder.")
+    p.add_argument("reference", type=Path, help="reference cloud (first epoch)")
+    p.add_argument("compared", type=Path, help="compared cloud (second epoch)")
+    p.add_argument("-o", "--output", type=Path, required=True, help="output file: .las .laz .ply .csv .txt")
+    core = p.add_mutually_exclusive_group()
+    core.add_argument("--core", type=Path, help="core points file (default: every reference point)")
+    core.add_argument("--core-spacing", type=float, help="core points = reference subsampled to this minimum spacing")
+    p.add_argument("--normal-scale", help=SCALE_HELP)
+    p.add_argument("--projection-scale", type=float, help="d: DIAMETER of the projection cylinder")
+    p.add_argument("--max-depth", type=float, help="half-length of the cylinder along the normal, on each side")
+    p.add_argument("--registration-error", type=float, help="reg of eq. (1), same unit as the clouds (default 0)")
+    p.add_argument("--orient", help="normal orientation: +z (default) -z +x -x +y -y, a point X,Y,Z, or a FILE of "
+                                    "points (scanner positions; E57 scan positions by default)")
+    p.add_argument("--normal-source", choices=api.NORMAL_SOURCES, help="where normals come from (default reference)")
+    p.add_argument("--core-normals", type=Path, help="with --normal-source core: file of nx,ny,nz per core point "
+                                                     "(default: the core file's normal fields)")
+    p.add_argument("--median", action="store_true", default=None, help="median and IQR instead of mean and std")
+    p.add_argument("--confidence", type=float, help="confidence level of the LOD (default 0.95)")
+    p.add_argument("--min-points", type=int, help="points needed in each cylinder for a LOD (default 4)")
+    p.add_argument("--t-statistic", action="store_true", default=None,
+                   help="Welch t instead of z when n1 or n2 < 30 (eq. 2)")
+    p.add_argument("--bootstrap", type=int, help="LOD from N bootstrap resamples (Appendix B)")
+    p.add_argument("--seed", type=int, help="bootstrap seed (default 0)")
+    p.add_argument("--first-pass-depth", type=float,
+                   help="two-pass depth search (5.3): short half-length first, --max-depth only where it finds nothing")
+    p.add_argument("--depth-search", choices=api.DEPTH_SEARCHES, help="single (default), two-pass or progressive")
+    p.add_argument("--positive-search-only", action="store_true", default=None, help="search only along +normal")
+    p.add_argument("--normal-subsample", type=float, help="compute normals on the cloud subsampled to this spacing")
+    p.add_argument("--compat", choices=["cloudcompare"], help="CloudCompare qM3C2 semantics (docs/validation.md)")
+    p.add_argument("--params", type=Path, help="CloudCompare qM3C2 parameter file; command-line options win")
+    p.add_argument("--projected", action="store_true", help="also write the projected positions x1..z2")
+    p.add_argument("--position", choices=["core", "reference", "compared"],
+                   help="where output rows are placed (default core)")
+    p.add_argument("--drop-nonfinite", action="store_true", help="drop points with NaN/Inf coordinates")
+    p.add_argument("--threads", type=int, help="threads (default all); results are identical for any count")
+    p.add_argument("--quiet", action="store_true", help="no progress bar or summary")
+    p.set_defaults(run=run_compare)
+
+
+def _normals_parser(sub) -> None:
+    p = sub.add_parser("normals", help="normals at the most planar scale, with roughness (section 6.3)")
+    p.add_argument("input", type=Path)
+    p.add_argument("-o", "--output", type=Path, required=True)
+    p.add_argument("--normal-scale", required=True, help=SCALE_HELP)
+    p.add_argument("--core", type=Path, help="core points (default: every point)")
+    p.add_argument("--orient", help="+z (default) -z +x -x +y -y, X,Y,Z or a FILE of points")
+    p.add_argument("--normal-subsample", type=float)
+    p.add_argument("--threads", type=int, default=0)
+    p.add_argument("--quiet", action="store_true")
+    p.set_defaults(run=run_normals)
+
+
+def _subsample_parser(sub) -> None:
+    p = sub.add_parser("subsample", help="subsample to a minimum spacing (core points)")
+    p.add_argument("input", type=Path)
+    p.add_argument("-o", "--output", type=Path, required=True)
+    p.add_argument("--spacing", type=float, required=True, help="minimum distance between kept points")
+    p.set_defaults(run=run_subsample)
+
+
+def _info_parser(sub) -> None:
+    p = sub.add_parser("info", help="point count, bounds, CRS and fields of a file")
+    p.add_argument("file", type=Path)
+    p.set_defaults(run=run_info)
+
+
+def make_parser() -> argparse.ArgumentParser:
+    parser = ArgumentParser(prog="m3c2", description="M3C2 point-cloud change detection (Lague et al. 2013)")
+    sub = parser.add_subparsers(dest="command", required=True, parser_class=ArgumentParser)
+    for build in (_compare_parser, _normals_parser, _subsample_parser, _info_parser):
+        build(sub)
+    return parser
+
+
+COMPARE_OPTIONS = ("normal_scale", "projection_scale", "max_depth", "registration_error", "orient", "normal_source",
+                   "median", "confidence", "min_points", "t_statistic", "bootstrap", "seed", "first_pass_depth",
+                   "depth_search", "positive_search_only", "normal_subsample", "compat", "core_spacing")
+
+
+def compare_settings(args) -> dict:
+    """Options from --params, overridden by those given on the command line."""
+    settings = {}
+    if args.params is not None:
+        settings.update(read_cloudcompare_params(args.params))
+        settings.setdefault("compat", "cloudcompare")
+    for name in COMPARE_OPTIONS + ("threads", "position"):
+        value = getattr(args, name, None)
+        if value is not None:
+            settings[name] = value
+    if "proj_dest" in settings:
+        settings.setdefault("position", settings.pop("proj_dest"))
+    for required, flag in (("projection_scale", "--projection-scale"), ("max_depth", "--max-depth")):
+        if required not in settings:
+            raise UsageError(f"{flag} is required (or a --params file that sets it)")
+    return settings
+
+
+def _read(path: Path, args):
+    return read_cloud(path, drop_nonfinite=getattr(args, "drop_nonfinite", False))
+
+
+def _orient_spec(args, settings: dict, reference):
+    if "orient" in settings:
+        return settings["orient"]
+    positions = getattr(reference, "scan_positions", None)
+    return positions if positions is not None and len(positions) else "+z"
+
+
+def run_compare(args) -> int:
+    settings = compare_settings(args)
+    reference, compared = _read(args.reference, args), _read(args.compared, args)
+    core_cloud = _read(args.core, args) if args.core is not None else None
+    settings["orient"] = _orient_spec(args, settings, reference)
+    position = settings.pop("position", "core")
+    threads = settings.pop("threads", 0)
+    core_normals = None
+    if settings.get("normal_source") == "core":
+        core_normals = _core_normals(args, core_cloud)
+    bar = ProgressBar("M3C2", enabled=not args.quiet)
+    result = api.compare(reference, compared, core_cloud, core_normals=core_normals, threads=threads,
+                         progress=bar.update, read_points=lambda p: _read(p, args).xyz, **settings)
+    bar.close()
+    write(args.output, result, like=reference, projected=args.projected, position=position)
+    if not args.quiet:
+        for line in summary_lines(result, args.output):
+            print(line)
+    return 0
+
+
+def _core_normals(args, core_cloud) -> np.ndarray:
+    if args.core_normals is not None:
+        return _read(args.core_normals, args).xyz
+    if core_cloud is None:
+        raise UsageError("--normal-source core needs --core with normal fields (nx, ny, nz) or --core-normals FILE")
+    fields = {k.lower(): v for k, v in core_cloud.fields.items()}
+    for names in (("nx", "ny", "nz"), ("normalx", "normaly", "normalz"), ("normal_x", "normal_y", "normal_z")):
+        if all(n in fields for n in names):
+            return np.column_stack([fields[n] for n in names]).astype(float)
+    raise UsageError(f"{args.core}: no normal fields (nx, ny, nz) for --normal-source core; use --core-normals FILE")
+
+
+def run_normals(args) -> int:
+    cloud = _read(args.input, args)
+    core = _read(args.core, args).xyz if args.core is not None else None
+    bar = ProgressBar("normals", enabled=not args.quiet)
+    out = api.normals(cloud, core, normal_scale=args.normal_scale, orient=args.orient or "+z",
+                      normal_subsample=args.normal_subsample, threads=args.threads, progress=bar.update,
+                      read_points=lambda p: _read(p, args).xyz)
+    bar.close()
+    n = out["normal"]
+    fields = {"nx": n[:, 0], "ny": n[:, 1], "nz": n[:, 2], "normal_scale": out["normal_scale"],
+              "roughness": out["roughness"], "count": out["count"].astype(np.uint32), "status": out["status"]}
+    write_cloud_table(args.output, out["core"], fields, like=cloud)
+    return 0
+
+
+def run_subsample(args) -> int:
+    cloud = _read(args.input, args)
+    kept = api.subsample(cloud.xyz, args.spacing)
+    fields = {name: np.asarray(values)[kept] for name, values in cloud.fields.items()}
+    write_cloud_table(args.output, cloud.xyz[kept], fields, like=cloud)
+    print(f"{args.output}: kept {len(kept)} of {len(cloud.xyz)} points (min spacing {args.spacing})")
+    return 0
+
+
+def run_info(args) -> int:
+    for key, value in file_info(args.file).items():
+        print(f"{key}: {value}")
+    return 0
+
+
+def _raise_interrupted(signum, frame):
+    raise Interrupted(f"interrupted by {signal.Signals(signum).name}; no output written")
+
+
+def main(argv=None) -> int:
+    previous = signal.signal(signal.SIGTERM, _raise_interrupted)
+    try:
+        args = make_parser().parse_args(argv)
+        return args.run(args)
+    except UsageError as e:
+        print(f"m3c2: error: {e}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        print("m3c2: error: interrupted by SIGINT; no output written", file=sys.stderr)
+        return 1
+    except M3C2Error as e:
+        print(f"m3c2: error: {e}", file=sys.stderr)
+        return 1
+    except MemoryError:
+        print("m3c2: error: out of memory; use fewer or subsampled core points", file=sys.stderr)
+        return 1
+    finally:
+        signal.signal(signal.SIGTERM, previous)
+
+
+if __name__ == "__main__":
+    sys.exit(main())

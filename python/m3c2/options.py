@@ -1,0 +1,102 @@
+"""Parsing of the user-facing parameter syntax shared by the command line and the Python API.
+
+D (``normal_scale``) and d (``projection_scale``) are DIAMETERS, as in Lague et al. (2013) and
+CloudCompare; ``max_depth`` is the cylinder's half-length along the normal.
+"""
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from pathlib import Path
+
+import numpy as np
+
+from .errors import UsageError
+
+AXES = {"+x": (1.0, 0.0, 0.0), "-x": (-1.0, 0.0, 0.0), "+y": (0.0, 1.0, 0.0),
+        "-y": (0.0, -1.0, 0.0), "+z": (0.0, 0.0, 1.0), "-z": (0.0, 0.0, -1.0)}
+
+
+def positive(name: str, value) -> float:
+    """`value` as a finite float > 0, or a UsageError naming the option."""
+    try:
+        v = float(value)
+    except (TypeError, ValueError):
+        raise UsageError(f"{name} must be a number, got {value!r}") from None
+    if not (math.isfinite(v) and v > 0):
+        raise UsageError(f"{name} must be finite and > 0, got {value!r}")
+    return v
+
+
+def non_negative(name: str, value) -> float:
+    try:
+        v = float(value)
+    except (TypeError, ValueError):
+        raise UsageError(f"{name} must be a number, got {value!r}") from None
+    if not (math.isfinite(v) and v >= 0):
+        raise UsageError(f"{name} must be finite and >= 0, got {value!r}")
+    return v
+
+
+def scale_range(minimum: float, maximum: float, step: float) -> list[float]:
+    """Diameters minimum, minimum + step, ... up to maximum INCLUDED (each computed as
+    minimum + k * step, so rounding can never drop the largest scale, unlike an accumulating loop)."""
+    if maximum < minimum:
+        raise UsageError(f"--normal-scale range: MAX ({maximum}) is below MIN ({minimum})")
+    count = int(math.floor((maximum - minimum) / step * (1 + 1e-12) + 1e-9)) + 1
+    return [minimum + k * step for k in range(count)]
+
+
+def normal_scales(spec) -> list[float]:
+    """D from '2', '0.5,1,2', 'MIN:MAX:STEP', a number or a sequence of numbers."""
+    name = "--normal-scale"
+    if isinstance(spec, (int, float, np.floating, np.integer)):
+        return [positive(name, spec)]
+    if isinstance(spec, str):
+        text = spec.strip()
+        if ":" in text:
+            parts = text.split(":")
+            if len(parts) != 3:
+                raise UsageError(f"{name} range must be MIN:MAX:STEP, got {spec!r}")
+            lo, hi, step = (positive(name, p) for p in parts)
+            return scale_range(lo, hi, step)
+        return [positive(name, p) for p in text.split(",") if p.strip()] or _empty(name)
+    if isinstance(spec, Sequence) or isinstance(spec, np.ndarray):
+        return [positive(name, p) for p in spec] or _empty(name)
+    raise UsageError(f"{name} must be a number, a list or MIN:MAX:STEP, got {spec!r}")
+
+
+def _empty(name: str):
+    raise UsageError(f"{name} is empty")
+
+
+def orientation(spec, read_points=None) -> tuple[tuple[float, float, float], np.ndarray]:
+    """(preferred direction, orientation points (K, 3)) from '+z'..'-x', 'X,Y,Z', a 3-vector,
+    a (K, 3) array, or a file of points (read with `read_points(path)`)."""
+    if spec is None:
+        return AXES["+z"], np.empty((0, 3))
+    if isinstance(spec, str):
+        key = spec.strip().lower()
+        if key in AXES:
+            return AXES[key], np.empty((0, 3))
+        parts = key.split(",")
+        if len(parts) == 3:
+            try:
+                point = [float(p) for p in parts]
+            except ValueError:
+                point = None
+            if point is not None:
+                if not all(math.isfinite(c) for c in point):
+                    raise UsageError(f"--orient point must be finite, got {spec!r}")
+                return AXES["+z"], np.asarray([point], dtype=float)
+        path = Path(spec)
+        if read_points is not None and path.exists():
+            pts = read_points(path)
+            return AXES["+z"], np.asarray(pts, dtype=float).reshape(-1, 3)
+        raise UsageError(f"--orient must be +x|-x|+y|-y|+z|-z, X,Y,Z or an existing file, got {spec!r}")
+    arr = np.asarray(spec, dtype=float)
+    if arr.ndim == 1 and arr.shape == (3,):
+        arr = arr.reshape(1, 3)
+    if arr.ndim != 2 or arr.shape[1] != 3 or not np.isfinite(arr).all():
+        raise UsageError("orient must be an axis name, a point or a finite (K, 3) array of points")
+    return AXES["+z"], arr

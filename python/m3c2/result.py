@@ -1,0 +1,93 @@
+"""The result of an M3C2 run as numpy arrays, and its table of output columns."""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from . import _core
+
+#: Output columns in every format, in this order (a contract: see docs/cli.md).
+COLUMNS = ("x", "y", "z", "distance", "lod", "significant", "n1", "n2", "sigma1", "sigma2",
+           "nx", "ny", "nz", "normal_scale", "roughness", "status")
+PROJECTED_COLUMNS = ("x1", "y1", "z1", "x2", "y2", "z2")
+
+#: Reason codes of the `status` column.
+STATUS_NAMES = tuple(_core.status_names())
+STATUS_OK = 0
+STATUS_TOO_FEW_POINTS_FOR_LOD = STATUS_NAMES.index("too_few_points_for_lod")
+_NORMAL_FAILURES = (STATUS_NAMES.index("too_few_normal_points"), STATUS_NAMES.index("degenerate_normal"))
+
+
+@dataclass
+class Result:
+    """Per-core-point M3C2 output. Index i of every array is core point i.
+
+    distance = i2 - i1 along the oriented normal (NaN where not computed); lod is the level of
+    detection at the requested confidence (NaN where n1 or n2 < min_points); significant is
+    True iff n1, n2 >= min_points and |distance| > lod; status says why anything is NaN.
+    """
+
+    core: np.ndarray
+    distance: np.ndarray
+    lod: np.ndarray
+    significant: np.ndarray
+    n1: np.ndarray
+    n2: np.ndarray
+    sigma1: np.ndarray
+    sigma2: np.ndarray
+    i1: np.ndarray
+    i2: np.ndarray
+    normal: np.ndarray
+    normal_scale: np.ndarray
+    roughness: np.ndarray
+    status: np.ndarray
+    params: dict = field(default_factory=dict)
+
+    @classmethod
+    def from_engine(cls, core: np.ndarray, raw: dict, params: dict) -> "Result":
+        raw = dict(raw)
+        raw["significant"] = raw["significant"].astype(bool)
+        return cls(core=core, params=params, **raw)
+
+    def __len__(self) -> int:
+        return len(self.distance)
+
+    @property
+    def xi(self) -> np.ndarray:
+        """xi = D / sigma(D), the normal-accuracy indicator of eq. (4) (section 5.1)."""
+        with np.errstate(divide="ignore", invalid="ignore"):
+            return self.normal_scale / self.roughness
+
+    def projected(self, which: int) -> np.ndarray:
+        """Positions core + i_k * normal on cloud k (1 = reference, 2 = compared)."""
+        offset = self.i1 if which == 1 else self.i2
+        return self.core + offset[:, None] * self.normal
+
+    def columns(self, projected: bool = False, position: str = "core") -> dict[str, np.ndarray]:
+        """The output table: name -> column. NaN wherever a value was not computed, including
+        `significant` where there is no LOD and n1/n2 where no cylinder was searched."""
+        xyz = self.core
+        if position != "core":
+            # Where there is no projection the row stays at its core point, never at NaN.
+            proj = self.projected(1 if position == "reference" else 2)
+            xyz = np.where(np.isnan(proj), self.core, proj)
+        searched = ~np.isin(self.status, _NORMAL_FAILURES)
+        significant = np.where(np.isnan(self.lod), np.nan, self.significant.astype(float))
+        table = {
+            "x": xyz[:, 0], "y": xyz[:, 1], "z": xyz[:, 2],
+            "distance": self.distance, "lod": self.lod, "significant": significant,
+            "n1": np.where(searched, self.n1, np.nan), "n2": np.where(searched, self.n2, np.nan),
+            "sigma1": self.sigma1, "sigma2": self.sigma2,
+            "nx": self.normal[:, 0], "ny": self.normal[:, 1], "nz": self.normal[:, 2],
+            "normal_scale": self.normal_scale, "roughness": self.roughness,
+            "status": self.status.astype(np.uint8),
+        }
+        if projected:
+            p1, p2 = self.projected(1), self.projected(2)
+            table.update(x1=p1[:, 0], y1=p1[:, 1], z1=p1[:, 2], x2=p2[:, 0], y2=p2[:, 1], z2=p2[:, 2])
+        return table
+
+    def status_counts(self) -> dict[str, int]:
+        codes, counts = np.unique(self.status, return_counts=True)
+        return {STATUS_NAMES[c]: int(n) for c, n in zip(codes, counts)}

@@ -1,0 +1,54 @@
+#include "bootstrap.hpp"
+
+#include "statistics.hpp"
+
+#include <cmath>
+
+namespace m3c2::detail {
+namespace {
+
+__extension__ typedef unsigned __int128 Uint128;
+
+// SplitMix64 (Steele, Lea & Flood 2014): a tiny generator with a fixed, portable output
+// sequence, unlike std::uniform_int_distribution whose algorithm is library-defined.
+class SplitMix64 {
+ public:
+  explicit SplitMix64(std::uint64_t seed) : state_(seed) {}
+  std::uint64_t next() {
+    std::uint64_t z = (state_ += 0x9E3779B97F4A7C15ULL);
+    z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9ULL;
+    z = (z ^ (z >> 27)) * 0x94D049BB133111EBULL;
+    return z ^ (z >> 31);
+  }
+  /// Uniform index in [0, n) by multiply-shift (Lemire 2019); bias below 2^-40 for n < 2^24.
+  std::size_t below(std::size_t n) {
+    return static_cast<std::size_t>((static_cast<Uint128>(next()) * n) >> 64);
+  }
+
+ private:
+  std::uint64_t state_;
+};
+
+double resampled_stat(std::span<const double> values, const Params& params, SplitMix64& rng,
+                      std::vector<double>& draw, std::vector<double>& work) {
+  draw.resize(values.size());
+  for (double& v : draw) v = values[rng.below(values.size())];
+  return central_spread(draw, params, work).centre;
+}
+
+}  // namespace
+
+double bootstrap_sigma(std::span<const double> t1, std::span<const double> t2, const Params& params,
+                       std::uint64_t core_index, std::vector<double>& work) {
+  SplitMix64 seeder(params.bootstrap_seed);
+  SplitMix64 rng(seeder.next() ^ (core_index * 0xD1B54A32D192ED03ULL));
+  std::vector<double> draw, distances(params.bootstrap_samples);
+  for (double& d : distances) {
+    const double i1 = resampled_stat(t1, params, rng, draw, work);
+    const double i2 = resampled_stat(t2, params, rng, draw, work);
+    d = i2 - i1;
+  }
+  return mean_and_sigma(distances, Variance::kSample).sigma;
+}
+
+}  // namespace m3c2::detail

@@ -1,0 +1,251 @@
+// compute(), compute_normals() and roughness_by_scale(): the per-core-point pipeline of
+// section 3.1 (normal, then projection), the confidence of 3.3 / Appendix B and the statuses.
+
+#include <m3c2/m3c2.hpp>
+
+#include "bootstrap.hpp"
+#include "confidence.hpp"
+#include "kdtree.hpp"
+#include "normals.hpp"
+#include "orientation.hpp"
+#include "parallel_for.hpp"
+#include "projection.hpp"
+#include "statistics.hpp"
+#include "validation.hpp"
+
+#include <Eigen/Eigenvalues>
+
+#include <algorithm>
+#include <cmath>
+#include <memory>
+#include <optional>
+
+namespace m3c2 {
+namespace {
+
+using detail::KdTree;
+using detail::NormalEstimate;
+using detail::NormalEstimator;
+
+/// A cloud for normals, optionally thinned to params.normal_subsample_spacing (5.1: normals on a
+/// subsampled cloud barely change and cost far less).
+class NormalCloud {
+ public:
+  NormalCloud(PointsView cloud, const KdTree& full_tree, const Params& params) {
+    if (params.normal_subsample_spacing > 0.0) {
+      for (const std::uint64_t i : subsample_min_spacing(cloud, params.normal_subsample_spacing))
+        for (int a = 0; a < 3; ++a) thinned_.push_back(cloud.coord(i, a));
+      own_tree_ = std::make_unique<KdTree>(PointsView(thinned_.data(), thinned_.size() / 3));
+    }
+    estimator_.emplace(own_tree_ ? *own_tree_ : full_tree, params);
+  }
+  NormalEstimate estimate(const Vec3& core, detail::NormalScratch& s) const { return estimator_->estimate(core, s); }
+
+ private:
+  std::vector<double> thinned_;
+  std::unique_ptr<KdTree> own_tree_;
+  std::optional<NormalEstimator> estimator_;
+};
+
+struct OrientedNormal {
+  Vec3 normal = Vec3::Constant(std::numeric_limits<double>::quiet_NaN());
+  double diameter = std::numeric_limits<double>::quiet_NaN();
+  double roughness = std::numeric_limits<double>::quiet_NaN();
+  PointStatus status = PointStatus::kOk;
+};
+
+OrientedNormal from_estimate(const NormalEstimate& e, const Vec3& core, const Orientation& o) {
+  if (e.status != PointStatus::kOk) return {e.normal, e.diameter, e.roughness, e.status};
+  return {detail::orient(e.normal, core, o), e.diameter, e.roughness, PointStatus::kOk};
+}
+
+/// Rescales `v` to unit length, or reports it unusable (zero, NaN or Inf).
+std::optional<Vec3> unit(const Vec3& v, double min_norm) {
+  const double n = v.norm();
+  if (!std::isfinite(n) || !(n > min_norm)) return std::nullopt;
+  return Vec3(v / n);
+}
+
+struct Scratch {
+  detail::NormalScratch normal;
+  detail::ProjectionScratch projection;
+  std::vector<double> t1, t2, work;
+};
+
+class Pipeline {
+ public:
+  Pipeline(PointsView reference, PointsView compared, const Params& params, const std::vector<double>& core_normals)
+      : params_(params), core_normals_(core_normals), reference_tree_(reference), compared_tree_(compared),
+        z_(detail::z_critical(params.confidence)) {
+    const NormalSource src = params.normal_source;
+    if (src == NormalSource::kReference || src == NormalSource::kMean || src == NormalSource::kHorizontal)
+      reference_normals_.emplace(reference, reference_tree_, params);
+    if (src == NormalSource::kCompared || src == NormalSource::kMean)
+      compared_normals_.emplace(compared, compared_tree_, params);
+  }
+
+  void run(const Vec3& core, std::size_t i, Result& r, Scratch& s) const {
+    const OrientedNormal n = normal_at(core, i, s);
+    for (int a = 0; a < 3; ++a) r.normal[3 * i + a] = n.normal(a);
+    r.normal_scale[i] = n.diameter;
+    r.roughness[i] = n.roughness;
+    r.status[i] = n.status;
+    if (n.status != PointStatus::kOk) {
+      r.normal[3 * i] = r.normal[3 * i + 1] = r.normal[3 * i + 2] = std::numeric_limits<double>::quiet_NaN();
+      return;
+    }
+    detail::project(reference_tree_, compared_tree_, core, n.normal, params_, s.projection, s.t1, s.t2);
+    measure(s, i, r);
+  }
+
+ private:
+  OrientedNormal normal_at(const Vec3& core, std::size_t i, Scratch& s) const {
+    const Orientation& o = params_.orientation;
+    switch (params_.normal_source) {
+      case NormalSource::kReference: return from_estimate(reference_normals_->estimate(core, s.normal), core, o);
+      case NormalSource::kCompared: return from_estimate(compared_normals_->estimate(core, s.normal), core, o);
+      case NormalSource::kMean: {
+        const OrientedNormal a = from_estimate(reference_normals_->estimate(core, s.normal), core, o);
+        if (a.status != PointStatus::kOk) return a;
+        const OrientedNormal b = from_estimate(compared_normals_->estimate(core, s.normal), core, o);
+        if (b.status != PointStatus::kOk) return {b.normal, a.diameter, a.roughness, b.status};
+        // Opposite normals (a surface that turned over) have no mean direction.
+        const auto mean = unit(a.normal + b.normal, 1e-6);
+        if (!mean) return {a.normal, a.diameter, a.roughness, PointStatus::kDegenerateNormal};
+        return {*mean, a.diameter, a.roughness, PointStatus::kOk};
+      }
+      case NormalSource::kHorizontal: {
+        const OrientedNormal a = from_estimate(reference_normals_->estimate(core, s.normal), core, o);
+        if (a.status != PointStatus::kOk) return a;
+        // A (near-)horizontal surface has no horizontal direction of its own.
+        const auto flat = unit(Vec3(a.normal.x(), a.normal.y(), 0.0), 1e-6);
+        if (!flat) return {a.normal, a.diameter, a.roughness, PointStatus::kDegenerateNormal};
+        const Vec3 oriented = o.points.empty() ? *flat : detail::orient(*flat, core, o);
+        return {oriented, a.diameter, a.roughness, PointStatus::kOk};
+      }
+      case NormalSource::kVertical: return {detail::orient(Vec3::UnitZ(), core, o), NAN, NAN, PointStatus::kOk};
+      case NormalSource::kCorePoints: {
+        const auto given = unit(Vec3(core_normals_[3 * i], core_normals_[3 * i + 1], core_normals_[3 * i + 2]), 0.0);
+        if (!given) return {Vec3::Constant(NAN), NAN, NAN, PointStatus::kDegenerateNormal};
+        return {*given, NAN, NAN, PointStatus::kOk};
+      }
+    }
+    return {};
+  }
+
+  void measure(Scratch& s, std::size_t i, Result& r) const {
+    const auto n1 = static_cast<std::uint32_t>(s.t1.size()), n2 = static_cast<std::uint32_t>(s.t2.size());
+    r.n1[i] = n1;
+    r.n2[i] = n2;
+    if (n1 == 0 || n2 == 0) {
+      r.status[i] = n1 == 0 ? PointStatus::kEmptyCylinder1 : PointStatus::kEmptyCylinder2;
+      return;
+    }
+    const detail::Spread a = detail::central_spread(s.t1, params_, s.work);
+    const detail::Spread b = detail::central_spread(s.t2, params_, s.work);
+    r.i1[i] = a.centre, r.i2[i] = b.centre, r.sigma1[i] = a.sigma, r.sigma2[i] = b.sigma;
+    r.distance[i] = b.centre - a.centre;
+    // Eq. (1) is not defined below two points per cloud whatever min_points says (5.2.1).
+    if (n1 < params_.min_points || n2 < params_.min_points || !std::isfinite(a.sigma) || !std::isfinite(b.sigma)) {
+      r.status[i] = PointStatus::kTooFewPointsForLod;
+      return;
+    }
+    if (params_.bootstrap_samples > 0) {
+      r.lod[i] = z_ * (detail::bootstrap_sigma(s.t1, s.t2, params_, i, s.work) + params_.registration_error);
+    } else {
+      const double critical = detail::critical_value(params_, z_, a.sigma, n1, b.sigma, n2);
+      r.lod[i] = detail::lod_parametric(critical, a.sigma, n1, b.sigma, n2, params_.registration_error);
+    }
+    r.significant[i] = std::abs(r.distance[i]) > r.lod[i];
+    r.status[i] = PointStatus::kOk;
+  }
+
+  const Params& params_;
+  const std::vector<double>& core_normals_;
+  KdTree reference_tree_, compared_tree_;
+  std::optional<NormalCloud> reference_normals_, compared_normals_;
+  double z_;
+};
+
+}  // namespace
+
+Result compute(PointsView reference, PointsView compared, PointsView core_points, const Params& params,
+               const RunOptions& run, const std::vector<double>& core_normals) {
+  detail::validate_params(params);
+  if (reference.empty()) throw InvalidArgument("the reference cloud is empty");
+  if (compared.empty()) throw InvalidArgument("the compared cloud is empty");
+  detail::require_finite_points("reference cloud", reference);
+  detail::require_finite_points("compared cloud", compared);
+  detail::require_finite_points("core points", core_points);
+  if (params.normal_source == NormalSource::kCorePoints && core_normals.size() != 3 * core_points.size())
+    throw InvalidArgument("core_normals must hold 3 values per core point (" + std::to_string(3 * core_points.size()) +
+                          "), got " + std::to_string(core_normals.size()));
+
+  const Pipeline pipeline(reference, compared, params, core_normals);
+  Result result;
+  result.resize(core_points.size());
+  detail::parallel_blocks<Scratch>(core_points.size(), run, [&](std::size_t begin, std::size_t end, Scratch& s) {
+    for (std::size_t i = begin; i < end; ++i) pipeline.run(core_points[i], i, result, s);
+  });
+  return result;
+}
+
+NormalsResult compute_normals(PointsView cloud, PointsView core_points, const Params& params, const RunOptions& run) {
+  detail::validate_normal_params(params);
+  if (cloud.empty()) throw InvalidArgument("the cloud is empty");
+  detail::require_finite_points("cloud", cloud);
+  detail::require_finite_points("core points", core_points);
+  const KdTree tree(cloud);
+  const NormalCloud normals(cloud, tree, params);
+  NormalsResult out;
+  out.resize(core_points.size());
+  detail::parallel_blocks<detail::NormalScratch>(
+      core_points.size(), run, [&](std::size_t begin, std::size_t end, detail::NormalScratch& s) {
+        for (std::size_t i = begin; i < end; ++i) {
+          const Vec3 core = core_points[i];
+          const NormalEstimate e = normals.estimate(core, s);
+          out.status[i] = e.status;
+          out.count[i] = e.count;
+          if (e.status != PointStatus::kOk) continue;
+          const Vec3 n = detail::orient(e.normal, core, params.orientation);
+          for (int a = 0; a < 3; ++a) out.normal[3 * i + a] = n(a);
+          out.normal_scale[i] = e.diameter;
+          out.roughness[i] = e.roughness;
+        }
+      });
+  return out;
+}
+
+std::vector<double> roughness_by_scale(PointsView cloud, PointsView core_points, const std::vector<double>& diameters,
+                                       Variance variance, std::uint32_t min_points, const RunOptions& run) {
+  Params check;
+  check.normal_diameters = diameters;
+  detail::validate_normal_params(check);
+  if (min_points < 3) throw InvalidArgument("min_points must be >= 3 for a plane fit, got " + std::to_string(min_points));
+  detail::require_finite_points("cloud", cloud);
+  detail::require_finite_points("core points", core_points);
+  std::vector<std::size_t> order(diameters.size());
+  for (std::size_t k = 0; k < order.size(); ++k) order[k] = k;
+  std::sort(order.begin(), order.end(), [&](auto a, auto b) { return diameters[a] < diameters[b]; });
+  std::vector<double> radii;
+  for (const std::size_t k : order) radii.push_back(0.5 * diameters[k]);
+
+  const KdTree tree(cloud);
+  const std::size_t scales = diameters.size();
+  std::vector<double> out(core_points.size() * scales, std::numeric_limits<double>::quiet_NaN());
+  detail::parallel_blocks<detail::NormalScratch>(
+      core_points.size(), run, [&](std::size_t begin, std::size_t end, detail::NormalScratch& s) {
+        for (std::size_t i = begin; i < end; ++i) {
+          detail::moments_by_scale(tree, core_points[i], radii, s);
+          for (std::size_t k = 0; k < scales; ++k) {
+            const auto& m = s.moments[k];
+            if (m.count < min_points) continue;
+            const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> solver(m.comoment, Eigen::EigenvaluesOnly);
+            out[i * scales + order[k]] = detail::plane_roughness(solver.eigenvalues()(0), m.count, variance);
+          }
+        }
+      });
+  return out;
+}
+
+}  // namespace m3c2

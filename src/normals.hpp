@@ -1,0 +1,63 @@
+#pragma once
+// Normals by PCA of the neighbours within a sphere of diameter D (sections 3.1.2 and 3.2).
+
+#include "kdtree.hpp"
+
+#include <m3c2/params.hpp>
+#include <m3c2/result.hpp>
+
+#include <Eigen/Core>
+
+#include <vector>
+
+namespace m3c2::detail {
+
+/// Neighbourhood moments at one scale: count and co-moment matrix sum (v - mean)(v - mean)^T of
+/// the neighbours' offsets v from the core point.
+struct ScaleMoments {
+  std::uint32_t count = 0;
+  Eigen::Matrix3d comoment = Eigen::Matrix3d::Zero();
+};
+
+struct NormalScratch {
+  std::vector<std::uint32_t> indices;
+  std::vector<std::pair<double, std::uint32_t>> by_distance;
+  std::vector<ScaleMoments> moments;
+};
+
+/// Moments at every radius of `radii_ascending` from ONE ball query at the largest radius: the
+/// neighbours are ordered by (squared distance, index) and accumulated with Welford's update,
+/// and the running moments are copied out as each radius is passed. A scale therefore sees
+/// exactly its own neighbours (never another scale's) and the result does not depend on how the
+/// tree orders its output. Neighbour j is within radius r iff squared_distance <= r^2.
+void moments_by_scale(const KdTree& tree, const Vec3& core, const std::vector<double>& radii_ascending,
+                      NormalScratch& scratch);
+
+struct NormalEstimate {
+  Vec3 normal = Vec3::Constant(std::numeric_limits<double>::quiet_NaN());  ///< unit, not oriented
+  double diameter = std::numeric_limits<double>::quiet_NaN();
+  double roughness = std::numeric_limits<double>::quiet_NaN();
+  std::uint32_t count = 0;
+  PointStatus status = PointStatus::kTooFewNormalPoints;
+};
+
+/// Estimates normals of one cloud with params.normal_diameters, choosing the scale by
+/// params.scale_selection when there are several. Immutable; estimate() is thread-safe.
+class NormalEstimator {
+ public:
+  NormalEstimator(const KdTree& tree, const Params& params);
+  NormalEstimate estimate(const Vec3& core, NormalScratch& scratch) const;
+
+ private:
+  const KdTree& tree_;
+  std::vector<double> diameters_;  // ascending, unique
+  std::vector<double> radii_;
+  std::uint32_t min_points_;
+  ScaleSelection selection_;
+  Variance variance_;
+};
+
+/// Roughness sqrt(lambda3) of the co-moment divided by n - 1 (kSample) or n (kPopulation).
+double plane_roughness(double smallest_eigenvalue_of_comoment, std::uint32_t n, Variance variance);
+
+}  // namespace m3c2::detail

@@ -1,0 +1,29 @@
+#pragma once
+// Step 2 of the algorithm (section 3.1.3): the two clouds' offsets along the normal.
+
+#include "cylinder.hpp"
+
+#include <m3c2/params.hpp>
+
+#include <vector>
+
+namespace m3c2::detail {
+
+struct ProjectionScratch {
+  CylinderScratch cylinder;
+  std::vector<double> full, work;
+};
+
+/// Offsets of both clouds in the cylinder at `core` along `normal`, with the depth search of
+/// params.depth_search:
+/// - kSinglePass: half-length max_depth.
+/// - kTwoPass (5.3): half-length first_pass_depth; the full max_depth only when that short
+///   cylinder held no point of one of the clouds (the core point "could not be projected").
+/// - kProgressive (CloudCompare): per cloud, the half-length grows by d/2 up to max_depth and
+///   stops at the first length h where the cloud has >= min_points points and
+///   |i| + 2 sigma < h; the offsets of that truncated cylinder are kept.
+void project(const KdTree& reference, const KdTree& compared, const Vec3& core, const Vec3& normal,
+             const Params& params, ProjectionScratch& scratch, std::vector<double>& t1,
+             std::vector<double>& t2);
+
+}  // namespace m3c2::detail

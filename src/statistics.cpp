@@ -1,0 +1,47 @@
+#include "statistics.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+
+namespace m3c2::detail {
+namespace {
+constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
+}
+
+Spread mean_and_sigma(std::span<const double> values, Variance variance) {
+  const std::size_t n = values.size();
+  if (n == 0) return {kNaN, kNaN};
+  double sum = 0.0;
+  for (const double v : values) sum += v;
+  const double mean = sum / double(n);
+  double ss = 0.0;
+  for (const double v : values) ss += (v - mean) * (v - mean);
+  const double denom = variance == Variance::kSample ? double(n) - 1.0 : double(n);
+  const double sigma = denom > 0.0 ? std::sqrt(ss / denom) : kNaN;
+  return {mean, sigma};
+}
+
+double sorted_quantile(std::span<const double> sorted, double q) {
+  const double h = (double(sorted.size()) - 1.0) * q;
+  const auto lo = static_cast<std::size_t>(std::floor(h));
+  if (lo + 1 >= sorted.size()) return sorted[sorted.size() - 1];
+  return sorted[lo] + (h - double(lo)) * (sorted[lo + 1] - sorted[lo]);
+}
+
+Spread median_and_sigma(std::span<const double> values, std::vector<double>& work) {
+  if (values.empty()) return {kNaN, kNaN};
+  work.assign(values.begin(), values.end());
+  std::sort(work.begin(), work.end());
+  const double median = sorted_quantile(work, 0.5);
+  if (work.size() < 2) return {median, kNaN};
+  const double iqr = sorted_quantile(work, 0.75) - sorted_quantile(work, 0.25);
+  return {median, iqr / kIqrToSigma};
+}
+
+Spread central_spread(std::span<const double> values, const Params& params, std::vector<double>& work) {
+  return params.statistic == Statistic::kMedian ? median_and_sigma(values, work)
+                                                : mean_and_sigma(values, params.variance);
+}
+
+}  // namespace m3c2::detail
