@@ -146,7 +146,8 @@ class Pipeline {
     r.i1[i] = a.centre, r.i2[i] = b.centre, r.sigma1[i] = a.sigma, r.sigma2[i] = b.sigma;
     r.distance[i] = b.centre - a.centre;
     // Eq. (1) is not defined below two points per cloud whatever min_points says (5.2.1).
-    if (n1 < params_.min_points || n2 < params_.min_points || !std::isfinite(a.sigma) || !std::isfinite(b.sigma)) {
+    if (n1 < std::max(params_.min_points, 2u) || n2 < std::max(params_.min_points, 2u) || !std::isfinite(a.sigma) ||
+        !std::isfinite(b.sigma)) {
       r.status[i] = PointStatus::kTooFewPointsForLod;
       return;
     }

@@ -13,7 +13,7 @@ double z_critical(double confidence);
 /// Two-tailed Student t critical value with (possibly fractional) degrees of freedom.
 double t_critical(double confidence, double dof);
 
-/// Welch-Satterthwaite degrees of freedom, the second eq. (1) of section 3.3.
+/// Welch-Satterthwaite degrees of freedom, eq. (2) of section 3.3.
 double welch_dof(double sigma1, std::uint32_t n1, double sigma2, std::uint32_t n2);
 
 /// The critical value eq. (1) multiplies: z, or Welch's t when requested and n1 or n2 < 30.

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 
 namespace m3c2::detail {
 
@@ -13,8 +14,12 @@ void cylinder_offsets(const KdTree& tree, const Cylinder& cyl, CylinderScratch& 
   const double r2 = cyl.radius * cyl.radius;
   const auto segments = static_cast<std::size_t>(std::max(1.0, std::ceil(length / (2.0 * cyl.radius))));
   const double seg_len = length / double(segments);
-  // Inflated so that rounding in the ball test can never drop a point the cylinder test keeps.
-  const double ball_r = std::sqrt(r2 + 0.25 * seg_len * seg_len) * (1.0 + 1e-9) + 1e-12;
+  // Inflated so that rounding can never drop a point the cylinder test keeps: the relative term
+  // covers the ball test, the absolute one the rounding of the segment centre core + m n, which
+  // is an absolute coordinate (about 1e-9 at a UTM northing of 5e6).
+  const double magnitude = cyl.core.cwiseAbs().maxCoeff();
+  const double centre_rounding = 8.0 * std::numeric_limits<double>::epsilon() * magnitude;
+  const double ball_r = std::sqrt(r2 + 0.25 * seg_len * seg_len) * (1.0 + 1e-9) + centre_rounding + 1e-12;
   const PointsView pts = tree.points();
 
   for (std::size_t s = 0; s < segments; ++s) {

@@ -19,9 +19,9 @@ struct ProjectionScratch {
 /// - kSinglePass: half-length max_depth.
 /// - kTwoPass (5.3): half-length first_pass_depth; the full max_depth only when that short
 ///   cylinder held no point of one of the clouds (the core point "could not be projected").
-/// - kProgressive (CloudCompare): per cloud, the half-length grows by d/2 up to max_depth and
-///   stops at the first length h where the cloud has >= min_points points and
-///   |i| + 2 sigma < h; the offsets of that truncated cylinder are kept.
+/// - kProgressive (CloudCompare): for each cloud on its own, the half-length grows by d/2 up to
+///   max_depth; at each length that added points, the search stops if the cloud has
+///   >= min_points points and |i| + 2 sigma < h; the offsets of that truncated cylinder are kept.
 void project(const KdTree& reference, const KdTree& compared, const Vec3& core, const Vec3& normal,
              const Params& params, ProjectionScratch& scratch, std::vector<double>& t1,
              std::vector<double>& t2);

@@ -31,11 +31,14 @@ std::vector<std::uint64_t> subsample_min_spacing(PointsView points, double min_s
   std::vector<std::uint64_t> kept;
   const Vec3 origin = points.empty() ? Vec3::Zero() : points[0];
   const double s2 = min_spacing * min_spacing;
+  // A hair larger than the spacing: rounding of (p - origin) / cell can then never put two points
+  // closer than the spacing more than one cell apart.
+  const double cell = min_spacing * (1.0 + 1e-9);
   for (std::uint64_t i = 0; i < points.size(); ++i) {
     const Vec3 p = points[i];
-    const CellKey key{std::int64_t(std::floor((p.x() - origin.x()) / min_spacing)),
-                      std::int64_t(std::floor((p.y() - origin.y()) / min_spacing)),
-                      std::int64_t(std::floor((p.z() - origin.z()) / min_spacing))};
+    const CellKey key{std::int64_t(std::floor((p.x() - origin.x()) / cell)),
+                      std::int64_t(std::floor((p.y() - origin.y()) / cell)),
+                      std::int64_t(std::floor((p.z() - origin.z()) / cell))};
     bool too_close = false;
     for (std::int64_t dx = -1; dx <= 1 && !too_close; ++dx)
       for (std::int64_t dy = -1; dy <= 1 && !too_close; ++dy)

@@ -40,20 +40,24 @@ void validate_normal_params(const Params& p) {
   if (p.min_points_normal < 3) fail("min_points_normal", ">= 3 (a plane needs 3 points)", p.min_points_normal);
   if (p.normal_subsample_spacing < 0.0 || !std::isfinite(p.normal_subsample_spacing))
     fail("normal_subsample_spacing", "finite and >= 0", p.normal_subsample_spacing);
-  for (const double c : p.orientation.direction)
+  validate_orientation(p.orientation);
+}
+
+void validate_orientation(const Orientation& o) {
+  for (const double c : o.direction)
     if (!std::isfinite(c)) fail("orientation direction", "finite", c);
-  const auto& d = p.orientation.direction;
+  const auto& d = o.direction;
   if (d[0] == 0.0 && d[1] == 0.0 && d[2] == 0.0)
     throw InvalidArgument("orientation direction must not be the zero vector");
-  if (p.orientation.points.size() % 3 != 0)
-    throw InvalidArgument("orientation points must hold 3 coordinates per point");
-  for (const double c : p.orientation.points)
+  if (o.points.size() % 3 != 0) throw InvalidArgument("orientation points must hold 3 coordinates per point");
+  for (const double c : o.points)
     if (!std::isfinite(c)) fail("orientation point coordinate", "finite", c);
 }
 
 void validate_params(const Params& p) {
   const bool imposed = p.normal_source == NormalSource::kVertical || p.normal_source == NormalSource::kCorePoints;
   if (!imposed || !p.normal_diameters.empty()) validate_normal_params(p);
+  validate_orientation(p.orientation);
   require_positive("projection diameter d", p.projection_diameter);
   require_positive("max_depth", p.max_depth);
   if (p.depth_search == DepthSearch::kTwoPass) {

@@ -11,6 +11,7 @@ namespace m3c2::detail {
 void require_positive(std::string_view name, double value);
 void require_finite_points(std::string_view name, PointsView points);
 void validate_normal_params(const Params& params);
+void validate_orientation(const Orientation& orientation);
 void validate_params(const Params& params);
 
 }  // namespace m3c2::detail

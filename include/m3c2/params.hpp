@@ -30,7 +30,7 @@ enum class Variance : std::uint8_t { kSample, kPopulation };
 enum class DepthSearch : std::uint8_t {
   kSinglePass,   ///< one cylinder of half-length max_depth
   kTwoPass,      ///< half-length first_pass_depth first; max_depth where that found no point in a cloud
-  kProgressive,  ///< CloudCompare's: grow by d/2 per pass until |i| + 2 sigma fits in both clouds
+  kProgressive,  ///< CloudCompare's: per cloud, grow by d/2 per pass until |i| + 2 sigma < half-length
 };
 
 /// Scale selection rule of multi-scale normals (section 3.2).
