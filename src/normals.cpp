@@ -39,6 +39,20 @@ double planarity_cost(const Eigen::Vector3d& ascending, ScaleSelection selection
   return -(2.0 * (l1 * l1 / sum2) + 4.0 * (l2 * l2 / sum2) - 2.0);
 }
 
+/// Sorts point indices ascending: 11-bit digits, as many passes as the largest index needs.
+void radix_sort(std::vector<std::uint32_t>& keys, std::vector<std::uint32_t>& buffer) {
+  std::uint32_t largest = 0;
+  for (const std::uint32_t k : keys) largest = std::max(largest, k);
+  buffer.resize(keys.size());
+  for (int shift = 0; shift < 32 && (largest >> shift) != 0; shift += 11) {
+    std::uint32_t count[2049] = {};
+    for (const std::uint32_t k : keys) ++count[((k >> shift) & 2047u) + 1];
+    for (int b = 0; b < 2048; ++b) count[b + 1] += count[b];
+    for (const std::uint32_t k : keys) buffer[count[(k >> shift) & 2047u]++] = k;
+    keys.swap(buffer);
+  }
+}
+
 }  // namespace
 
 double plane_roughness(double smallest_eigenvalue_of_comoment, std::uint32_t n, Variance variance) {
@@ -50,31 +64,46 @@ void moments_by_scale(const KdTree& tree, const Vec3& core, const std::vector<do
                       NormalScratch& s) {
   s.indices.clear();
   tree.ball(core, radii_ascending.back(), s.indices);
+  radix_sort(s.indices, s.sort_buffer);
   const PointsView pts = tree.points();
-  s.by_distance.clear();
-  for (const std::uint32_t i : s.indices) s.by_distance.emplace_back(squared_distance(pts, i, core), i);
-  std::sort(s.by_distance.begin(), s.by_distance.end());
+  const std::size_t shells = radii_ascending.size();
 
-  s.moments.assign(radii_ascending.size(), ScaleMoments{});
-  std::size_t scale = 0;
-  std::uint32_t n = 0;
-  Vec3 mean = Vec3::Zero();
-  Eigen::Matrix3d comoment = Eigen::Matrix3d::Zero();
-  auto close_scales_below = [&](double d2) {
-    while (scale < radii_ascending.size() && d2 > radii_ascending[scale] * radii_ascending[scale])
-      s.moments[scale++] = {n, comoment};
-  };
-  for (const auto& [d2, i] : s.by_distance) {
-    close_scales_below(d2);
+  s.offsets.resize(s.indices.size());
+  s.shell.resize(s.indices.size());
+  s.shell_sum.assign(shells, Vec3::Zero());
+  s.moments.assign(shells, ScaleMoments{});
+  for (std::size_t j = 0; j < s.indices.size(); ++j) {
+    const std::uint32_t i = s.indices[j];
     const Vec3 v(pts.coord(i, 0) - core.x(), pts.coord(i, 1) - core.y(), pts.coord(i, 2) - core.z());
-    ++n;
-    const Vec3 delta = v - mean;
-    mean += delta / double(n);
-    const Vec3 after = v - mean;
-    for (int a = 0; a < 3; ++a)
-      for (int b = a; b < 3; ++b) comoment(a, b) += delta(a) * after(b);
+    const double d2 = v.x() * v.x() + v.y() * v.y() + v.z() * v.z();
+    std::size_t k = 0;
+    while (d2 > radii_ascending[k] * radii_ascending[k]) ++k;  // the ball query bounds k < shells
+    s.offsets[j] = v;
+    s.shell[j] = static_cast<std::uint16_t>(k);
+    s.shell_sum[k] += v;
+    ++s.moments[k].count;
   }
-  close_scales_below(std::numeric_limits<double>::infinity());
+  for (std::size_t k = 0; k < shells; ++k)
+    if (s.moments[k].count) s.shell_sum[k] /= double(s.moments[k].count);  // now the shell's mean
+  for (std::size_t j = 0; j < s.offsets.size(); ++j) {
+    const Vec3 d = s.offsets[j] - s.shell_sum[s.shell[j]];
+    Eigen::Matrix3d& m = s.moments[s.shell[j]].comoment;
+    m(0, 0) += d.x() * d.x(), m(0, 1) += d.x() * d.y(), m(0, 2) += d.x() * d.z();
+    m(1, 1) += d.y() * d.y(), m(1, 2) += d.y() * d.z(), m(2, 2) += d.z() * d.z();
+  }
+  // Cumulative merge, inside out: moments[k] becomes that of the whole ball of radius k.
+  Vec3 mean = s.shell_sum[0];
+  for (std::size_t k = 1; k < shells; ++k) {
+    const double na = s.moments[k - 1].count, nb = s.moments[k].count, n = na + nb;
+    if (nb > 0.0) {
+      const Vec3 delta = s.shell_sum[k] - mean;
+      s.moments[k].comoment += s.moments[k - 1].comoment + (na * nb / n) * (delta * delta.transpose());
+      mean += delta * (nb / n);
+    } else {
+      s.moments[k].comoment = s.moments[k - 1].comoment;
+    }
+    s.moments[k].count += s.moments[k - 1].count;
+  }
   for (auto& m : s.moments) m.comoment = m.comoment.selfadjointView<Eigen::Upper>();
 }
 

@@ -20,16 +20,19 @@ struct ScaleMoments {
 };
 
 struct NormalScratch {
-  std::vector<std::uint32_t> indices;
-  std::vector<std::pair<double, std::uint32_t>> by_distance;
+  std::vector<std::uint32_t> indices, sort_buffer;
+  std::vector<Vec3> offsets;
+  std::vector<std::uint16_t> shell;
+  std::vector<Vec3> shell_sum;
   std::vector<ScaleMoments> moments;
 };
 
-/// Moments at every radius of `radii_ascending` from ONE ball query at the largest radius: the
-/// neighbours are ordered by (squared distance, index) and accumulated with Welford's update,
-/// and the running moments are copied out as each radius is passed. A scale therefore sees
-/// exactly its own neighbours (never another scale's) and the result does not depend on how the
-/// tree orders its output. Neighbour j is within radius r iff squared_distance <= r^2.
+/// Moments at every radius of `radii_ascending` from ONE ball query at the largest radius. Each
+/// neighbour belongs to the shell between two consecutive radii (j is within radius r iff
+/// squared_distance <= r^2); each shell's moments are taken in two passes about its own mean, in
+/// point-index order, and the shells are merged from the inside out with the exact pairwise
+/// update of Chan, Golub & LeVeque (1979). A scale therefore sees exactly its own neighbours
+/// (never another scale's), and the result does not depend on how the tree orders its output.
 void moments_by_scale(const KdTree& tree, const Vec3& core, const std::vector<double>& radii_ascending,
                       NormalScratch& scratch);
 

@@ -124,6 +124,8 @@ def compare_settings(args) -> dict:
         value = getattr(args, name, None)
         if value is not None:
             settings[name] = value
+    if args.core is not None:
+        settings.pop("core_spacing", None)  # as CloudCompare: given core points win over subsampling
     if "proj_dest" in settings:
         settings.setdefault("position", settings.pop("proj_dest"))
     for required, flag in (("projection_scale", "--projection-scale"), ("max_depth", "--max-depth")):

@@ -26,13 +26,13 @@ import re
 import stat
 
 from m3c2.errors import UsageError
+from m3c2.options import scale_range
 
 __all__ = ["read_cloudcompare_params"]
 
 _log = logging.getLogger(__name__)
 
 _MAX_BYTES = 1 << 20  # a real parameter file is under 1 KiB
-_MAX_SCALES = 1000  # multi-scale mode: more than this is a typo in NormalStep, not a plan
 _DEFAULT_MIN_POINTS = 5  # what qM3C2 uses when UseMinPoints4Stat is false
 
 _FLOAT_RE = re.compile(r"[+-]?(?:\d+\.?\d*|\.\d+)(?:[eE][+-]?\d+)?", re.ASCII)
@@ -202,19 +202,10 @@ def read_cloudcompare_params(path: str | os.PathLike) -> dict[str, object]:
 
 
 def _multi_scales(fail, low: float, step: float, high: float) -> list[float]:
-    if high < low:
-        raise fail(f"NormalMaxScale={high!r} must be >= NormalMinScale={low!r}")
-    limit = high + 1e-9 * high
-    count = math.floor((limit - low) / step) + 1
-    if count > _MAX_SCALES:
-        raise fail(
-            f"NormalStep={step!r} gives {count} normal scales from {low!r} to {high!r} "
-            f"(at most {_MAX_SCALES})"
-        )
-    # Each scale is low + k*step, not a running sum.  qM3C2 accumulates (scale += step) and
-    # stops at scale <= max, so rounding can silently drop the largest scale (0.1, 0.2, 0.3
-    # gives only two); the 1e-9 relative slack keeps it, which is deliberate.
-    return [s for s in (low + k * step for k in range(count + 1)) if s <= limit]
+    try:
+        return scale_range(low, high, step)
+    except ValueError as e:
+        raise fail(f"NormalMinScale/NormalStep/NormalMaxScale: {e}") from None
 
 
 def _read_general_section(name: str, path: str | os.PathLike) -> dict[str, str]:

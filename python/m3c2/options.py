@@ -38,13 +38,21 @@ def non_negative(name: str, value) -> float:
     return v
 
 
+MAX_SCALES = 1000
+
+
 def scale_range(minimum: float, maximum: float, step: float) -> list[float]:
-    """Diameters minimum, minimum + step, ... up to maximum INCLUDED (each computed as
-    minimum + k * step, so rounding can never drop the largest scale, unlike an accumulating loop)."""
+    """Diameters minimum, minimum + step, ... up to maximum INCLUDED. Each is minimum + k * step,
+    not a running sum, and maximum gets a 1e-9 relative slack: CloudCompare accumulates
+    (scale += step) and so can silently drop its largest scale (0.1:0.3:0.1 gives two there).
+    Raises ValueError for an empty or oversized range."""
     if maximum < minimum:
-        raise UsageError(f"--normal-scale range: MAX ({maximum}) is below MIN ({minimum})")
-    count = int(math.floor((maximum - minimum) / step * (1 + 1e-12) + 1e-9)) + 1
-    return [minimum + k * step for k in range(count)]
+        raise ValueError(f"the largest scale {maximum!r} is below the smallest {minimum!r}")
+    limit = maximum + 1e-9 * maximum
+    count = math.floor((limit - minimum) / step) + 1
+    if count > MAX_SCALES:
+        raise ValueError(f"step {step!r} gives {count} scales from {minimum!r} to {maximum!r} (at most {MAX_SCALES})")
+    return [s for s in (minimum + k * step for k in range(count + 1)) if s <= limit]
 
 
 def normal_scales(spec) -> list[float]:
@@ -59,7 +67,10 @@ def normal_scales(spec) -> list[float]:
             if len(parts) != 3:
                 raise UsageError(f"{name} range must be MIN:MAX:STEP, got {spec!r}")
             lo, hi, step = (positive(name, p) for p in parts)
-            return scale_range(lo, hi, step)
+            try:
+                return scale_range(lo, hi, step)
+            except ValueError as e:
+                raise UsageError(f"{name} range {spec!r}: {e}") from None
         return [positive(name, p) for p in text.split(",") if p.strip()] or _empty(name)
     if isinstance(spec, Sequence) or isinstance(spec, np.ndarray):
         return [positive(name, p) for p in spec] or _empty(name)

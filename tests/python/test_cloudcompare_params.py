@@ -354,7 +354,7 @@ def test_multi_scale_ignores_normal_scale_value(tmp_path):
 
 
 def test_multi_scale_rejects_max_below_min(tmp_path):
-    rejects(tmp_path, "NormalMaxScale=1.0 must be >= NormalMinScale=2.0", NormalMode="2",
+    rejects(tmp_path, "NormalMinScale/NormalStep/NormalMaxScale: the largest scale 1.0 is below the smallest 2.0", NormalMode="2",
             NormalMinScale="2", NormalStep="1", NormalMaxScale="1")
 
 
@@ -372,7 +372,7 @@ def test_multi_scale_requires_its_keys(tmp_path, key):
 
 
 def test_multi_scale_rejects_absurd_scale_count(tmp_path):
-    rejects(tmp_path, "NormalStep=1e-12 gives", NormalMode="2", NormalMinScale="1",
+    rejects(tmp_path, "step 1e-12 gives", NormalMode="2", NormalMinScale="1",
             NormalStep="1e-12", NormalMaxScale="2")
 
 
