@@ -1,0 +1,129 @@
+"""Reading, describing and writing point-cloud files, dispatched on the file extension."""
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import CloudReadError, CloudWriteError, UsageError
+from .cloud import Cloud
+from .registry import SUPPORTED_READ, SUPPORTED_WRITE, extension_of, format_for, sniff
+
+__all__ = ["read_cloud", "write_cloud_table", "info"]
+
+
+def _open_checked(path: Path, columns) -> Cloud:
+    """Checks that `path` is a readable, non-empty file whose content matches its extension,
+    then reads it with the extension's reader. Clouds may be empty or hold non-finite points."""
+    if not path.exists():
+        raise CloudReadError(f"{path}: no such file")
+    if path.is_dir():
+        raise CloudReadError(f"{path}: is a directory, not a point-cloud file")
+    fmt = format_for(path)
+    if fmt is None:
+        raise CloudReadError(f"{path}: unknown point-cloud file extension {extension_of(path)!r} "
+                             f"(supported: {' '.join(SUPPORTED_READ)})")
+    try:
+        with open(path, "rb") as f:
+            head = f.read(16)
+    except OSError as e:
+        raise CloudReadError(f"{path}: cannot open: {e.strerror or e}") from None
+    if not head:
+        raise CloudReadError(f"{path}: is empty (0 bytes)")
+    found = sniff(head)
+    if found is not None and found != fmt.name:
+        raise CloudReadError(f"{path}: the content is {found}, not {fmt.name} as the extension "
+                             f"{extension_of(path)!r} says")
+    if columns is not None:
+        if not fmt.takes_columns:
+            raise UsageError(f"{path}: column selection applies to text files only")
+        return fmt.read(path, columns=columns)
+    return fmt.read(path)
+
+
+def read_cloud(path: str | os.PathLike, *, columns: tuple[int, int, int] | None = None,
+               drop_nonfinite: bool = False) -> Cloud:
+    """Reads any supported point-cloud file (see ``SUPPORTED_READ``) into a :class:`Cloud`.
+
+    `columns` (text files only) picks the 0-based x, y, z columns. Points with a NaN or
+    infinite coordinate make this raise, unless `drop_nonfinite`, which drops them and records
+    how many in ``cloud.dropped_nonfinite``.
+
+    Raises CloudReadError (message ``"{path}: {problem}"``) for a missing, empty, unreadable,
+    unknown, mismatched, corrupt or truncated file, and for a file without points; UsageError
+    for a bad `columns`.
+    """
+    path = Path(path)
+    cloud = _open_checked(path, columns)
+    if len(cloud) == 0:
+        raise CloudReadError(f"{path}: contains no points")
+    finite = np.isfinite(cloud.xyz).all(axis=1)
+    bad = int(len(finite) - np.count_nonzero(finite))
+    if bad:
+        if not drop_nonfinite:
+            raise CloudReadError(f"{path}: {bad} of {len(cloud)} points have non-finite (NaN or "
+                                 f"infinite) coordinates; use --drop-nonfinite to drop them")
+        if bad == len(cloud):
+            raise CloudReadError(f"{path}: contains no points with finite coordinates "
+                                 f"({bad} non-finite)")
+        cloud = cloud.select(finite)
+        cloud.dropped_nonfinite = bad
+    return cloud
+
+
+def info(path: str | os.PathLike) -> dict:
+    """A summary of a point-cloud file, read in full (header bounds are not trusted: some
+    writers get them wrong).
+
+    Keys: ``path``, ``format``, ``version`` (LAS, else None), ``point_format`` (LAS, else None),
+    ``point_count``, ``nonfinite_count``, ``bounds`` (``{"min": [x, y, z], "max": [x, y, z]}``
+    over the finite points, None if there are none), ``crs``, ``units_hint``, ``fields``
+    (names), ``scale`` and ``offset`` (LAS, else None), ``scan_count`` (E57, else None).
+    Unlike :func:`read_cloud`, a file without points is described, not rejected.
+    """
+    path = Path(path)
+    cloud = _open_checked(path, None)
+    finite = np.isfinite(cloud.xyz).all(axis=1)
+    points = cloud.xyz[finite]
+    bounds = None
+    if len(points):
+        bounds = {"min": points.min(axis=0).tolist(), "max": points.max(axis=0).tolist()}
+    return {
+        "path": str(path),
+        "format": cloud.format,
+        "version": cloud.meta.get("version"),
+        "point_format": cloud.meta.get("point_format"),
+        "point_count": len(cloud),
+        "nonfinite_count": int(len(finite) - np.count_nonzero(finite)),
+        "bounds": bounds,
+        "crs": cloud.crs,
+        "units_hint": cloud.units_hint,
+        "fields": list(cloud.fields),
+        "scale": list(cloud.scale) if cloud.scale is not None else None,
+        "offset": list(cloud.offset) if cloud.offset is not None else None,
+        "scan_count": cloud.meta.get("scan_count"),
+    }
+
+
+def write_cloud_table(path: str | os.PathLike, xyz: np.ndarray, fields: dict[str, np.ndarray], *,
+                      like: Cloud | None = None) -> None:
+    """Writes points and per-point columns to `path`, format chosen by extension
+    (``SUPPORTED_WRITE``), atomically: on any error nothing is left at `path`.
+
+    `xyz` is (N, 3); every field is 1-D of length N. `like` (typically the cloud the points came
+    from) supplies the LAS scale, offset and CRS. Raises CloudWriteError
+    (``"{path}: {problem}"``).
+    """
+    xyz = np.asarray(xyz, dtype=np.float64)
+    if xyz.ndim != 2 or xyz.shape[1] != 3:
+        raise CloudWriteError(f"{path}: points must have shape (N, 3), got {xyz.shape}")
+    fields = {str(name): np.asarray(values) for name, values in fields.items()}
+    for name, values in fields.items():
+        if values.shape != (len(xyz),):
+            raise CloudWriteError(f"{path}: field {name!r} has shape {values.shape}, expected ({len(xyz)},)")
+    fmt = format_for(Path(path), writing=True)
+    if fmt is None or fmt.write is None:
+        raise CloudWriteError(f"{path}: cannot write {extension_of(Path(path))!r} files "
+                              f"(supported: {' '.join(SUPPORTED_WRITE)})")
+    fmt.write(Path(path), xyz, fields, like)

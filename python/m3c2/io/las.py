@@ -1,0 +1,222 @@
+"""LAS / LAZ / COPC reading and LAS / LAZ writing through laspy (lazrs backend for LAZ).
+
+Reading: every LAS 1.0-1.4 point format; coordinates are the scaled doubles (laspy's
+``las.x/y/z``); every other dimension becomes a field (array-valued extra bytes are split into
+``name_0, name_1, ...``). COPC files are read whole, as plain LAZ.
+
+Writing: LAS 1.4, point format 6 (7 when the fields hold red, green and blue). A field whose
+name is a standard dimension of that format goes into it (its values must fit exactly);
+every other field becomes an extra-bytes dimension, uint8/bool as uint8, the rest float64.
+"""
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import laspy
+import numpy as np
+
+from ..errors import CloudReadError, CloudWriteError
+from .atomic import atomic_output
+from .cloud import Cloud
+from .crs import geokey_crs, geokey_units, looks_like_wkt, wkt_units
+from .guard import read_errors, write_errors
+from .las_header import check_las_file
+
+__all__ = ["read", "write"]
+
+_PROJECTION_USER = "LASF_Projection"
+_WKT_RECORD = 2112
+_GEOTIFF_RECORDS = (34735, 34736, 34737)
+_DEFAULT_SCALE = 0.001
+_INT32 = (-(2**31), 2**31 - 1)
+
+
+def read(path: Path) -> Cloud:
+    """Reads a .las/.laz/.copc.laz file; see the module docstring for what is kept."""
+    with read_errors(path):
+        layout = check_las_file(path)
+        with laspy.open(path) as reader:
+            header = reader.header
+            las = reader.read()
+    n = len(las.points)
+    if n != header.point_count:
+        raise CloudReadError(f"{path}: truncated or corrupt: the header declares {header.point_count} "
+                             f"points but {n} could be read")
+    xyz = np.empty((n, 3), dtype=np.float64)
+    xyz[:, 0], xyz[:, 1], xyz[:, 2] = las.x, las.y, las.z
+    crs, units, crs_vlrs = _read_crs(header)
+    fmt = "COPC" if layout.copc else ("LAZ" if layout.compressed else "LAS")
+    return Cloud(xyz, _fields(las), crs=crs, scale=tuple(map(float, header.scales)),
+                 offset=tuple(map(float, header.offsets)), path=Path(path), units_hint=units, format=fmt,
+                 meta={"version": f"{header.version.major}.{header.version.minor}",
+                       "point_format": int(header.point_format.id)},
+                 _crs_vlrs=crs_vlrs)
+
+
+def _fields(las: laspy.LasData) -> dict[str, np.ndarray]:
+    fields: dict[str, np.ndarray] = {}
+    for name in las.point_format.dimension_names:
+        if name in ("X", "Y", "Z"):
+            continue
+        values = np.asarray(las[name])
+        if values.ndim == 1:
+            fields[name] = values
+        else:
+            for k in range(values.shape[1]):
+                fields[f"{name}_{k}"] = np.ascontiguousarray(values[:, k])
+    return fields
+
+
+def _vlr_bytes(vlr) -> bytes:
+    if hasattr(vlr, "record_data_bytes"):
+        return bytes(vlr.record_data_bytes())
+    return bytes(vlr.record_data)
+
+
+def _read_crs(header: laspy.LasHeader) -> tuple[str | None, str | None, tuple]:
+    """(crs, units_hint, raw LASF_Projection VLRs) of a LAS header."""
+    records = list(header.vlrs) + list(header.evlrs or [])
+    raw = tuple((v.user_id, v.record_id, v.description, _vlr_bytes(v)) for v in records
+                if v.user_id == _PROJECTION_USER and v.record_id in (_WKT_RECORD, *_GEOTIFF_RECORDS))
+    wkt = _pyproj_wkt(header)
+    if wkt is None:
+        # LASF_Projection 2112 is the standard WKT record; libLAS wrote the same text under its
+        # own user id, so that is the fallback.
+        for user in (_PROJECTION_USER, "liblas"):
+            for v in records:
+                if v.user_id == user and v.record_id == _WKT_RECORD:
+                    text = _vlr_bytes(v).split(b"\0", 1)[0].decode("utf-8", "replace").strip()
+                    if looks_like_wkt(text):
+                        wkt = text
+                        break
+            if wkt:
+                break
+    keys = _geokeys(records)
+    units = (wkt_units(wkt) if wkt else None) or geokey_units(keys)
+    return wkt or geokey_crs(keys), units, raw
+
+
+def _pyproj_wkt(header: laspy.LasHeader) -> str | None:
+    # parse_crs() needs pyproj (optional); it also understands GeoTIFF keys.
+    try:
+        import pyproj  # noqa: F401
+    except ImportError:
+        return None
+    try:
+        crs = header.parse_crs()
+    except Exception:  # a broken CRS record must not make the points unreadable
+        return None
+    return crs.to_wkt() if crs is not None else None
+
+
+def _geokeys(records) -> dict[int, int]:
+    for v in records:
+        if v.user_id == _PROJECTION_USER and v.record_id == 34735 and hasattr(v, "geo_keys"):
+            return {int(k.id): int(k.value_offset) for k in v.geo_keys if k.tiff_tag_location == 0}
+    return {}
+
+
+# ----------------------------------------------------------------------------------------- write
+
+def write(path: Path, xyz: np.ndarray, fields: dict[str, np.ndarray], like: Cloud | None) -> None:
+    """Writes LAS 1.4 (LAZ when `path` ends in .laz) atomically; see the module docstring.
+
+    Coordinates use `like`'s scale and offset when it has them, else scale 0.001 and offset =
+    floor(min). Coordinates that do not fit (int32 after scaling) or are not finite raise
+    CloudWriteError; nothing is ever wrapped or clamped. `like`'s CRS is copied: its WKT as a
+    WKT VLR (global-encoding WKT bit set), else its raw GeoTIFF key VLRs.
+    """
+    n = len(xyz)
+    rgb = all(c in fields for c in ("red", "green", "blue"))
+    header = laspy.LasHeader(version="1.4", point_format=7 if rgb else 6)
+    standard = set(header.point_format.dimension_names) - {"X", "Y", "Z"}
+    extra = _plan_extra_dims(path, fields, standard)
+    with write_errors(path):
+        if extra:
+            header.add_extra_dims([laspy.ExtraBytesParams(name=name, type=t) for name, t in extra])
+    scale, offset = _scale_offset(xyz, like)
+    ints = _quantise(path, xyz, scale, offset)
+    header.scales, header.offsets = np.array(scale), np.array(offset)
+    _add_crs(header, like)
+    with write_errors(path):
+        points = laspy.ScaleAwarePointRecord.zeros(n, header=header)
+        las = laspy.LasData(header=header, points=points)
+        las.X, las.Y, las.Z = ints[:, 0], ints[:, 1], ints[:, 2]
+        for name, values in fields.items():
+            las[name] = _exact_cast(path, name, values, las[name].dtype if name in standard else dict(extra)[name])
+        # laspy picks compression from a path's suffix (the temporary has none): pass a stream.
+        with atomic_output(path) as tmp, open(tmp, "wb+") as out:
+            las.write(out, do_compress=Path(path).suffix.lower() == ".laz")
+
+
+def _plan_extra_dims(path, fields: dict[str, np.ndarray], standard: set[str]) -> list[tuple[str, type]]:
+    plan = []
+    for name, values in fields.items():
+        if name in standard:
+            continue
+        if name.lower() in ("x", "y", "z"):
+            raise CloudWriteError(f"{path}: field name {name!r} is reserved for coordinates in LAS")
+        try:
+            encoded = name.encode("ascii")
+        except UnicodeEncodeError:
+            raise CloudWriteError(f"{path}: LAS extra-bytes names must be ASCII, got {name!r}") from None
+        if not 0 < len(encoded) <= 32:
+            raise CloudWriteError(f"{path}: LAS extra-bytes names must be 1 to 32 characters, got {name!r}")
+        dtype = np.asarray(values).dtype
+        plan.append((name, np.uint8 if dtype in (np.uint8, np.bool_) else np.float64))
+    return plan
+
+
+def _scale_offset(xyz: np.ndarray, like: Cloud | None):
+    if like is not None and like.scale is not None and like.offset is not None:
+        return tuple(like.scale), tuple(like.offset)
+    if len(xyz) == 0 or not np.isfinite(xyz).all():
+        return (_DEFAULT_SCALE,) * 3, (0.0, 0.0, 0.0)
+    return (_DEFAULT_SCALE,) * 3, tuple(float(math.floor(v)) for v in xyz.min(axis=0))
+
+
+def _quantise(path, xyz: np.ndarray, scale, offset) -> np.ndarray:
+    bad = int((~np.isfinite(xyz)).any(axis=1).sum())
+    if bad:
+        raise CloudWriteError(f"{path}: LAS cannot store non-finite coordinates ({bad} points)")
+    q = np.rint((xyz - np.asarray(offset)) / np.asarray(scale))
+    for axis, name in enumerate("xyz"):
+        if len(q) and (q[:, axis].min() < _INT32[0] or q[:, axis].max() > _INT32[1]):
+            lo = offset[axis] + _INT32[0] * scale[axis]
+            hi = offset[axis] + _INT32[1] * scale[axis]
+            raise CloudWriteError(
+                f"{path}: {name} coordinates [{xyz[:, axis].min()!r}, {xyz[:, axis].max()!r}] do not fit "
+                f"LAS scale {scale[axis]!r} and offset {offset[axis]!r} (representable range "
+                f"[{lo!r}, {hi!r}])")
+    return q.astype(np.int32)
+
+
+def _exact_cast(path, name: str, values: np.ndarray, dtype) -> np.ndarray:
+    values = np.asarray(values)
+    dtype = np.dtype(dtype)
+    if values.dtype == dtype:
+        return values
+    with np.errstate(invalid="ignore", over="ignore"):
+        cast = values.astype(dtype)
+        same = cast.astype(values.dtype) == values
+        if dtype.kind == "f":
+            same |= np.isnan(values) if values.dtype.kind == "f" else False
+    if not np.all(same):
+        raise CloudWriteError(f"{path}: field {name!r} ({values.dtype}) does not fit the LAS {dtype} "
+                              f"dimension exactly")
+    return cast
+
+
+def _add_crs(header: laspy.LasHeader, like: Cloud | None) -> None:
+    if like is None:
+        return
+    if looks_like_wkt(like.crs):
+        header.vlrs.append(laspy.vlrs.known.WktCoordinateSystemVlr(like.crs))
+        header.global_encoding.wkt = True
+        return
+    # No WKT: copy the GeoTIFF keys verbatim (LAS 1.4 prefers WKT for point formats 6+, but
+    # dropping the only CRS record would be worse).
+    for user, record, description, data in like._crs_vlrs:
+        if user == _PROJECTION_USER and record in _GEOTIFF_RECORDS:
+            header.vlrs.append(laspy.VLR(user, record, description, data))
