@@ -10,6 +10,7 @@
 #include "orientation.hpp"
 #include "parallel_for.hpp"
 #include "projection.hpp"
+#include "spatial_order.hpp"
 #include "statistics.hpp"
 #include "validation.hpp"
 
@@ -185,8 +186,9 @@ Result compute(PointsView reference, PointsView compared, PointsView core_points
   const Pipeline pipeline(reference, compared, params, core_normals);
   Result result;
   result.resize(core_points.size());
+  const auto order = detail::morton_order(core_points);
   detail::parallel_blocks<Scratch>(core_points.size(), run, [&](std::size_t begin, std::size_t end, Scratch& s) {
-    for (std::size_t i = begin; i < end; ++i) pipeline.run(core_points[i], i, result, s);
+    for (std::size_t k = begin; k < end; ++k) pipeline.run(core_points[order[k]], order[k], result, s);
   });
   return result;
 }
@@ -200,9 +202,11 @@ NormalsResult compute_normals(PointsView cloud, PointsView core_points, const Pa
   const NormalCloud normals(cloud, tree, params);
   NormalsResult out;
   out.resize(core_points.size());
+  const auto order = detail::morton_order(core_points);
   detail::parallel_blocks<detail::NormalScratch>(
       core_points.size(), run, [&](std::size_t begin, std::size_t end, detail::NormalScratch& s) {
-        for (std::size_t i = begin; i < end; ++i) {
+        for (std::size_t k = begin; k < end; ++k) {
+          const std::size_t i = order[k];
           const Vec3 core = core_points[i];
           const NormalEstimate e = normals.estimate(core, s);
           out.status[i] = e.status;
@@ -225,24 +229,26 @@ std::vector<double> roughness_by_scale(PointsView cloud, PointsView core_points,
   if (min_points < 3) throw InvalidArgument("min_points must be >= 3 for a plane fit, got " + std::to_string(min_points));
   detail::require_finite_points("cloud", cloud);
   detail::require_finite_points("core points", core_points);
-  std::vector<std::size_t> order(diameters.size());
-  for (std::size_t k = 0; k < order.size(); ++k) order[k] = k;
-  std::sort(order.begin(), order.end(), [&](auto a, auto b) { return diameters[a] < diameters[b]; });
+  std::vector<std::size_t> by_size(diameters.size());
+  for (std::size_t k = 0; k < by_size.size(); ++k) by_size[k] = k;
+  std::sort(by_size.begin(), by_size.end(), [&](auto a, auto b) { return diameters[a] < diameters[b]; });
   std::vector<double> radii;
-  for (const std::size_t k : order) radii.push_back(0.5 * diameters[k]);
+  for (const std::size_t k : by_size) radii.push_back(0.5 * diameters[k]);
 
   const KdTree tree(cloud);
   const std::size_t scales = diameters.size();
   std::vector<double> out(core_points.size() * scales, std::numeric_limits<double>::quiet_NaN());
+  const auto order = detail::morton_order(core_points);
   detail::parallel_blocks<detail::NormalScratch>(
       core_points.size(), run, [&](std::size_t begin, std::size_t end, detail::NormalScratch& s) {
-        for (std::size_t i = begin; i < end; ++i) {
+        for (std::size_t j = begin; j < end; ++j) {
+          const std::size_t i = order[j];
           detail::moments_by_scale(tree, core_points[i], radii, s);
           for (std::size_t k = 0; k < scales; ++k) {
             const auto& m = s.moments[k];
             if (m.count < min_points) continue;
             const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> solver(m.comoment, Eigen::EigenvaluesOnly);
-            out[i * scales + order[k]] = detail::plane_roughness(solver.eigenvalues()(0), m.count, variance);
+            out[i * scales + by_size[k]] = detail::plane_roughness(solver.eigenvalues()(0), m.count, variance);
           }
         }
       });

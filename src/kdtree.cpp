@@ -2,74 +2,137 @@
 
 #include <m3c2/errors.hpp>
 
-#include <nanoflann.hpp>
-
+#include <algorithm>
+#include <cmath>
 #include <limits>
+#include <numeric>
 #include <string>
 
 namespace m3c2::detail {
 namespace {
 
-struct CloudAdaptor {
-  PointsView points;
-  std::size_t kdtree_get_point_count() const { return points.size(); }
-  double kdtree_get_pt(std::size_t i, std::size_t axis) const { return points.coord(i, int(axis)); }
-  template <class Box>
-  bool kdtree_get_bbox(Box&) const { return false; }
-};
+constexpr std::uint32_t kLeafSize = 24;
 
-using Tree = nanoflann::KDTreeSingleIndexAdaptor<nanoflann::L2_Simple_Adaptor<double, CloudAdaptor>,
-                                                 CloudAdaptor, 3, std::uint32_t>;
+// Boxes are compared with a margin so that rounding in a box test can never prune a node
+// holding a point the exact per-point test keeps; the per-point tests alone decide membership.
+constexpr double kRelativeMargin = 1e-9;
 
-// nanoflann keeps only dist < r^2 and computes dist in its own order; it is asked for a slightly
-// larger ball and the exact predicate of squared_distance() decides.
-constexpr double kSearchInflation = 1.0 + 1e-9;
-
-/// Collects candidate indices; the exact test runs afterwards on the original coordinates.
-class CandidateSet {
- public:
-  CandidateSet(double radius2, const PointsView& points, const Vec3& centre, double exact_r2,
-               std::vector<std::uint32_t>& out)
-      : radius2_(radius2), points_(points), centre_(centre), exact_r2_(exact_r2), out_(out) {}
-  double worstDist() const { return radius2_; }
-  bool full() const { return true; }
-  bool addPoint(double dist, std::uint32_t index) {
-    if (dist < radius2_ && squared_distance(points_, index, centre_) <= exact_r2_) out_.push_back(index);
-    return true;
+double box_distance2(const std::array<double, 3>& lo, const std::array<double, 3>& hi, const Vec3& c) {
+  double d2 = 0.0;
+  for (int a = 0; a < 3; ++a) {
+    const double below = lo[a] - c(a), above = c(a) - hi[a];
+    const double gap = below > 0.0 ? below : above > 0.0 ? above : 0.0;
+    d2 += gap * gap;
   }
-
- private:
-  double radius2_;
-  const PointsView& points_;
-  const Vec3& centre_;
-  double exact_r2_;
-  std::vector<std::uint32_t>& out_;
-};
+  return d2;
+}
 
 }  // namespace
-
-struct KdTree::Impl {
-  explicit Impl(PointsView points) : adaptor{points}, tree(3, adaptor, nanoflann::KDTreeSingleIndexAdaptorParams(16)) {}
-  CloudAdaptor adaptor;
-  Tree tree;
-};
 
 KdTree::KdTree(PointsView points) : points_(points) {
   if (points.size() >= std::numeric_limits<std::uint32_t>::max())
     throw InvalidArgument("a cloud has " + std::to_string(points.size()) +
-                          " points; one spatial index holds at most 4294967294 (use tiling)");
-  if (!points.empty()) impl_ = std::make_unique<Impl>(points);
+                          " points; one spatial index holds at most 4294967294 (use --tile-size)");
+  if (points.empty()) return;
+  std::vector<std::uint32_t> order(points.size());
+  std::iota(order.begin(), order.end(), 0u);
+  build(order);
+  index_ = std::move(order);
+  xyz_.resize(3 * index_.size());
+  for (std::size_t s = 0; s < index_.size(); ++s)
+    for (int a = 0; a < 3; ++a) xyz_[3 * s + a] = points.coord(index_[s], a);
 }
 
-KdTree::~KdTree() = default;
+void KdTree::build(std::vector<std::uint32_t>& order) {
+  // Breadth-first median splits on the widest axis; children of node k are stored together,
+  // so the tree is one flat array. Ties are broken by original index: the build is
+  // deterministic for a given input.
+  nodes_.reserve(2 * (order.size() / kLeafSize + 1));
+  nodes_.push_back({{}, {}, 0, std::uint32_t(order.size()), 0});
+  for (std::size_t k = 0; k < nodes_.size(); ++k) {
+    Node node = nodes_[k];
+    node.lo.fill(std::numeric_limits<double>::infinity());
+    node.hi.fill(-std::numeric_limits<double>::infinity());
+    for (std::uint32_t s = node.begin; s < node.end; ++s)
+      for (int a = 0; a < 3; ++a) {
+        const double v = points_.coord(order[s], a);
+        node.lo[a] = std::min(node.lo[a], v), node.hi[a] = std::max(node.hi[a], v);
+      }
+    if (node.end - node.begin > kLeafSize) {
+      int axis = 0;
+      for (int a = 1; a < 3; ++a)
+        if (node.hi[a] - node.lo[a] > node.hi[axis] - node.lo[axis]) axis = a;
+      const std::uint32_t mid = node.begin + (node.end - node.begin) / 2;
+      std::nth_element(order.begin() + node.begin, order.begin() + mid, order.begin() + node.end,
+                       [&](std::uint32_t i, std::uint32_t j) {
+                         const double a = points_.coord(i, axis), b = points_.coord(j, axis);
+                         return a < b || (a == b && i < j);
+                       });
+      node.left = std::uint32_t(nodes_.size());
+      nodes_.push_back({{}, {}, node.begin, mid, 0});
+      nodes_.push_back({{}, {}, mid, node.end, 0});
+    }
+    nodes_[k] = node;
+  }
+}
+
+template <class Prune, class Accept>
+void KdTree::visit(Prune&& prune, Accept&& accept) const {
+  if (nodes_.empty()) return;
+  std::uint32_t stack[128];
+  int top = 0;
+  stack[top++] = 0;
+  while (top > 0) {
+    const Node& node = nodes_[stack[--top]];
+    if (prune(node.lo, node.hi)) continue;
+    if (node.left == 0) {
+      for (std::uint32_t s = node.begin; s < node.end; ++s) accept(s, slot_xyz(s));
+    } else {
+      stack[top++] = node.left + 1;
+      stack[top++] = node.left;
+    }
+  }
+}
 
 void KdTree::ball(const Vec3& centre, double radius, std::vector<std::uint32_t>& out) const {
-  if (!impl_) return;
-  const double exact_r2 = radius * radius;
-  const double search_r = radius * kSearchInflation + 1e-12;
-  CandidateSet candidates(search_r * search_r, points_, centre, exact_r2, out);
-  const double query[3] = {centre.x(), centre.y(), centre.z()};
-  impl_->tree.findNeighbors(candidates, query, nanoflann::SearchParams(32, 0.0f, false));
+  const double r2 = radius * radius, prune_r2 = r2 * (1.0 + kRelativeMargin) + 1e-300;
+  visit([&](const auto& lo, const auto& hi) { return box_distance2(lo, hi, centre) > prune_r2; },
+        [&](std::uint32_t s, const double* p) {
+          if (squared_distance(p, centre) <= r2) out.push_back(index_[s]);
+        });
+}
+
+void KdTree::ball_keys(const Vec3& centre, double radius, std::vector<std::uint64_t>& out) const {
+  const double r2 = radius * radius, prune_r2 = r2 * (1.0 + kRelativeMargin) + 1e-300;
+  visit([&](const auto& lo, const auto& hi) { return box_distance2(lo, hi, centre) > prune_r2; },
+        [&](std::uint32_t s, const double* p) {
+          if (squared_distance(p, centre) <= r2) out.push_back(std::uint64_t(index_[s]) << 32 | s);
+        });
+}
+
+void KdTree::cylinder(const Cylinder& cyl, std::vector<std::pair<std::uint32_t, double>>& out) const {
+  const Vec3& c = cyl.core;
+  const Vec3& n = cyl.normal;
+  const double r2 = cyl.radius * cyl.radius;
+  // A node is skipped when its bounding sphere (centre m, radius |half extent|) misses the
+  // cylinder: the distance from m to the axis segment exceeds r plus that radius.
+  const double scale = c.cwiseAbs().maxCoeff() + cyl.radius + std::max(std::abs(cyl.t_min), std::abs(cyl.t_max));
+  const double slack = kRelativeMargin * scale;
+  visit(
+      [&](const auto& lo, const auto& hi) {
+        const Vec3 m(0.5 * (lo[0] + hi[0]), 0.5 * (lo[1] + hi[1]), 0.5 * (lo[2] + hi[2]));
+        const double extent = 0.5 * Vec3(hi[0] - lo[0], hi[1] - lo[1], hi[2] - lo[2]).norm();
+        const Vec3 v = m - c;
+        const double s = std::clamp(v.dot(n), cyl.t_min, cyl.t_max);
+        return (v - s * n).norm() > cyl.radius + extent + slack;
+      },
+      [&](std::uint32_t s, const double* p) {
+        const double vx = p[0] - c.x(), vy = p[1] - c.y(), vz = p[2] - c.z();
+        const double t = vx * n.x() + vy * n.y() + vz * n.z();
+        if (t < cyl.t_min || t > cyl.t_max) return;
+        const double wx = vx - t * n.x(), wy = vy - t * n.y(), wz = vz - t * n.z();
+        if (wx * wx + wy * wy + wz * wz <= r2) out.emplace_back(index_[s], t);
+      });
 }
 
 }  // namespace m3c2::detail

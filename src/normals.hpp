@@ -21,7 +21,6 @@ struct ScaleMoments {
 
 struct NormalScratch {
   std::vector<std::uint32_t> indices, sort_buffer;
-  std::vector<Vec3> offsets;
   std::vector<std::uint16_t> shell;
   std::vector<Vec3> shell_sum;
   std::vector<ScaleMoments> moments;
