@@ -3,6 +3,7 @@
 // Every function is deterministic: the same inputs give the same bits for any thread count.
 // See docs/algorithm.md for each equation, its paper reference and the choices made.
 
+#include <m3c2/baselines.hpp>
 #include <m3c2/errors.hpp>
 #include <m3c2/params.hpp>
 #include <m3c2/points_view.hpp>

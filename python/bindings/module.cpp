@@ -255,4 +255,32 @@ NB_MODULE(_core, m) {
         return d;
       },
       "points"_a, "cell"_a);
+
+  // C2C baselines of section 3.4 (include/m3c2/baselines.hpp, docs/analysis.md).
+  m.def(
+      "c2c",
+      [](const Points& reference, const Points& compared, const std::string& model, double model_radius,
+         std::uint32_t model_neighbours, const std::string& rule, int threads, nb::object progress) {
+        m3c2::C2CParams p;
+        if (model == "none") p.model = m3c2::LocalModel::kNone;
+        else if (model == "plane") p.model = m3c2::LocalModel::kPlane;
+        else throw m3c2::InvalidArgument("model must be 'none' or 'plane', got '" + model + "'");
+        if (rule == "closer") p.rule = m3c2::ModelRule::kCloser;
+        else if (rule == "model") p.rule = m3c2::ModelRule::kModelOnly;
+        else throw m3c2::InvalidArgument("rule must be 'closer' or 'model', got '" + rule + "'");
+        p.model_radius = model_radius;
+        p.model_neighbours = model_neighbours;
+        m3c2::C2CResult r = run_engine(std::move(progress), threads, [&](const m3c2::RunOptions& run) {
+          return m3c2::c2c(view(reference), view(compared), p, run);
+        });
+        nb::dict d;
+        d["distance"] = to_numpy(std::move(r.distance));
+        d["nearest"] = to_numpy(std::move(r.nearest));
+        d["model_distance"] = to_numpy(std::move(r.model_distance));
+        d["hf_distance"] = to_numpy(std::move(r.hf_distance));
+        d["model_count"] = to_numpy(std::move(r.model_count));
+        return d;
+      },
+      "reference"_a, "compared"_a, "model"_a = "none", "model_radius"_a = 0.0, "model_neighbours"_a = 6,
+      "rule"_a = "closer", "threads"_a = 0, "progress"_a = nb::none());
 }

@@ -1,0 +1,166 @@
+"""LOD95 calibration on one cloud (sections 5.2.1 and 5.2.2, Figs. 8 and 9).
+
+A surface compared with a differently subsampled copy of itself has not changed, so a correct
+95 % level of detection should call about 95 % of core points "not significant". For each
+projection scale d we compare cloud 1 and cloud 2 (the cloud at two minimum spacings: the paper's
+raw vs 10 cm, and 4.5 vs 5 cm) with three LODs: eq. (1) with z, eq. (1) with Welch's t and the DF
+of eq. (2) when n1 or n2 < 30, and the bootstrap of Appendix B. Like the paper ("We impose a fixed
+normal direction"), normals are vertical unless a normal scale D is given.
+
+The mean LOD95 (z) is then fitted as LOD95 ~ d^alpha and compared with eq. (7), alpha = beta - 0.95,
+where beta is the roughness exponent of eq. (3) measured on the same cloud and core points over
+the same scales (and with beta - gamma / 2, gamma the measured exponent of n ~ d^gamma: the paper's
+0.95 is 1.9 / 2).
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from .. import api
+from ..errors import UsageError
+from .common import format_table, loglog_fit, median_spacing, pyplot, sample_indices, save_figure
+from .roughness import L0, fit_scaling, roughness_by_scale, roughness_table
+
+
+def resolve_spacing(spec, spacing: float) -> float:
+    """'raw' or 0 -> 0 (no subsampling); 'Nx' -> N times the median point spacing; a number."""
+    text = str(spec).strip().lower()
+    if text in ("raw", "0", "0.0"):
+        return 0.0
+    try:
+        value = float(text[:-1]) * spacing if text.endswith("x") else float(text)
+    except ValueError:
+        raise UsageError(f"--spacings: {spec!r} is not 'raw', a number or a multiple of the point spacing 'Nx'") from None
+    if not (math.isfinite(value) and value > 0):
+        raise UsageError(f"--spacings: {spec!r} gives a non-positive spacing")
+    return value
+
+
+def _version(points: np.ndarray, spacing: float) -> np.ndarray:
+    return points if spacing == 0 else points[api.subsample(points, spacing)]
+
+
+def calibrate(cloud, projection_scales, *, spacings=("raw", "3x"), normal_scale=None, core=None, core_spacing=None,
+              max_core: int | None = 2000, seed: int = 0, max_depth: float | None = None, bootstrap: int = 100,
+              min_points: int = 4, confidence: float = 0.95, orient="+z", fit_range=None, l0: float = L0,
+              threads: int = 0) -> dict:
+    """Runs the calibration; returns {'table': columns per d, 'fit': ..., 'info': ...}."""
+    pts = api.as_points("cloud", cloud)
+    d_list = np.asarray(projection_scales, float)
+    if len(spacings) != 2:
+        raise UsageError(f"--spacings needs two values (cloud 1, cloud 2), got {len(spacings)}")
+    spacing = median_spacing(pts)
+    s1, s2 = (resolve_spacing(s, spacing) for s in spacings)
+    cloud1, cloud2 = _version(pts, s1), _version(pts, s2)
+    if core is not None:
+        core_pts = api.as_points("core", core)
+    else:
+        core_pts = pts[api.subsample(pts, core_spacing)] if core_spacing else _version(pts, max(s1, s2, 4 * spacing))
+    core_pts = np.ascontiguousarray(core_pts[sample_indices(len(core_pts), max_core, seed)])
+    depth = float(max_depth) if max_depth is not None else float(d_list.max())
+    common = dict(projection_scale=None, max_depth=depth, min_points=min_points, confidence=confidence,
+                  orient=orient, threads=threads)
+    if normal_scale is None:
+        common["normal_source"] = "vertical"
+    else:
+        common["normal_scale"] = normal_scale
+    runs = {"z": {}, "t": {"t_statistic": True}}
+    if bootstrap:
+        runs["bootstrap"] = {"bootstrap": int(bootstrap), "seed": int(seed)}
+
+    rows = {k: [] for k in ("d", "n_lod_z", "pct_not_significant_z", "pct_not_significant_t",
+                            "pct_not_significant_bootstrap", "mean_lod95", "median_lod95", "mean_n1", "mean_n2")}
+    for d in d_list:
+        common["projection_scale"] = float(d)
+        out = {}
+        for name, extra in runs.items():
+            r = api.compare(cloud1, cloud2, core_pts, **common, **extra)
+            valid = r.status == 0
+            out[name] = (r, valid, 100.0 * float(np.mean(~r.significant[valid])) if valid.any() else math.nan)
+        r, valid, pct = out["z"]
+        searched = np.isfinite(r.distance)
+        rows["d"].append(float(d))
+        rows["n_lod_z"].append(int(valid.sum()))
+        rows["pct_not_significant_z"].append(pct)
+        rows["pct_not_significant_t"].append(out["t"][2])
+        rows["pct_not_significant_bootstrap"].append(out["bootstrap"][2] if "bootstrap" in out else math.nan)
+        rows["mean_lod95"].append(float(np.mean(r.lod[valid])) if valid.any() else math.nan)
+        rows["median_lod95"].append(float(np.median(r.lod[valid])) if valid.any() else math.nan)
+        rows["mean_n1"].append(float(np.mean(r.n1[searched])) if searched.any() else math.nan)
+        rows["mean_n2"].append(float(np.mean(r.n2[searched])) if searched.any() else math.nan)
+    table = {k: np.asarray(v) for k, v in rows.items()}
+
+    # Roughness of the same cloud at the same core points, D = each d (eq. 3), for eq. (7).
+    sigma = roughness_by_scale(pts, core_pts, d_list, min_points=10, threads=threads)
+    rough = roughness_table(sigma, d_list)
+    table["mean_sigma_D"] = rough["mean_sigma"]
+    sel = np.ones(len(d_list), bool) if fit_range is None else (d_list >= fit_range[0]) & (d_list <= fit_range[1])
+    lod_fit = loglog_fit(d_list[sel], table["mean_lod95"][sel], l0)
+    n_fit = loglog_fit(d_list[sel], np.sqrt(table["mean_n1"][sel] * table["mean_n2"][sel]), l0)
+    beta = fit_scaling(d_list, rough["mean_sigma"], fit_range, l0)
+    fit = {"alpha": lod_fit["slope"], "alpha_se": lod_fit["slope_se"], "lod_l0": lod_fit["a"], "n_scales": lod_fit["n"],
+           "beta": beta["beta"], "beta_se": beta["beta_se"], "sigma_l0": beta["sigma_l0"],
+           "alpha_predicted": beta["beta"] - 0.95, "gamma": n_fit["slope"],
+           "alpha_predicted_gamma": beta["beta"] - n_fit["slope"] / 2, "l0": l0}
+    info = {"spacing": spacing, "spacing1": s1, "spacing2": s2, "points1": len(cloud1), "points2": len(cloud2),
+            "core_points": len(core_pts), "max_depth": depth,
+            "normals": "vertical (imposed)" if normal_scale is None else f"reference, D = {normal_scale}",
+            "bootstrap": int(bootstrap), "seed": int(seed)}
+    return {"table": table, "fit": fit, "info": info}
+
+
+def report_lines(res: dict) -> list[str]:
+    t, f, i = res["table"], res["fit"], res["info"]
+
+    def label(s):
+        return "raw" if s == 0 else f"{s:g}"
+    lines = [f"cloud 1: {label(i['spacing1'])} ({i['points1']} points), cloud 2: {label(i['spacing2'])} "
+             f"({i['points2']} points); median point spacing {i['spacing']:.4g}; {i['core_points']} core points; "
+             f"normals {i['normals']}; max depth {i['max_depth']:g}"]
+    lines += format_table({"d": t["d"], "n_lod": t["n_lod_z"], "%ns z": t["pct_not_significant_z"],
+                           "%ns t": t["pct_not_significant_t"], "%ns boot": t["pct_not_significant_bootstrap"],
+                           "mean LOD95": t["mean_lod95"], "<n1>": t["mean_n1"], "<n2>": t["mean_n2"],
+                           "<sigma(D=d)>": t["mean_sigma_D"]},
+                          {"d": ".4g", "n_lod": "d", "%ns z": ".1f", "%ns t": ".1f", "%ns boot": ".1f",
+                           "mean LOD95": ".4g", "<n1>": ".1f", "<n2>": ".1f", "<sigma(D=d)>": ".4g"})
+    lines.append("%ns = percentage of core points with a LOD correctly found NOT significant (95 % expected)")
+    lines.append(f"LOD95 ~ d^alpha: alpha = {f['alpha']:.3f} +/- {f['alpha_se']:.3f} over {f['n_scales']} scales; "
+                 f"roughness beta = {f['beta']:.3f} +/- {f['beta_se']:.3f}: eq. (7) predicts beta - 0.95 = "
+                 f"{f['alpha_predicted']:.3f}; with the measured n ~ d^{f['gamma']:.2f}, beta - gamma/2 = "
+                 f"{f['alpha_predicted_gamma']:.3f}")
+    return lines
+
+
+def plot(path, res: dict, title: str = "") -> None:
+    """Fig. 8 (percentage not significant vs d) and Fig. 9 (mean LOD95 vs d, log-log)."""
+    plt = pyplot()
+    t, f = res["table"], res["fit"]
+    fig, (a, b) = plt.subplots(1, 2, figsize=(11, 4.2))
+    for key, lab in (("pct_not_significant_z", "eq. (1), z"), ("pct_not_significant_t", "eq. (1)-(2), Welch t"),
+                     ("pct_not_significant_bootstrap", "bootstrap")):
+        if np.isfinite(t[key]).any():
+            a.plot(t["d"], t[key], "o-", ms=4, label=lab)
+    a.axhline(95, color="k", ls="--", lw=0.8)
+    a.set_xscale("log")
+    a.set_xlabel("projection scale d (diameter)")
+    a.set_ylabel("% correctly not significant")
+    a.legend(fontsize=8)
+    a.grid(True, which="both", alpha=0.3)
+    ok = np.isfinite(t["mean_lod95"]) & (t["mean_lod95"] > 0)
+    b.loglog(t["d"][ok], t["mean_lod95"][ok], "o", label="mean LOD95 (eq. 1)")
+    if np.isfinite(f["alpha"]):
+        x = np.geomspace(t["d"][ok].min(), t["d"][ok].max(), 50)
+        b.loglog(x, f["lod_l0"] * (x / f["l0"]) ** f["alpha"], "r-", label=f"alpha = {f['alpha']:.3f}")
+        if np.isfinite(f["alpha_predicted"]):
+            b.loglog(x, f["lod_l0"] * (x / f["l0"]) ** f["alpha_predicted"], "g--",
+                     label=f"beta - 0.95 = {f['alpha_predicted']:.3f}")
+    b.set_xlabel("projection scale d (diameter)")
+    b.set_ylabel("mean LOD95")
+    b.legend(fontsize=8)
+    b.grid(True, which="both", alpha=0.3)
+    fig.suptitle(title or "LOD95 calibration (Lague et al. 2013, Figs. 8-9)")
+    fig.tight_layout()
+    save_figure(fig, path)
+    plt.close(fig)

@@ -1,0 +1,150 @@
+"""Helpers shared by the analysis commands: scale lists, log-log fits, tables, CSV, sampling."""
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+
+from .. import _core
+from ..errors import UsageError
+from ..io.atomic import atomic_output
+from ..options import positive, scale_range
+
+
+def scales(name: str, spec) -> np.ndarray:
+    """Diameters from 'MIN:MAX:STEP' (MAX included), 'a,b,c', a number or a sequence."""
+    if isinstance(spec, str):
+        text = spec.strip()
+        if ":" in text:
+            parts = text.split(":")
+            if len(parts) != 3:
+                raise UsageError(f"{name} range must be MIN:MAX:STEP, got {spec!r}")
+            lo, hi, step = (positive(name, p) for p in parts)
+            try:
+                return np.array(scale_range(lo, hi, step))
+            except ValueError as e:
+                raise UsageError(f"{name} range {spec!r}: {e}") from None
+        values = [positive(name, p) for p in text.split(",") if p.strip()]
+    elif np.isscalar(spec):
+        values = [positive(name, spec)]
+    else:
+        values = [positive(name, p) for p in spec]
+    if not values:
+        raise UsageError(f"{name} is empty")
+    return np.array(values, dtype=float)
+
+
+def value_range(name: str, spec) -> tuple[float, float] | None:
+    """'MIN:MAX' -> (MIN, MAX), or None."""
+    if spec is None:
+        return None
+    if isinstance(spec, str):
+        parts = spec.split(":")
+        if len(parts) != 2:
+            raise UsageError(f"{name} must be MIN:MAX, got {spec!r}")
+        lo, hi = (positive(name, p) for p in parts)
+    else:
+        lo, hi = (positive(name, p) for p in spec)
+    if hi < lo:
+        raise UsageError(f"{name}: MAX ({hi}) is below MIN ({lo})")
+    return lo, hi
+
+
+def loglog_fit(x, y, l0: float = 1.0) -> dict:
+    """Least-squares line log(y) = log(a) + b log(x / l0) (natural logs) over the finite,
+    positive pairs: b with its standard error (from the residuals, n - 2 degrees of freedom),
+    a = y at x = l0 (its multiplicative standard error exp(se of log a) as `a_factor`), R^2 and n."""
+    x, y = np.asarray(x, float), np.asarray(y, float)
+    ok = np.isfinite(x) & np.isfinite(y) & (x > 0) & (y > 0)
+    n = int(ok.sum())
+    out = {"slope": math.nan, "slope_se": math.nan, "a": math.nan, "a_factor": math.nan, "r2": math.nan, "n": n}
+    if n < 2:
+        return out
+    u, v = np.log(x[ok] / l0), np.log(y[ok])
+    ub, vb = u.mean(), v.mean()
+    sxx = float(np.sum((u - ub) ** 2))
+    if sxx == 0:
+        return out
+    b = float(np.sum((u - ub) * (v - vb)) / sxx)
+    a = vb - b * ub
+    out.update(slope=b, a=float(math.exp(a)))
+    resid = v - (a + b * u)
+    syy = float(np.sum((v - vb) ** 2))
+    out["r2"] = 1.0 - float(np.sum(resid ** 2)) / syy if syy > 0 else 1.0
+    if n > 2:
+        s2 = float(np.sum(resid ** 2)) / (n - 2)
+        out["slope_se"] = math.sqrt(s2 / sxx)
+        out["a_factor"] = math.exp(math.sqrt(s2 * (1.0 / n + ub ** 2 / sxx)))
+    return out
+
+
+def write_csv(path, columns: dict[str, np.ndarray]) -> None:
+    """A plain CSV table (header line, one row per entry), written atomically."""
+    names = list(columns)
+    arrays = [np.asarray(columns[k]) for k in names]
+    rows = len(arrays[0]) if arrays else 0
+    with atomic_output(path) as tmp:
+        with open(tmp, "w", encoding="utf-8") as f:
+            f.write(",".join(names) + "\n")
+            for i in range(rows):
+                f.write(",".join(_cell(a[i]) for a in arrays) + "\n")
+
+
+def _cell(v) -> str:
+    if isinstance(v, (float, np.floating)):
+        return "nan" if not np.isfinite(v) else repr(float(v))
+    if isinstance(v, (bool, np.bool_)):
+        return str(int(v))
+    return str(v)
+
+
+def format_table(columns: dict[str, np.ndarray], formats: dict[str, str] | None = None) -> list[str]:
+    """Aligned text table, one line per row."""
+    formats = formats or {}
+    names = list(columns)
+    cells = [[format(columns[k][i], formats.get(k, "g")) if not isinstance(columns[k][i], str) else columns[k][i]
+              for k in names] for i in range(len(columns[names[0]]))]
+    widths = [max(len(k), *(len(r[j]) for r in cells)) if cells else len(k) for j, k in enumerate(names)]
+    lines = ["  ".join(k.rjust(w) for k, w in zip(names, widths))]
+    lines += ["  ".join(c.rjust(w) for c, w in zip(r, widths)) for r in cells]
+    return lines
+
+
+def sample_indices(n: int, count: int | None, seed: int = 0) -> np.ndarray:
+    """`count` distinct indices of range(n) drawn with numpy's PCG64 from `seed`, sorted (all if
+    count is None or >= n)."""
+    if count is None or count >= n:
+        return np.arange(n)
+    rng = np.random.default_rng(seed)
+    return np.sort(rng.choice(n, size=int(count), replace=False))
+
+
+def median_spacing(points: np.ndarray, sample: int = 2000, seed: int = 0) -> float:
+    """Median distance from a sample of points to their nearest OTHER point of the cloud
+    (duplicates, at distance 0, are skipped): the typical point spacing."""
+    points = np.ascontiguousarray(points, dtype=np.float64)
+    idx = sample_indices(len(points), min(sample, max(1, len(points) // 10)), seed)
+    keep = np.ones(len(points), bool)
+    keep[idx] = False
+    others = points[keep]
+    if len(others) == 0:
+        return math.nan
+    d = _core.c2c(others, np.ascontiguousarray(points[idx]))["distance"]
+    d = d[d > 0]
+    return float(np.median(d)) if d.size else math.nan
+
+
+def save_figure(fig, path) -> None:
+    """Saves a matplotlib figure atomically (format from the extension)."""
+    path = Path(path)
+    with atomic_output(path) as tmp:
+        fig.savefig(tmp, dpi=120, format=path.suffix.lstrip(".") or "png")
+
+
+def pyplot():
+    """matplotlib.pyplot with the non-interactive Agg backend."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    return plt

@@ -1,0 +1,82 @@
+"""m3c2 calibrate (sections 5.2.1-5.2.2): percentages of correctly non-significant core points on
+a subsampled copy of the same surface, the LOD95 scaling and eq. (7), and the command line."""
+from __future__ import annotations
+
+import csv
+
+import numpy as np
+import pytest
+
+from m3c2.analysis import calibrate
+from m3c2.analysis.calibrate import resolve_spacing
+from m3c2.analysis.synthetic import noisy_plane
+from m3c2.cli import main
+from m3c2.errors import UsageError
+
+D_LIST = [0.8, 1.2, 1.6, 2.4]  # n2 >= 4 needs d >~ 0.7 on the 0.3-spaced copy
+
+
+@pytest.fixture(scope="module")
+def plane():
+    return noisy_plane(120, 120, 0.1, noise=0.01, seed=5)
+
+
+@pytest.fixture(scope="module")
+def result(plane):
+    return calibrate(plane, D_LIST, spacings=("raw", "3x"), max_core=300, bootstrap=30, seed=1)
+
+
+def test_table(result):
+    t = result["table"]
+    assert list(t["d"]) == D_LIST
+    for key in ("pct_not_significant_z", "pct_not_significant_t", "pct_not_significant_bootstrap"):
+        assert np.all((t[key] >= 0) & (t[key] <= 100))
+        assert np.all(t[key] >= 85), (key, t[key])  # an unchanged Gaussian surface: >= 95 % expected
+    assert np.all(t["n_lod_z"] > 200)
+    assert np.all(np.diff(t["mean_lod95"]) < 0)  # LOD95 falls with d
+    assert np.all(t["mean_n1"] > t["mean_n2"])   # raw vs subsampled
+    i = result["info"]
+    assert i["spacing"] == pytest.approx(0.1, rel=0.05) and i["spacing1"] == 0 and i["spacing2"] == pytest.approx(3 * i["spacing"])
+    assert i["normals"].startswith("vertical")
+
+
+def test_scaling_of_a_gaussian_plane(result):
+    # beta = 0 (no roughness scaling) and n ~ d^2: eq. (1) gives LOD95 ~ d^-1 (section 5.2.2's
+    # "decreases rapidly as the inverse of d").
+    f = result["fit"]
+    assert f["alpha"] == pytest.approx(-1.0, abs=0.15)
+    assert abs(f["beta"]) < 0.1
+    assert f["gamma"] == pytest.approx(2.0, abs=0.2)
+    assert f["alpha_predicted"] == pytest.approx(f["beta"] - 0.95)
+
+
+def test_resolve_spacing():
+    assert resolve_spacing("raw", 0.1) == 0
+    assert resolve_spacing("2.5x", 0.1) == pytest.approx(0.25)
+    assert resolve_spacing("0.045", 0.1) == 0.045
+    with pytest.raises(UsageError):
+        resolve_spacing("-1", 0.1)
+    with pytest.raises(UsageError):
+        resolve_spacing("abc", 0.1)
+
+
+def test_command_line(plane, tmp_path, capsys):
+    np.save(tmp_path / "plane.npy", plane)
+    out, png = tmp_path / "cal.csv", tmp_path / "cal.png"
+    assert main(["calibrate", str(tmp_path / "plane.npy"), "--projection-scales", "0.4:1.2:0.4", "--spacings",
+                 "0.15,0.2", "--max-core", "200", "--bootstrap", "10", "-o", str(out), "--plot", str(png)]) == 0
+    text = capsys.readouterr().out
+    assert "eq. (7) predicts beta - 0.95" in text and "cloud 1: 0.15" in text
+    rows = list(csv.DictReader(out.open()))
+    assert [float(r["d"]) for r in rows] == pytest.approx([0.4, 0.8, 1.2])
+    assert {"pct_not_significant_z", "pct_not_significant_t", "pct_not_significant_bootstrap", "mean_lod95"} <= set(rows[0])
+    assert png.read_bytes()[:4] == b"\x89PNG"
+    assert main(["calibrate", str(tmp_path / "plane.npy"), "--projection-scales", "1", "--spacings", "raw",
+                 "-o", str(out)]) == 2
+
+
+def test_real_cloud(shared_data, tmp_path, capsys):
+    cloud = shared_data / "pairs" / "autzen-bmx" / "autzen-bmx-2010.las"
+    out = tmp_path / "autzen.csv"
+    assert main(["calibrate", str(cloud), "--projection-scales", "3,4,6", "--bootstrap", "10", "-o", str(out)]) == 0
+    assert len(list(csv.DictReader(out.open()))) == 3
