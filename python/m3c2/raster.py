@@ -1,0 +1,278 @@
+"""2D mode (paper section 6.1.2): M3C2 on a regular grid of core points with vertical normals,
+written as GeoTIFF rasters, the M3C2 substitute for a DEM of difference (DoD).
+
+    m3c2 compare REF CMP -o change.laz --grid 1.0 --max-depth 5
+
+builds one core point per non-empty cell of a CELL-sized grid over the reference (z = median z
+of the reference points in the cell), imposes vertical normals, uses d = 1.1 x CELL ("a
+projection scale slightly larger than the grid spacing, to approximate the averaging over one
+square pixel") unless --projection-scale is given, and writes, beside the point table,
+
+    <stem>_distance.tif  float32, NaN = nodata    M3C2 distance (vertical change)
+    <stem>_lod.tif       float32, NaN = nodata    level of detection
+    <stem>_significant.tif uint8 0/1, 255 = nodata
+    <stem>_n1.tif, <stem>_n2.tif int32 point counts, -1 = nodata
+    <stem>_status.tif    uint8 status code (0 = ok, see README), 255 = nodata
+
+Nodata marks a cell with no reference point (no core point) or a value that was not computed.
+Every output of one run is staged in temporary files and renamed at the end
+(:func:`staged_outputs`), so a failed run leaves none of them. See docs/report.md.
+"""
+from __future__ import annotations
+
+import os
+import sys
+import tempfile
+from contextlib import contextmanager
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Iterator
+
+import numpy as np
+
+from . import _core
+from .errors import CloudWriteError, UsageError
+from .io.crs import looks_like_wkt
+
+__all__ = ["Grid", "RASTERS", "PROJECTION_FACTOR", "grid_core_points", "grid_mode", "grid_settings",
+           "raster_paths", "rasters", "write_rasters", "staged_outputs"]
+
+#: d = PROJECTION_FACTOR x cell when --projection-scale is not given (section 6.1.2).
+PROJECTION_FACTOR = 1.1
+
+#: Raster name -> (numpy dtype, nodata, description). Distance and LOD are float32: they are
+#: differences (not absolute coordinates, which live in the float64 geotransform), so float32's
+#: relative precision of 6e-8 is far below any LOD, and it halves the file size.
+RASTERS = {
+    "distance": ("float32", float("nan"), "M3C2 distance along the vertical normal (compared - reference)"),
+    "lod": ("float32", float("nan"), "level of detection (LOD) at the run's confidence"),
+    "significant": ("uint8", 255, "1 where |distance| > LOD, 0 where not, 255 where no LOD"),
+    "n1": ("int32", -1, "reference points in the cylinder"),
+    "n2": ("int32", -1, "compared points in the cylinder"),
+    "status": ("uint8", 255, "status code: 0 ok, 1-5 see the README's status table"),
+}
+
+
+@dataclass
+class Grid:
+    """The engine's grid of core points: cell (row, col) has its centre at
+    (x0 + (col + 0.5) cell, y0 + (row + 0.5) cell); row 0 is the LOWEST y."""
+
+    x0: float
+    y0: float
+    cell: float
+    rows: int
+    cols: int
+    core_points: np.ndarray  # (K, 3), one per non-empty cell
+    row: np.ndarray          # (K,) uint64
+    col: np.ndarray          # (K,) uint64
+
+    @property
+    def transform(self):
+        """GeoTIFF geotransform: the top-left corner (x0, max y), rows going DOWN (south)."""
+        from rasterio.transform import Affine
+        return Affine(self.cell, 0.0, self.x0, 0.0, -self.cell, self.y0 + self.rows * self.cell)
+
+    def image_rows(self) -> np.ndarray:
+        """Row of each core point in the image (row 0 = top = max y): the engine's rows flipped."""
+        return (self.rows - 1 - self.row.astype(np.int64)).astype(np.int64)
+
+    def image(self, values: np.ndarray, dtype, nodata) -> np.ndarray:
+        """(rows, cols) array with `values` (one per core point) at their cells, nodata elsewhere."""
+        out = np.full((self.rows, self.cols), nodata, dtype=dtype)
+        out[self.image_rows(), self.col.astype(np.int64)] = values
+        return out
+
+
+def grid_core_points(points, cell: float) -> Grid:
+    """One core point per non-empty `cell`-sized cell over the XY extent of `points`."""
+    xyz = np.ascontiguousarray(getattr(points, "xyz", points), dtype=np.float64)
+    try:
+        g = _core.grid_core_points(xyz, float(cell))
+    except ValueError as e:
+        raise UsageError(f"--grid: {e}") from None
+    return Grid(float(g["x0"]), float(g["y0"]), float(g["cell"]), int(g["rows"]), int(g["cols"]),
+                np.asarray(g["core_points"]).reshape(-1, 3), np.asarray(g["row"]), np.asarray(g["col"]))
+
+
+def grid_mode(args) -> float | None:
+    """Checks the command-line options of 2D mode and fills in its defaults on `args`.
+
+    Returns the cell size, or None without --grid. Normals are vertical in this mode, so
+    --normal-scale (which would only choose the normal) and any --normal-source but vertical
+    are usage errors, as are --position reference/compared (the rasters are at cell centres)
+    and --core-normals. d defaults to 1.1 x CELL.
+    """
+    cell = getattr(args, "grid", None)
+    if cell is None:
+        return None
+    if not (np.isfinite(cell) and cell > 0):
+        raise UsageError(f"--grid must be a positive cell size, got {cell!r}")
+    if getattr(args, "normal_scale", None) is not None:
+        raise UsageError("--grid imposes vertical normals (section 6.1.2): --normal-scale has no effect; "
+                         "leave it out")
+    if getattr(args, "normal_source", None) not in (None, "vertical"):
+        raise UsageError(f"--grid imposes vertical normals: --normal-source {args.normal_source} is not allowed")
+    if getattr(args, "core_normals", None) is not None:
+        raise UsageError("--grid imposes vertical normals: --core-normals is not allowed")
+    if getattr(args, "position", None) not in (None, "core"):
+        raise UsageError("--grid writes values at the cell centres: --position must be core")
+    if getattr(args, "projection_scale", None) is None and not _params_set(args, "projection_scale"):
+        args.projection_scale = PROJECTION_FACTOR * cell
+    return float(cell)
+
+
+def _params_set(args, name: str) -> bool:
+    if getattr(args, "params", None) is None:
+        return False
+    from .cloudcompare_params import read_cloudcompare_params
+    return name in read_cloudcompare_params(args.params)
+
+
+def grid_settings(settings: dict) -> dict:
+    """The compare settings of 2D mode: vertical normals; a --params file's normal scale and core
+    point options are dropped (the grid is the core points, normals are vertical)."""
+    settings = dict(settings)
+    settings["normal_source"] = "vertical"
+    for name in ("normal_scale", "core_spacing", "normal_subsample"):
+        settings.pop(name, None)
+    if settings.get("position", "core") != "core":
+        raise UsageError("--grid writes values at the cell centres: the position must be core")
+    return settings
+
+
+def raster_paths(output: str | os.PathLike, names=tuple(RASTERS)) -> dict[str, Path]:
+    """`<stem>_<name>.tif` beside `output` for each raster name (stem: the name without its
+    extension, e.g. change.copc.laz -> change)."""
+    output = Path(output)
+    stem = output.name
+    for ext in (".copc.laz",):
+        if stem.lower().endswith(ext):
+            stem = stem[: -len(ext)]
+            break
+    else:
+        stem = output.stem
+    return {name: output.with_name(f"{stem}_{name}.tif") for name in names}
+
+
+def rasters(result, grid: Grid) -> dict[str, np.ndarray]:
+    """The raster images (row 0 = top = max y) of a Result computed at `grid.core_points`."""
+    if len(result) != len(grid.row):
+        raise ValueError(f"the result has {len(result)} core points, the grid {len(grid.row)}")
+    table = result.columns()
+    values = {
+        "distance": table["distance"],
+        "lod": table["lod"],
+        "significant": np.where(np.isnan(table["significant"]), 255, table["significant"]),
+        "n1": np.where(np.isnan(table["n1"]), -1, table["n1"]),
+        "n2": np.where(np.isnan(table["n2"]), -1, table["n2"]),
+        "status": table["status"],
+    }
+    out = {}
+    for name, (dtype, nodata, _) in RASTERS.items():
+        out[name] = grid.image(np.asarray(values[name]).astype(dtype), dtype, nodata)
+    return out
+
+
+def rasterio_crs(crs: str | None):
+    """A rasterio CRS from Cloud.crs (WKT or "EPSG:n"), or None (with the reason) if there is none
+    or GDAL cannot read it."""
+    if not crs:
+        return None, "the reference cloud has no CRS"
+    from rasterio.crs import CRS
+    from rasterio.errors import CRSError
+    try:
+        return (CRS.from_wkt(crs) if looks_like_wkt(crs) else CRS.from_string(crs)), None
+    except CRSError as e:
+        return None, f"GDAL cannot read the reference's CRS ({e})"
+
+
+def write_rasters(paths: dict[str, Path], images: dict[str, np.ndarray], grid: Grid, crs: str | None, *,
+                  targets: dict[str, Path] | None = None, warn=None) -> None:
+    """Writes each image to paths[name] as a single-band, deflate-compressed, tiled GeoTIFF with
+    the grid's geotransform, nodata and band description, and the CRS `crs` (Cloud.crs). Without
+    a usable CRS the rasters are written without one and `warn` (default: print to stderr) is
+    told, once. `targets` are the final names used in messages (paths may be temporary)."""
+    import rasterio
+
+    rio_crs, why = rasterio_crs(crs)
+    if rio_crs is None:
+        (warn or _warn)(f"{why}: the GeoTIFF rasters are written without a CRS")
+    for name, image in images.items():
+        dtype, nodata, description = RASTERS[name]
+        profile = dict(driver="GTiff", width=grid.cols, height=grid.rows, count=1, dtype=dtype, nodata=nodata,
+                       transform=grid.transform, compress="deflate", BIGTIFF="IF_SAFER")
+        if grid.cols >= 256 and grid.rows >= 256:
+            profile.update(tiled=True, blockxsize=256, blockysize=256)
+        if rio_crs is not None:
+            profile["crs"] = rio_crs
+        target = (targets or paths)[name]
+        try:
+            with rasterio.Env(GDAL_PAM_ENABLED="NO"), rasterio.open(paths[name], "w", **profile) as dst:
+                dst.write(image, 1)
+                dst.set_band_description(1, description)
+                dst.update_tags(1, name=name)
+        except (rasterio.errors.RasterioError, OSError) as e:
+            raise CloudWriteError(f"{target}: cannot write GeoTIFF: {e}") from e
+
+
+def _warn(message: str) -> None:
+    print(f"m3c2: warning: {message}", file=sys.stderr)
+
+
+def _temp_name(target: Path) -> Path:
+    # Same directory (rename stays on one filesystem); the target's extension last, so writers
+    # that dispatch on the extension (LAS, PLY, CSV) pick the right format.
+    suffix = "".join(target.suffixes[-2:]) if target.name.lower().endswith(".copc.laz") else target.suffix
+    fd, name = tempfile.mkstemp(prefix=f".{target.name}.", suffix=f".part{suffix}", dir=target.parent)
+    os.close(fd)
+    return Path(name)
+
+
+@contextmanager
+def staged_outputs(targets) -> Iterator[dict[Path, Path]]:
+    """All-or-nothing output of several files: yields {target: temporary path} (temporaries in
+    each target's directory, ending with the target's extension); when the body returns, each
+    temporary is renamed onto its target. If the body raises, every temporary is removed, no
+    target is touched, and the exception propagates (an OSError as CloudWriteError).
+
+    Every directory is checked before the body runs, so a bad output path fails before any
+    computation is wasted on writing."""
+    staged: dict[Path, Path] = {}
+    try:
+        for target in dict.fromkeys(Path(t) for t in targets):
+            if target.is_dir():
+                raise CloudWriteError(f"{target}: is a directory")
+            if not target.parent.is_dir():
+                raise CloudWriteError(f"{target}: cannot write: directory {str(target.parent)!r} does not exist")
+            try:
+                staged[target] = _temp_name(target)
+            except OSError as e:
+                raise CloudWriteError(f"{target}: cannot write in {str(target.parent)!r}: "
+                                      f"{e.strerror or e}") from None
+        yield staged
+        for target, tmp in staged.items():
+            if not tmp.exists():
+                raise CloudWriteError(f"{target}: was not written")
+            _set_mode(tmp, target)
+        for target, tmp in staged.items():
+            os.replace(tmp, target)
+    except BaseException as e:
+        for tmp in staged.values():
+            try:
+                tmp.unlink()
+            except OSError:
+                pass
+        if isinstance(e, OSError) and not isinstance(e, CloudWriteError):
+            raise CloudWriteError(f"{e.filename or 'output'}: {e.strerror or e}") from e
+        raise
+
+
+def _set_mode(tmp: Path, target: Path) -> None:
+    try:
+        mode = target.stat().st_mode & 0o7777
+    except OSError:
+        umask = os.umask(0)
+        os.umask(umask)
+        mode = 0o666 & ~umask
+    os.chmod(tmp, mode)
