@@ -1,0 +1,739 @@
+"""Out-of-core M3C2: the core points cut into square XY tiles, each computed from only the points
+of both clouds within a halo of its core points, on one machine or as tasks on a Dask cluster.
+The merged result is identical, bit for bit and in core-point order, to a single in-memory run
+(docs/scaling.md gives the argument).
+
+Steps (:func:`run_tiled`):
+
+1. Core points: every reference point (streamed), the reference subsampled with ``core_spacing``
+   (once, globally, streaming, :func:`streaming_subsample`), or a core file.
+2. Plan: core point i goes to tile ``(floor((x - x0) / S), floor((y - y0) / S))``; each tile's
+   core points are spilled to disk in core order and ``tile_of`` (uint32 per core point) is
+   written sequentially. A tile's *box* is its core points' bounding box grown by the halo
+   ``h = max(max D / 2, sqrt((d / 2)^2 + max_depth^2))`` (plus a hair) on every axis.
+3. Clouds: a COPC input is read per tile with a box query; any other input is streamed once and
+   each point appended to the spill file of every tile whose box holds it. Either way a tile's
+   points keep the file's relative order.
+4. Compute: tile by tile (bounded memory), or as Dask tasks (``retries``), each task reading its
+   inputs from paths; per-tile results are spilled to disk by the caller.
+5. Merge: ``tile_of`` is streamed and each row taken from its tile's result spill in order, then
+   written with :class:`m3c2.io.streaming.TableWriter` (temporary file, renamed when complete).
+"""
+from __future__ import annotations
+
+import math
+import os
+import re
+import shutil
+import tempfile
+import time
+import uuid
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Callable
+
+import numpy as np
+
+from . import _core, api
+from .errors import M3C2Error, UsageError
+from .io.streaming import DEFAULT_CHUNK, PointSource, TableWriter, _in_box
+from .result import Result
+
+__all__ = ["halo", "run_tiled", "streaming_subsample", "parse_memory", "choose_tile_size", "compute_tile",
+           "TileTask", "TiledReport", "BYTES_PER_POINT", "BYTES_PER_CORE", "BASE_BYTES"]
+
+#: Resident bytes per cloud point of a tile while it is computed: 24 B coordinates + the
+#: engine's spatial index and neighbour buffers (an estimate, conservative against the measured peak, docs/scaling.md).
+BYTES_PER_POINT = 64
+#: Resident bytes per core point of a tile: 24 B coordinates, ~120 B engine result, ~140 B the
+#: spilled copy (an estimate, docs/scaling.md).
+BYTES_PER_CORE = 320
+#: Interpreter, numpy, laspy and the engine module, plus the chunk buffers of the streaming passes.
+BASE_BYTES = 250 * 2**20
+
+_PARAM_FIELDS = ("normal_diameters", "normal_source", "scale_selection", "min_points_normal",
+                 "min_points_multiscale", "normal_subsample_spacing", "orientation_direction",
+                 "orientation_points", "projection_diameter", "max_depth", "depth_search", "first_pass_depth",
+                 "positive_search_only", "statistic", "variance", "registration_error", "confidence",
+                 "min_points", "t_statistic", "bootstrap_samples", "bootstrap_seed")
+
+
+def params_to_dict(p) -> dict:
+    """The engine's Params as plain picklable values (to send to Dask workers)."""
+    return {name: getattr(p, name) for name in _PARAM_FIELDS}
+
+
+def params_from_dict(d: dict):
+    p = _core.Params()
+    for name, value in d.items():
+        setattr(p, name, value)
+    return p
+
+
+def halo(params) -> float:
+    """Largest distance from a core point to a point that can change its result: the normal
+    sphere (largest D / 2) or the cylinder (radius d / 2, half-length max_depth, any direction)."""
+    sphere = max(params.normal_diameters) / 2 if len(params.normal_diameters) else 0.0
+    cylinder = math.hypot(params.projection_diameter / 2, params.max_depth)
+    return max(sphere, cylinder)
+
+
+def _padded(h: float) -> float:
+    # Extra points never change a result (membership is decided by the exact predicates), so a
+    # generous hair of margin costs nothing and absorbs any rounding of the predicates.
+    return h * (1 + 1e-6) + 1e-6
+
+
+_UNITS = {"": 1, "b": 1, "k": 1e3, "kb": 1e3, "m": 1e6, "mb": 1e6, "g": 1e9, "gb": 1e9, "t": 1e12, "tb": 1e12,
+          "kib": 2**10, "mib": 2**20, "gib": 2**30, "tib": 2**40}
+
+
+def parse_memory(text) -> int:
+    """'2GB' -> 2e9 bytes ('GiB' powers of two, a bare number is bytes)."""
+    m = re.fullmatch(r"\s*([0-9]*\.?[0-9]+)\s*([a-zA-Z]*)\s*", str(text))
+    if not m or m.group(2).lower() not in _UNITS:
+        raise UsageError(f"--memory-limit must be a size such as 2GB, 512MiB or 4e9 bytes, got {text!r}")
+    value = float(m.group(1)) * _UNITS[m.group(2).lower()]
+    if value <= 0:
+        raise UsageError(f"--memory-limit must be positive, got {text!r}")
+    return int(value)
+
+
+def choose_tile_size(limit: int, h: float, ref_density: float, cmp_density: float, core_density: float,
+                     base: int = BASE_BYTES) -> float:
+    """Largest tile side S with base + BYTES_PER_POINT (rho_ref + rho_cmp)(S + 2h)^2 +
+    BYTES_PER_CORE rho_core S^2 <= limit (densities in points per unit of area)."""
+    budget = limit - base
+    a = BYTES_PER_POINT * (ref_density + cmp_density)
+    b = BYTES_PER_CORE * core_density
+
+    def need(s):
+        return a * (s + 2 * h) ** 2 + b * s * s
+
+    floor_size = max(h, 1e-9) / 4
+    if budget <= 0 or need(floor_size) > budget:
+        raise UsageError(f"--memory-limit {limit} B is too small: a tile needs at least {base + need(floor_size):.3g} B "
+                         f"with a halo of {h:.6g} (docs/scaling.md)")
+    lo, hi = floor_size, floor_size
+    while need(hi) <= budget and hi < 1e12:
+        lo, hi = hi, hi * 2
+    for _ in range(60):
+        mid = (lo + hi) / 2
+        lo, hi = (mid, hi) if need(mid) <= budget else (lo, mid)
+    return lo
+
+
+# --------------------------------------------------------------------------- core points
+
+def streaming_subsample(source: PointSource, spacing: float, chunk_size: int = DEFAULT_CHUNK) -> np.ndarray:
+    """The reference subsampled to a minimum spacing, exactly as ``_core.subsample_min_spacing``
+    on the whole cloud, in one streaming pass (greedy in file order).
+
+    Each chunk is run through the engine after the already kept points within 2.5 spacings of
+    its bounding box, with the cloud's first point (the engine's grid anchor, always kept) first:
+    every chunk point is then checked against the same earlier kept points as in the global run,
+    and the prefix is kept again entirely (asserted)."""
+    spacing = float(spacing)
+    kept = np.empty((0, 3))
+    first = None
+    margin = 2.5 * spacing
+    for xyz in source.chunks(chunk_size):
+        if first is None:
+            first = xyz[:1].copy()
+            near = np.empty((0, 3))
+        else:
+            mask = _in_box(kept, xyz.min(axis=0) - margin, xyz.max(axis=0) + margin)
+            mask[0] = False
+            near = np.concatenate([first, kept[mask]])
+        pts = np.ascontiguousarray(np.concatenate([near, xyz]))
+        idx = np.asarray(_core.subsample_min_spacing(pts, spacing))
+        prefix = len(near)
+        if prefix and (len(idx) < prefix or not np.array_equal(idx[:prefix], np.arange(prefix))):
+            raise M3C2Error("internal error: streaming subsampling diverged from the global one")
+        kept = np.concatenate([kept, pts[idx[idx >= prefix]]])
+    return kept
+
+
+class _CoreStream:
+    """Core points in order, in chunks: the reference stream, or an in-memory array."""
+
+    def __init__(self, source: PointSource | None = None, array: np.ndarray | None = None,
+                 normals: np.ndarray | None = None):
+        self.source, self.array, self.normals = source, array, normals
+
+    def chunks(self, size: int):
+        if self.source is not None:
+            for xyz in self.source.chunks(size):
+                yield xyz, None
+        else:
+            for start in range(0, len(self.array), size):
+                yield self.array[start:start + size], (None if self.normals is None
+                                                      else self.normals[start:start + size])
+
+
+# --------------------------------------------------------------------------------- tasks
+
+@dataclass
+class CloudInput:
+    """Where a tile's points of one cloud come from: a spill file of float64 xyz in file order,
+    or a COPC file and the tile's box."""
+
+    spill: str | None = None
+    copc: str | None = None
+    lo: tuple = ()
+    hi: tuple = ()
+    drop_nonfinite: bool = False
+
+    def load(self) -> np.ndarray:
+        if self.spill is not None:
+            if not os.path.exists(self.spill):
+                return np.empty((0, 3))
+            return np.fromfile(self.spill, dtype=np.float64).reshape(-1, 3)
+        return PointSource(self.copc, drop_nonfinite=self.drop_nonfinite).query_box(self.lo, self.hi)
+
+
+@dataclass
+class TileTask:
+    """Everything one tile's computation needs, as paths and numbers (picklable)."""
+
+    tile: int
+    n_core: int
+    core_path: str
+    normals_path: str | None
+    reference: CloudInput
+    compared: CloudInput
+    far_point: tuple  # stands in for an empty cloud: farther than the halo from every core point
+
+
+def compute_tile(task: TileTask, params: dict, threads: int = 0) -> dict:
+    """Runs the engine on one tile; returns its result arrays (engine's names) plus ``tile``,
+    ``n`` and ``core`` (the tile's core points, in core order)."""
+    core = np.fromfile(task.core_path, dtype=np.float64).reshape(-1, 3)
+    if len(core) != task.n_core:
+        raise M3C2Error(f"tile {task.tile}: core spill holds {len(core)} points, expected {task.n_core}")
+    normals = None
+    if task.normals_path is not None:
+        normals = np.fromfile(task.normals_path, dtype=np.float64).reshape(-1, 3)
+    clouds = []
+    for cloud_input in (task.reference, task.compared):
+        pts = cloud_input.load()
+        # The engine refuses an empty cloud; one point beyond every core point's reach leaves
+        # each result as the whole cloud's (no point there either) and keeps the order.
+        clouds.append(pts if len(pts) else np.asarray([task.far_point], dtype=np.float64))
+    if threads <= 0:
+        try:
+            from distributed import get_worker
+            threads = get_worker().state.nthreads
+        except Exception:
+            threads = 0
+    raw = api._engine_call(_core.compute, clouds[0], clouds[1], core, params_from_dict(params), normals,
+                           threads=int(threads))
+    out = dict(raw)
+    out.update(tile=task.tile, n=len(core), core=core, n_reference=len(clouds[0]), n_compared=len(clouds[1]))
+    return out
+
+
+_RESULT_KEYS = ("distance", "lod", "significant", "n1", "n2", "sigma1", "sigma2", "i1", "i2", "normal",
+                "normal_scale", "roughness", "status")
+
+
+def _result_dtype(out: dict) -> np.dtype:
+    fields = [("core", np.float64, (3,))]
+    for k in _RESULT_KEYS:
+        v = np.asarray(out[k])
+        fields.append((k, v.dtype, v.shape[1:]) if v.ndim > 1 else (k, v.dtype))
+    return np.dtype(fields)
+
+
+def _result_rows(out: dict, dtype: np.dtype) -> np.ndarray:
+    rows = np.empty(out["n"], dtype=dtype)
+    rows["core"] = out["core"]
+    for k in _RESULT_KEYS:
+        rows[k] = out[k]
+    return rows
+
+
+# -------------------------------------------------------------------------------- report
+
+@dataclass
+class TiledReport:
+    """What a tiled run did (also printed by the command line)."""
+
+    core_points: int = 0
+    tiles: int = 0
+    tile_size: float = 0.0
+    halo: float = 0.0
+    reference_points: int = 0
+    compared_points: int = 0
+    tile_points_max: int = 0          # largest reference + compared points of one tile
+    tile_points_total: int = 0        # sum over tiles (halo points counted once per tile)
+    estimated_tile_bytes_max: int = 0
+    memory_limit: int | None = None
+    dask: bool = False
+    workers: int = 1
+    seconds: dict = field(default_factory=dict)
+    status_counts: dict = field(default_factory=dict)
+    significant: int = 0
+    with_distance: int = 0
+    result: Result | None = None
+
+    def lines(self, output) -> list[str]:
+        where = f"Dask cluster ({self.workers} workers)" if self.dask else "one machine"
+        out = [f"wrote {output}: {self.core_points} core points, {self.with_distance} with a distance, "
+               f"{self.significant} significant changes",
+               f"tiled on {where}: {self.tiles} tiles of {self.tile_size:.6g} with a halo of {self.halo:.6g}; "
+               f"largest tile {self.tile_points_max} cloud points (estimated {self.estimated_tile_bytes_max / 2**20:.0f} MiB)",
+               "status: " + ", ".join(f"{k} {v}" for k, v in self.status_counts.items())]
+        return out
+
+
+# ----------------------------------------------------------------------------------- run
+
+class _Spills:
+    """Per-tile append-only binary files in one directory."""
+
+    def __init__(self, directory: Path, stem: str):
+        self.directory, self.stem = directory, stem
+
+    def path(self, tile: int) -> str:
+        return str(self.directory / f"{self.stem}-{tile}.bin")
+
+    def append(self, tiles: np.ndarray, rows: np.ndarray) -> None:
+        """Appends rows[i] to tile tiles[i]'s file, keeping the rows' order within each tile."""
+        if len(tiles) == 0:
+            return
+        order = np.argsort(tiles, kind="stable")
+        tiles, rows = tiles[order], rows[order]
+        cuts = np.flatnonzero(np.diff(tiles)) + 1
+        starts = np.concatenate([[0], cuts])
+        stops = np.concatenate([cuts, [len(tiles)]])
+        for a, b in zip(starts, stops):
+            with open(self.path(int(tiles[a])), "ab") as f:
+                np.ascontiguousarray(rows[a:b]).tofile(f)
+
+
+def _density(source: PointSource, chunk_size: int) -> tuple[int, float]:
+    """(points, points per unit of XY area) from the LAS header, or a streaming pass."""
+    if source.kind in ("las", "copc"):
+        import laspy
+        with laspy.open(source.path) as r:
+            h = r.header
+            n, lo, hi = int(h.point_count), np.asarray(h.mins), np.asarray(h.maxs)
+    else:
+        n, lo, hi = 0, np.full(3, np.inf), np.full(3, -np.inf)
+        for xyz in source.chunks(chunk_size):
+            n += len(xyz)
+            lo, hi = np.minimum(lo, xyz.min(axis=0)), np.maximum(hi, xyz.max(axis=0))
+    area = max(float((hi[0] - lo[0]) * (hi[1] - lo[1])), 1e-12) if n else 1.0
+    return n, n / area
+
+
+def _rss_bytes() -> int:
+    try:
+        with open("/proc/self/status") as f:
+            for line in f:
+                if line.startswith("VmRSS:"):
+                    return int(line.split()[1]) * 1024
+    except OSError:
+        pass
+    return 0
+
+
+def run_tiled(reference, compared, *, output=None, core=None, core_spacing=None, core_normals=None,
+              normal_scale=None, projection_scale, max_depth, tile_size=None, memory_limit=None,
+              dask_scheduler=None, client=None, threads: int = 0, work_dir=None, projected: bool = False,
+              position: str = "core", drop_nonfinite: bool = False, return_result: bool = False,
+              chunk_size: int = DEFAULT_CHUNK, retries: int = 3, task_fn: Callable | None = None,
+              log: Callable[[str], object] | None = None, **params) -> TiledReport:
+    """Tiled M3C2 between the files `reference` and `compared` (paths, or PointSource).
+
+    `core`: None (every reference point), a core file path, or an (N, 3) array; or
+    `core_spacing`. `tile_size` S (XY side of a tile) or `memory_limit` (bytes or '2GB': S is
+    chosen so a tile's estimated resident memory fits). `dask_scheduler` (an address) or `client`
+    (a distributed.Client) runs tiles as Dask tasks with `retries`. `output`: a file written
+    atomically (same bytes as the untiled run); `return_result` also gathers the Result in
+    memory. Other keywords are :func:`m3c2.api.compare`'s engine parameters.
+    """
+    t_start = time.perf_counter()
+    log = log or (lambda s: None)
+    report = TiledReport()
+    engine = api.build_params(normal_scale=normal_scale, projection_scale=projection_scale, max_depth=max_depth,
+                              **params)
+    if engine.normal_subsample_spacing > 0:
+        raise UsageError("--normal-subsample cannot be combined with tiling (--tile-size, --memory-limit, "
+                         "--dask-scheduler): the subsampled normal cloud depends on the whole cloud's order, "
+                         "so tiles would not reproduce the untiled result")
+    if engine.bootstrap_samples > 0:
+        raise UsageError("--bootstrap cannot be combined with tiling: the bootstrap stream is seeded by the "
+                         "core point's index in the run, which a tile does not know")
+    if tile_size is None and memory_limit is None:
+        raise UsageError("tiling needs --tile-size or --memory-limit")
+    if tile_size is not None and not (float(tile_size) > 0 and math.isfinite(float(tile_size))):
+        raise UsageError(f"--tile-size must be a positive number, got {tile_size!r}")
+    pdict = params_to_dict(engine)
+    h = halo(engine)
+    hp = _padded(h)
+    report.halo = h
+
+    ref_src = reference if isinstance(reference, PointSource) else PointSource(reference, drop_nonfinite=drop_nonfinite)
+    cmp_src = compared if isinstance(compared, PointSource) else PointSource(compared, drop_nonfinite=drop_nonfinite)
+
+    # 1. core points
+    normals_arr = None
+    if params.get("normal_source") == "core":
+        if core_normals is None:
+            raise UsageError("--normal-source core needs core_normals (one normal per core point)")
+        normals_arr = api.as_points("core_normals", core_normals)
+    if core is not None and core_spacing is not None:
+        raise UsageError("give either core points (--core) or --core-spacing, not both")
+    if core is not None:
+        if isinstance(core, (str, os.PathLike)):
+            from .io import read_cloud
+            core = read_cloud(core, drop_nonfinite=drop_nonfinite)
+        core_arr = api.as_points("core_points", core)
+        cores = _CoreStream(array=core_arr, normals=normals_arr)
+    elif core_spacing is not None:
+        t0 = time.perf_counter()
+        core_arr = streaming_subsample(ref_src, api.positive("--core-spacing", core_spacing), chunk_size)
+        report.seconds["core_subsample"] = time.perf_counter() - t0
+        cores = _CoreStream(array=core_arr, normals=normals_arr)
+    else:
+        core_arr = None
+        cores = _CoreStream(source=ref_src, normals=None)
+    if normals_arr is not None and (core_arr is None or len(normals_arr) != len(core_arr)):
+        raise UsageError("core_normals must have one row per core point")
+
+    # tile size
+    if tile_size is None:
+        limit = parse_memory(memory_limit) if not isinstance(memory_limit, (int, float)) else int(memory_limit)
+        report.memory_limit = limit
+        n_ref, rho_ref = _density(ref_src, chunk_size)
+        _, rho_cmp = _density(cmp_src, chunk_size)
+        if core_arr is None:
+            rho_core = rho_ref
+        else:
+            span = core_arr.max(axis=0) - core_arr.min(axis=0) if len(core_arr) else np.ones(3)
+            rho_core = len(core_arr) / max(float(span[0] * span[1]), 1e-12)
+        tile_size = choose_tile_size(limit, h, rho_ref, rho_cmp, rho_core, base=max(BASE_BYTES, _rss_bytes()))
+        log(f"--memory-limit {limit} B: tile size {tile_size:.6g}")
+    size = float(tile_size)
+    report.tile_size = size
+
+    own_dir = work_dir is None
+    if own_dir:
+        parent = Path(output).resolve().parent if output is not None else None
+        work = Path(tempfile.mkdtemp(prefix=".m3c2-tiles-", dir=parent))
+    else:
+        work = Path(work_dir)
+        work.mkdir(parents=True, exist_ok=True)
+    try:
+        return _run_in(work, report, ref_src, cmp_src, cores, normals_arr is not None, size, hp, pdict,
+                       output=output, dask_scheduler=dask_scheduler, client=client, threads=threads,
+                       projected=projected, position=position, return_result=return_result,
+                       chunk_size=chunk_size, retries=retries, task_fn=task_fn or compute_tile, log=log,
+                       record=dict(params, normal_scale=list(engine.normal_diameters),
+                                   projection_scale=projection_scale, max_depth=max_depth), t_start=t_start)
+    finally:
+        if own_dir:
+            shutil.rmtree(work, ignore_errors=True)
+
+
+def _run_in(work: Path, report: TiledReport, ref_src, cmp_src, cores: _CoreStream, with_normals: bool, size: float,
+            hp: float, pdict: dict, *, output, dask_scheduler, client, threads, projected, position,
+            return_result, chunk_size, retries, task_fn, log, record, t_start) -> TiledReport:
+    # 2. plan: tile of every core point, per-tile core spills and bounding boxes
+    t0 = time.perf_counter()
+    core_spill, normal_spill = _Spills(work, "core"), _Spills(work, "normals")
+    ids: dict[tuple[int, int], int] = {}
+    lo_l: list = []
+    hi_l: list = []
+    count_l: list = []
+    origin = None
+    n_core = 0
+    with open(work / "tile_of.u32", "wb") as tile_of:
+        for xyz, nrm in cores.chunks(chunk_size):
+            if origin is None:
+                origin = xyz[0, :2].copy()
+            keys = np.floor((xyz[:, :2] - origin) / size).astype(np.int64)
+            uniq, inverse = np.unique(keys, axis=0, return_inverse=True)
+            inverse = inverse.reshape(-1)
+            local = np.empty(len(uniq), dtype=np.uint32)
+            for j, k in enumerate(map(tuple, uniq.tolist())):
+                if k not in ids:
+                    ids[k] = len(ids)
+                    lo_l.append(np.full(3, np.inf))
+                    hi_l.append(np.full(3, -np.inf))
+                    count_l.append(0)
+                local[j] = ids[k]
+            tid = local[inverse]
+            tid.tofile(tile_of)
+            for j in range(len(uniq)):
+                t = int(local[j])
+                pts = xyz[inverse == j]
+                lo_l[t] = np.minimum(lo_l[t], pts.min(axis=0))
+                hi_l[t] = np.maximum(hi_l[t], pts.max(axis=0))
+                count_l[t] += len(pts)
+            core_spill.append(tid, xyz)
+            if nrm is not None:
+                normal_spill.append(tid, np.ascontiguousarray(nrm, dtype=np.float64))
+            n_core += len(xyz)
+    n_tiles = len(ids)
+    report.core_points, report.tiles = n_core, n_tiles
+    if n_core == 0:
+        raise UsageError("no core points")
+    lo = np.array(lo_l) - hp  # each tile's box: its core points' bounding box grown by the halo
+    hi = np.array(hi_l) + hp
+    counts = np.array(count_l, dtype=np.int64)
+    report.seconds["plan"] = time.perf_counter() - t0
+    log(f"{n_core} core points in {n_tiles} tiles of {size:.6g} (halo {hp:.6g})")
+
+    # 3. clouds: spill non-COPC inputs into every tile box that holds each point
+    t0 = time.perf_counter()
+    key_of = np.full((1, 1), -1, dtype=np.int64)
+    kmin = np.zeros(2, dtype=np.int64)
+    if ids:
+        karr = np.array(list(ids.keys()), dtype=np.int64)
+        kmin, kmax = karr.min(axis=0), karr.max(axis=0)
+        key_of = np.full(tuple(kmax - kmin + 1), -1, dtype=np.int64)
+        key_of[karr[:, 0] - kmin[0], karr[:, 1] - kmin[1]] = np.array(list(ids.values()))
+    reach = int(math.floor(2 * hp / size)) + 2
+    n_points = {}
+    spills = {}
+    for name, src in (("reference", ref_src), ("compared", cmp_src)):
+        if src.kind == "copc":
+            spills[name] = None
+            continue
+        spill = _Spills(work, name)
+        total = 0
+        for xyz in src.chunks(chunk_size):
+            total += len(xyz)
+            base = np.floor((xyz[:, :2] - hp - origin) / size).astype(np.int64) - kmin
+            top = np.floor((xyz[:, :2] + hp - origin) / size).astype(np.int64) - kmin
+            sel_t, sel_i = [], []
+            for dx in range(reach):
+                for dy in range(reach):
+                    kx, ky = base[:, 0] + dx, base[:, 1] + dy
+                    ok = (kx <= top[:, 0]) & (ky <= top[:, 1]) & (kx >= 0) & (ky >= 0) \
+                        & (kx < key_of.shape[0]) & (ky < key_of.shape[1])
+                    idx = np.flatnonzero(ok)
+                    t = key_of[kx[idx], ky[idx]]
+                    keep = t >= 0
+                    idx, t = idx[keep], t[keep]
+                    p = xyz[idx]
+                    inside = ((p[:, 0] >= lo[t, 0]) & (p[:, 0] <= hi[t, 0]) & (p[:, 1] >= lo[t, 1])
+                              & (p[:, 1] <= hi[t, 1]) & (p[:, 2] >= lo[t, 2]) & (p[:, 2] <= hi[t, 2]))
+                    sel_t.append(t[inside])
+                    sel_i.append(idx[inside])
+            t_all, i_all = np.concatenate(sel_t), np.concatenate(sel_i)
+            # Within a tile, points must keep file order: sort by (tile, index in chunk).
+            order = np.lexsort((i_all, t_all))
+            spill.append(t_all[order], xyz[i_all[order]])
+        n_points[name] = total
+        spills[name] = spill
+    report.reference_points = n_points.get("reference", 0)
+    report.compared_points = n_points.get("compared", 0)
+    report.seconds["distribute"] = time.perf_counter() - t0
+
+    def cloud_input(name, src, t):
+        if spills[name] is None:
+            return CloudInput(copc=str(src.path), lo=tuple(lo[t]), hi=tuple(hi[t]), drop_nonfinite=src.drop_nonfinite)
+        return CloudInput(spill=spills[name].path(t))
+
+    far = hi.max(axis=0) + 4 * hp + 1.0
+    tasks = [TileTask(tile=t, n_core=int(counts[t]), core_path=core_spill.path(t),
+                      normals_path=normal_spill.path(t) if with_normals else None,
+                      reference=cloud_input("reference", ref_src, t), compared=cloud_input("compared", cmp_src, t),
+                      far_point=tuple(float(v) for v in far)) for t in range(n_tiles)]
+
+    # 4. compute: per-tile results spilled to disk, each tile exactly once
+    t0 = time.perf_counter()
+    result_spill = _Spills(work, "result")
+    state = {"dtype": None, "done": set(), "tile_points_max": 0, "tile_points_total": 0}
+
+    def accept(out: dict) -> None:
+        t = int(out["tile"])
+        if t in state["done"]:
+            raise M3C2Error(f"tile {t} returned twice")
+        if out["n"] != counts[t]:
+            raise M3C2Error(f"tile {t} returned {out['n']} rows for {counts[t]} core points")
+        if state["dtype"] is None:
+            state["dtype"] = _result_dtype(out)
+        rows = _result_rows(out, state["dtype"])
+        with open(result_spill.path(t), "wb") as f:
+            rows.tofile(f)
+        state["done"].add(t)
+        pts = int(out["n_reference"]) + int(out["n_compared"])
+        state["tile_points_max"] = max(state["tile_points_max"], pts)
+        state["tile_points_total"] += pts
+
+    if dask_scheduler is not None or client is not None:
+        report.dask = True
+        _run_dask(tasks, pdict, threads, retries, task_fn, accept, dask_scheduler, client, report, log)
+    else:
+        for i, task in enumerate(tasks):
+            accept(task_fn(task, pdict, threads))
+            if (i + 1) % max(1, n_tiles // 20) == 0:
+                log(f"tile {i + 1}/{n_tiles}")
+    if len(state["done"]) != n_tiles:
+        raise M3C2Error(f"only {len(state['done'])} of {n_tiles} tiles were computed")
+    report.tile_points_max = state["tile_points_max"]
+    report.tile_points_total = state["tile_points_total"]
+    report.estimated_tile_bytes_max = int(BASE_BYTES + BYTES_PER_POINT * report.tile_points_max
+                                          + BYTES_PER_CORE * int(counts.max()))
+    report.seconds["compute"] = time.perf_counter() - t0
+
+    # 5. merge in core order and write
+    t0 = time.perf_counter()
+    _merge(work, result_spill, state["dtype"], counts, n_core, report, output=output, like=ref_src.like(),
+           projected=projected, position=position, return_result=return_result, chunk_size=chunk_size,
+           record=record)
+    report.seconds["merge_write"] = time.perf_counter() - t0
+    report.seconds["total"] = time.perf_counter() - t_start
+    return report
+
+
+def _run_dask(tasks, pdict, threads, retries, task_fn, accept, address, client, report, log) -> None:
+    from distributed import Client, as_completed
+    own = client is None
+    if own:
+        try:
+            client = Client(address)
+        except Exception as e:  # noqa: BLE001 - any connection failure is the user's address
+            raise M3C2Error(f"--dask-scheduler {address}: cannot connect: {e}") from None
+    try:
+        report.workers = max(1, len(client.scheduler_info().get("workers", {})))
+        run_id = uuid.uuid4().hex[:8]
+        window = max(2, 2 * report.workers)
+        pending = iter(tasks)
+        futures = as_completed(with_results=True)
+
+        def submit_next() -> bool:
+            task = next(pending, None)
+            if task is None:
+                return False
+            futures.add(client.submit(task_fn, task, pdict, threads, key=f"m3c2-tile-{run_id}-{task.tile}",
+                                      retries=retries, pure=False))
+            return True
+
+        for _ in range(window):
+            if not submit_next():
+                break
+        done = 0
+        for future, out in futures:
+            accept(out)
+            future.release()
+            done += 1
+            if done % max(1, len(tasks) // 20) == 0:
+                log(f"tile {done}/{len(tasks)}")
+            submit_next()
+    finally:
+        if own:
+            client.close()
+
+
+def _output_xyz(chunk: Result, projected: bool, position: str) -> np.ndarray:
+    table = chunk.columns(projected=projected, position=position)
+    return np.column_stack([table["x"], table["y"], table["z"]])
+
+
+def _merge(work: Path, result_spill: _Spills, dtype: np.dtype, counts, n_core: int, report: TiledReport, *,
+           output, like, projected, position, return_result, chunk_size, record) -> None:
+    def chunks():
+        offsets = np.zeros(len(counts), dtype=np.int64)
+        taken = np.zeros(len(counts), dtype=np.int64)
+        with open(work / "tile_of.u32", "rb") as f:
+            while True:
+                tid = np.fromfile(f, dtype=np.uint32, count=chunk_size)
+                if len(tid) == 0:
+                    break
+                rows = np.empty(len(tid), dtype=dtype)
+                for t in np.unique(tid):
+                    sel = tid == t
+                    c = int(sel.sum())
+                    part = np.fromfile(result_spill.path(int(t)), dtype=dtype, count=c,
+                                       offset=int(offsets[t]) * dtype.itemsize)
+                    if len(part) != c:
+                        raise M3C2Error(f"tile {t}: result spill is short")
+                    rows[sel] = part
+                    offsets[t] += c
+                    taken[t] += c
+                raw = {k: rows[k] for k in _RESULT_KEYS}
+                yield Result.from_engine(np.ascontiguousarray(rows["core"]), raw, record)
+        if not np.array_equal(taken, counts):
+            raise M3C2Error("core-point bookkeeping failed: rows taken per tile differ from the plan")
+
+    xyz_min = None
+    if output is not None and (like is None or like.scale is None):
+        xyz_min = np.full(3, np.inf)
+        for chunk in chunks():
+            xyz_min = np.minimum(xyz_min, _output_xyz(chunk, projected, position).min(axis=0))
+    gathered = []
+    status = np.zeros(256, dtype=np.int64)
+    rows_written = 0
+
+    def consume(chunk: Result, writer=None):
+        nonlocal rows_written
+        rows_written += len(chunk)
+        status[:] += np.bincount(chunk.status, minlength=256)
+        report.significant += int(chunk.significant.sum())
+        report.with_distance += int(np.isfinite(chunk.distance).sum())
+        if writer is not None:
+            table = chunk.columns(projected=projected, position=position)
+            xyz = np.column_stack([table.pop("x"), table.pop("y"), table.pop("z")])
+            writer.write(xyz, table)
+        if return_result:
+            gathered.append(chunk)
+
+    if output is not None:
+        with TableWriter(output, like=like, xyz_min=xyz_min) as writer:
+            for chunk in chunks():
+                consume(chunk, writer)
+    else:
+        for chunk in chunks():
+            consume(chunk)
+    if rows_written != n_core:
+        raise M3C2Error(f"wrote {rows_written} rows for {n_core} core points")
+    from .result import STATUS_NAMES
+    report.status_counts = {STATUS_NAMES[c]: int(n) for c, n in enumerate(status) if n}
+    if return_result:
+        arrays = {k: np.concatenate([getattr(c, k) for c in gathered]) for k in ("core",) + _RESULT_KEYS}
+        core_xyz = arrays.pop("core")
+        report.result = Result(core=core_xyz, params=record, **arrays)
+
+
+def run_compare_tiled(args, settings: dict, grid=None) -> int:
+    """`m3c2 compare ... --tile-size S | --memory-limit M [--dask-scheduler ADDRESS]` (cli.py)."""
+    from .cli import _core_normals, check_same_crs
+    from .io import read_cloud
+
+    for flag, value in (("--grid", grid), ("--report", getattr(args, "report", None)),
+                        ("--report-png", getattr(args, "report_png", None))):
+        if value is not None:
+            raise UsageError(f"{flag} cannot be combined with tiling (--tile-size, --memory-limit, --dask-scheduler)")
+    if args.tile_size is None and args.memory_limit is None:
+        raise UsageError("--dask-scheduler needs --tile-size S or --memory-limit SIZE to cut the work into tiles")
+
+    settings = dict(settings)
+    position = settings.pop("position", "core")
+    threads = settings.pop("threads", 0)
+    core_spacing = settings.pop("core_spacing", None)
+    drop = bool(getattr(args, "drop_nonfinite", False))
+    ref_src = PointSource(args.reference, drop_nonfinite=drop)
+    cmp_src = PointSource(args.compared, drop_nonfinite=drop)
+    if "orient" not in settings:
+        positions = ref_src.cloud.scan_positions if ref_src.cloud is not None else None
+        settings["orient"] = positions if positions is not None and len(positions) else "+z"
+    core_cloud = read_cloud(args.core, drop_nonfinite=drop) if args.core is not None else None
+    check_same_crs(ref_src.like(), cmp_src.like(), core_cloud, ignore=getattr(args, "ignore_crs", False))
+    core_normals = _core_normals(args, core_cloud) if settings.get("normal_source") == "core" else None
+    say = (lambda s: None) if args.quiet else (lambda s: print(f"m3c2: {s}", flush=True))
+    report = run_tiled(ref_src, cmp_src, output=args.output,
+                       core=core_cloud.xyz if core_cloud is not None else None, core_spacing=core_spacing,
+                       core_normals=core_normals, tile_size=args.tile_size, memory_limit=args.memory_limit,
+                       dask_scheduler=args.dask_scheduler, threads=threads or 0, projected=args.projected,
+                       position=position, drop_nonfinite=drop, log=say,
+                       read_points=lambda p: read_cloud(p, drop_nonfinite=drop).xyz, **settings)
+    if not args.quiet:
+        for line in report.lines(args.output):
+            print(line)
+    return 0
