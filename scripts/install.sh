@@ -5,7 +5,9 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
-packages=(build-essential cmake libeigen3-dev libnanoflann-dev libboost-math-dev libgtest-dev)
+packages=(build-essential cmake libeigen3-dev libboost-math-dev libgtest-dev)
+# The tests also open the HTML report in a headless browser.
+[[ "${1:-}" == "--test" ]] && packages+=(chromium)
 missing=()
 for p in "${packages[@]}"; do dpkg -s "$p" >/dev/null 2>&1 || missing+=("$p"); done
 if ((${#missing[@]})); then

@@ -10,7 +10,8 @@ from typing import Callable
 import numpy as np
 
 from . import _core
-from .errors import UsageError
+from .errors import M3C2Error, UsageError
+from .io.guard import available_memory, format_bytes
 from .options import non_negative, normal_scales, orientation, positive
 from .result import Result
 
@@ -86,15 +87,52 @@ def build_params(*, normal_scale=None, projection_scale, max_depth, registration
     if not 0.0 < conf < 1.0:
         raise UsageError(f"--confidence must be in (0, 1), got {confidence!r}")
     p.confidence = conf
-    if int(min_points) < 1 or int(min_points) != float(min_points):
-        raise UsageError(f"--min-points must be an integer >= 1, got {min_points!r}")
-    p.min_points = int(min_points)
+    p.min_points = _integer("--min-points", min_points, 1, UINT32_MAX, "an integer >= 1")
     p.t_statistic = bool(t_statistic)
-    if int(bootstrap) < 0 or int(bootstrap) == 1:
+    bootstrap = _integer("--bootstrap", bootstrap, 0, UINT32_MAX, "0 (off) or >= 2 resamples")
+    if bootstrap == 1:
         raise UsageError(f"--bootstrap must be 0 (off) or >= 2 resamples, got {bootstrap!r}")
-    p.bootstrap_samples = int(bootstrap)
-    p.bootstrap_seed = int(seed)
+    p.bootstrap_samples = bootstrap
+    p.bootstrap_seed = _integer("--seed", seed, 0, 2**64 - 1, "a non-negative integer")
     return p
+
+
+UINT32_MAX = 2**32 - 1
+
+
+def _integer(name: str, value, lo: int, hi: int, rule: str) -> int:
+    """`value` as an int in [lo, hi] (the engine's field width), or a UsageError naming the option."""
+    try:
+        v = int(value)
+        exact = v == float(value)
+    except (TypeError, ValueError, OverflowError):
+        raise UsageError(f"{name} must be {rule}, got {value!r}") from None
+    if not exact or not lo <= v <= hi:
+        if exact and v > hi:
+            rule = f"{rule}, at most {hi}"
+        raise UsageError(f"{name} must be {rule}, got {value!r}")
+    return v
+
+
+def threads_count(threads) -> int:
+    """--threads as the engine's int: 0 (all hardware threads) or a positive count."""
+    return _integer("--threads", 0 if threads is None else threads, 0, 2**31 - 1, "0 (all) or a positive integer")
+
+
+#: The engine's subsampling hashes (p - first point) / spacing as 64-bit integers per axis.
+MAX_CELLS_PER_AXIS = 2.0**62
+
+
+def check_spacing(name: str, spacing: float, *clouds) -> float:
+    """`spacing`, or a UsageError when a cloud spans more than 2**62 spacings on an axis (the
+    engine's subsampling grid index would overflow: docs/errors.md)."""
+    for cloud in clouds:
+        if len(cloud):
+            extent = float(np.max(np.abs(cloud - cloud[0])))
+            if extent / spacing >= MAX_CELLS_PER_AXIS:
+                raise UsageError(f"{name} {spacing!r} is too small for clouds spanning {extent:.6g} on an axis "
+                                 f"(at most 2**62 spacings); remove far outliers or use a larger spacing")
+    return spacing
 
 
 def core_points_for(reference: np.ndarray, core_points=None, core_spacing=None) -> np.ndarray:
@@ -104,7 +142,8 @@ def core_points_for(reference: np.ndarray, core_points=None, core_spacing=None) 
     if core_points is not None:
         return as_points("core_points", core_points)
     if core_spacing is not None:
-        kept = _core.subsample_min_spacing(reference, positive("--core-spacing", core_spacing))
+        spacing = check_spacing("--core-spacing", positive("--core-spacing", core_spacing), reference)
+        kept = _core.subsample_min_spacing(reference, spacing)
         return reference[kept]
     return reference
 
@@ -121,9 +160,17 @@ def compare(reference, compared, core_points=None, *, normal_scale=None, project
     """
     ref = as_points("reference", reference)
     cmp_ = as_points("compared", compared)
+    for name, cloud in (("reference", ref), ("compared", cmp_)):
+        if len(cloud) == 0:
+            raise UsageError(f"the {name} cloud is empty (0 points)")
     core = core_points_for(ref, core_points, core_spacing)
+    if len(core) == 0:
+        raise UsageError("core_points is empty: there is nothing to compute")
     engine_params = build_params(normal_scale=normal_scale, projection_scale=projection_scale,
                                  max_depth=max_depth, **params)
+    check_memory(len(ref), len(cmp_), len(core))
+    if params.get("normal_subsample") is not None:
+        check_spacing("--normal-subsample", engine_params.normal_subsample_spacing, ref, cmp_)
 
     normals = None
     if params.get("normal_source") == "core":
@@ -132,7 +179,8 @@ def compare(reference, compared, core_points=None, *, normal_scale=None, project
         normals = as_points("core_normals", core_normals)
         if len(normals) != len(core):
             raise UsageError(f"core_normals has {len(normals)} rows for {len(core)} core points")
-    raw = _engine_call(_core.compute, ref, cmp_, core, engine_params, normals, threads=int(threads), progress=progress)
+    raw = _engine_call(_core.compute, ref, cmp_, core, engine_params, normals, threads=threads_count(threads),
+                       progress=progress)
     params.pop("read_points", None)
     record = dict(params, normal_scale=list(engine_params.normal_diameters), projection_scale=projection_scale,
                   max_depth=max_depth)
@@ -147,14 +195,47 @@ def normals(cloud, core_points=None, *, normal_scale, orient="+z", normal_subsam
     p = build_params(normal_scale=normal_scale, projection_scale=1.0, max_depth=1.0, orient=orient,
                      normal_subsample=normal_subsample, variance=variance, scale_selection=scale_selection,
                      read_points=read_points)
-    out = _engine_call(_core.compute_normals, pts, core, p, threads=int(threads), progress=progress)
+    out = _engine_call(_core.compute_normals, pts, core, p, threads=threads_count(threads), progress=progress)
     out["core"] = core
     return out
 
 
 def subsample(points, spacing: float) -> np.ndarray:
     """Indices of points kept with no two closer than `spacing` (greedy in input order)."""
-    return _core.subsample_min_spacing(as_points("points", points), positive("--spacing", spacing))
+    pts = as_points("points", points)
+    return _core.subsample_min_spacing(pts, check_spacing("--spacing", positive("--spacing", spacing), pts))
+
+
+class InsufficientMemory(M3C2Error):
+    """A run would need more memory than is available (exit status 1)."""
+
+
+#: Memory model of a run (the input arrays are already in memory): the engine's spatial index
+#: takes about (24 + 4) bytes per point of each cloud (a float64 copy of the coordinates and a
+#: uint32 index) plus a few percent of tree nodes, and the results about 120 bytes per core point.
+INDEX_BYTES_PER_POINT = 24 + 4
+INDEX_OVERHEAD = 1.05
+RESULT_BYTES_PER_CORE_POINT = 120
+
+
+def estimate_memory(n_reference: int, n_compared: int, n_core: int) -> int:
+    """Bytes a compare run allocates beyond its inputs (see INDEX_BYTES_PER_POINT)."""
+    index = INDEX_BYTES_PER_POINT * INDEX_OVERHEAD * (int(n_reference) + int(n_compared))
+    return int(index + RESULT_BYTES_PER_CORE_POINT * int(n_core))
+
+
+def check_memory(n_reference: int, n_compared: int, n_core: int, available: int | None = None) -> int:
+    """Raises InsufficientMemory when estimate_memory(...) exceeds `available` bytes (default:
+    m3c2.io.guard.available_memory(), which honours $M3C2_AVAILABLE_MEMORY); returns the estimate."""
+    needed = estimate_memory(n_reference, n_compared, n_core)
+    available = available_memory() if available is None else available
+    if available is not None and needed > available:
+        raise InsufficientMemory(
+            f"not enough memory: this run needs about {format_bytes(needed)} (spatial index of "
+            f"{n_reference} + {n_compared} points, results for {n_core} core points) but only "
+            f"{format_bytes(available)} is available; process the clouds in tiles (--tile-size S or "
+            f"--memory-limit SIZE), or use fewer core points (--core-spacing, or a smaller --core file)")
+    return needed
 
 
 def _engine_call(fn, *args, **kwargs):

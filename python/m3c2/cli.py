@@ -9,12 +9,15 @@ from pathlib import Path
 
 import numpy as np
 
-from . import api
+from . import api, raster
+from .analysis.cli import analysis_parsers
 from .cloudcompare_params import read_cloudcompare_params
 from .errors import M3C2Error, UsageError
 from .io import info as file_info
 from .io import read_cloud, write_cloud_table
+from .io.crs import crs_label, same_crs
 from .progress import ProgressBar
+from .report.outputs import write_compare_outputs
 from .summary import summary_lines
 from .writing import write
 
@@ -42,6 +45,10 @@ def _compare_parser(sub) -> None:
     core = p.add_mutually_exclusive_group()
     core.add_argument("--core", type=Path, help="core points file (default: every reference point)")
     core.add_argument("--core-spacing", type=float, help="core points = reference subsampled to this minimum spacing")
+    core.add_argument("--grid", type=float, metavar="CELL",
+                      help="2D mode (section 6.1.2): core points on a CELL grid over the reference, vertical normals, "
+                           "d = 1.1 CELL unless --projection-scale; also writes GeoTIFF rasters <stem>_distance.tif, "
+                           "_lod, _significant, _n1, _n2, _status beside -o (docs/report.md)")
     p.add_argument("--normal-scale", help=SCALE_HELP)
     p.add_argument("--projection-scale", type=float, help="d: DIAMETER of the projection cylinder")
     p.add_argument("--max-depth", type=float, help="half-length of the cylinder along the normal, on each side")
@@ -69,7 +76,20 @@ def _compare_parser(sub) -> None:
     p.add_argument("--position", choices=["core", "reference", "compared"],
                    help="where output rows are placed (default core)")
     p.add_argument("--drop-nonfinite", action="store_true", help="drop points with NaN/Inf coordinates")
+    p.add_argument("--ignore-crs", action="store_true",
+                   help="compare clouds whose CRS or units differ (default: an error naming both)")
     p.add_argument("--threads", type=int, help="threads (default all); results are identical for any count")
+    p.add_argument("--report", type=Path, metavar="HTML", help="also write a self-contained HTML report (docs/report.md)")
+    p.add_argument("--report-png", type=Path, metavar="PREFIX", help="also write the report's figures as PREFIX_<figure>.png")
+    p.add_argument("--tile-size", type=float, metavar="S",
+                   help="out-of-core: process the core points in square XY tiles of side S, each with only the "
+                        "points within the halo; same result bit for bit (docs/scaling.md)")
+    p.add_argument("--memory-limit", metavar="SIZE",
+                   help="out-of-core: pick the tile size so a tile's estimated resident memory stays under SIZE "
+                        "(e.g. 2GB; docs/scaling.md)")
+    p.add_argument("--dask-scheduler", metavar="ADDRESS",
+                   help="run the tiles as tasks on this Dask distributed scheduler; every worker must be able to "
+                        "read the inputs and the work folder beside the output (docs/scaling.md)")
     p.add_argument("--quiet", action="store_true", help="no progress bar or summary")
     p.set_defaults(run=run_compare)
 
@@ -104,7 +124,7 @@ def _info_parser(sub) -> None:
 def make_parser() -> argparse.ArgumentParser:
     parser = ArgumentParser(prog="m3c2", description="M3C2 point-cloud change detection (Lague et al. 2013)")
     sub = parser.add_subparsers(dest="command", required=True, parser_class=ArgumentParser)
-    for build in (_compare_parser, _normals_parser, _subsample_parser, _info_parser):
+    for build in (_compare_parser, _normals_parser, _subsample_parser, _info_parser, analysis_parsers):
         build(sub)
     return parser
 
@@ -146,9 +166,19 @@ def _orient_spec(args, settings: dict, reference):
 
 
 def run_compare(args) -> int:
+    cell = raster.grid_mode(args)  # --grid: checks its options, d = 1.1 CELL by default
     settings = compare_settings(args)
+    if args.tile_size is not None or args.memory_limit is not None or args.dask_scheduler is not None:
+        from .tiling import run_compare_tiled  # out-of-core / Dask (docs/scaling.md)
+        return run_compare_tiled(args, settings, grid=cell)
     reference, compared = _read(args.reference, args), _read(args.compared, args)
     core_cloud = _read(args.core, args) if args.core is not None else None
+    check_same_crs(reference, compared, core_cloud, ignore=getattr(args, "ignore_crs", False))  # docs/errors.md
+    grid = None
+    if cell is not None:
+        settings = raster.grid_settings(settings)
+        grid = raster.grid_core_points(reference, cell)
+        core_cloud = grid.core_points
     settings["orient"] = _orient_spec(args, settings, reference)
     position = settings.pop("position", "core")
     threads = settings.pop("threads", 0)
@@ -159,11 +189,79 @@ def run_compare(args) -> int:
     result = api.compare(reference, compared, core_cloud, core_normals=core_normals, threads=threads,
                          progress=bar.update, read_points=lambda p: _read(p, args).xyz, **settings)
     bar.close()
-    write(args.output, result, like=reference, projected=args.projected, position=position)
+    extra = write_compare_outputs(args, result, reference, grid=grid, position=position)
     if not args.quiet:
         for line in summary_lines(result, args.output):
             print(line)
+        for path in extra:
+            print(f"wrote {path}")
+    _print_warnings(args, settings, result, reference, compared, core_cloud)  # docs/errors.md
     return 0
+
+
+class CrsMismatch(M3C2Error):
+    """The epochs' CRSs or units differ (exit 1); --ignore-crs overrides."""
+
+
+def check_same_crs(reference, compared, core=None, *, ignore: bool = False) -> None:
+    """Raises CrsMismatch when the compared cloud (or the core points) and the reference have
+    CRSs known to differ (m3c2.io.crs.same_crs) or different units hints; unknown ones pass."""
+    if ignore:
+        return
+    for role, other in (("compared", compared), ("core points", core)):
+        if other is None:
+            continue
+        if same_crs(reference.crs, other.crs) is False:
+            raise CrsMismatch(f"the clouds have different CRSs: reference {reference.path} is in "
+                              f"{crs_label(reference.crs)}, {role} {other.path} in {crs_label(other.crs)}; "
+                              f"reproject one of them, or pass --ignore-crs if the coordinates are comparable")
+        units = (reference.units_hint, other.units_hint)
+        if all(units) and units[0] != units[1]:
+            raise CrsMismatch(f"the clouds have different units: reference {reference.path} is in {units[0]}, "
+                              f"{role} {other.path} in {units[1]}; convert one of them, or pass --ignore-crs "
+                              f"if the coordinates are comparable")
+
+
+#: Share of computed core points with an empty cylinder in one cloud only above which
+#: `compare` warns that --max-depth may be shorter than the change.
+EMPTY_ONE_SIDE_WARNING = 0.10
+
+
+def result_warnings(result, min_points: int, max_depth=None, projection_scale=None) -> list[str]:
+    """Warnings for runs that are legitimate but likely mis-parameterised (docs/errors.md):
+    the median n1 or n2 below `min_points` (cylinder too thin for the point spacing), and more
+    than 10 % of core points with a searched cylinder having it empty in one cloud only (the
+    change reaches beyond --max-depth)."""
+    searched = np.isin(result.status, (0, 3, 4, 5))  # a normal was found: cylinders were searched
+    if not searched.any():
+        return []
+    lines = []
+    n1, n2 = np.asarray(result.n1)[searched], np.asarray(result.n2)[searched]
+    m1, m2 = float(np.median(n1)), float(np.median(n2))
+    if min(m1, m2) < min_points:
+        lines.append(f"warning: the median cylinder holds n1 = {m1:g}, n2 = {m2:g} points, fewer than "
+                     f"--min-points {min_points}: the projection scale d = {projection_scale} is small for "
+                     f"the point spacing and most LODs are NaN; consider a larger --projection-scale")
+    one_side = np.count_nonzero((n1 == 0) != (n2 == 0)) / len(n1)
+    if one_side > EMPTY_ONE_SIDE_WARNING:
+        lines.append(f"warning: {100 * one_side:.1f}% of the core points with a normal have an empty cylinder "
+                     f"in one cloud only: the change may reach beyond --max-depth {max_depth}; consider a "
+                     f"larger --max-depth")
+    return lines
+
+
+def _print_warnings(args, settings: dict, result, *clouds) -> None:
+    defaults = api.CLOUDCOMPARE_DEFAULTS if settings.get("compat") == "cloudcompare" else api.DEFAULTS
+    min_points = settings.get("min_points")
+    lines = [f"note: dropped {c.dropped_nonfinite} points with non-finite coordinates from {c.path}"
+             for c in clouds if getattr(c, "dropped_nonfinite", 0)]
+    lines += result_warnings(result, defaults["min_points"] if min_points is None else int(min_points),
+                             settings.get("max_depth"), settings.get("projection_scale"))
+    for line in lines:
+        if args.quiet:
+            print(f"m3c2: {line}", file=sys.stderr)
+        else:
+            print(line)
 
 
 def _core_normals(args, core_cloud) -> np.ndarray:

@@ -108,6 +108,7 @@ def _detect_layout(path: Path) -> _Layout:
         lines.pop()  # possibly cut in the middle, or the empty rest after the final newline
     first = previous = None
     data: list[list[str]] = []
+    at: list[int] = []  # line index of each data row
     delimiter = None
     quoted = False
     for i, raw in enumerate(lines):
@@ -126,6 +127,7 @@ def _detect_layout(path: Path) -> _Layout:
             continue
         quoted = quoted or '"' in line
         data.append(_split(line, delimiter))
+        at.append(i)
         if len(data) >= _SAMPLE_DATA_LINES:
             break
     if first is None:
@@ -135,6 +137,10 @@ def _detect_layout(path: Path) -> _Layout:
         raise CloudReadError(f"{path}: no line with three numbers (x y z) in its first "
                              f"{len(lines)} lines; {hint}")
     width = min(len(t) for t in data)  # ragged extra columns in a few lines are ignored
+    if width < 3:  # e.g. a file cut in the middle of its last line
+        k = min(range(len(data)), key=lambda j: len(data[j]))
+        raise CloudReadError(f"{path}: line {at[k] + 1} has only {width} value{'s' * (width != 1)}, fewer than "
+                             f"x, y, z (truncated file?)")
     numeric = [j for j in range(width) if all(_is_number(row[j]) for row in data)]
     names = _header_names(previous) if previous is not None else None
     return _Layout(delimiter, first, names or [], numeric, width, quoted)

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import re
 
-__all__ = ["looks_like_wkt", "wkt_units", "geokey_crs", "geokey_units", "combine_units"]
+__all__ = ["looks_like_wkt", "wkt_units", "geokey_crs", "geokey_units", "combine_units", "same_crs", "crs_label"]
 
 _WKT_START = re.compile(r"\s*[A-Za-z_][A-Za-z0-9_]*\s*[\[(]")
 _TOKEN = re.compile(r'\s*(?:"((?:[^"]|"")*)"|([\[\](),])|([^\s\[\](),"]+))')
@@ -141,3 +141,93 @@ def geokey_units(keys: dict[int, int]) -> str | None:
         horizontal = "degree"
     vertical = _LINEAR_UNITS.get(keys.get(4099, 0))
     return combine_units(horizontal, vertical)
+
+
+# ------------------------------------------------------------------------- comparing two CRSs
+
+_EPSG_TEXT = re.compile(r"\s*EPSG\s*:\s*(\d+)\s*", re.IGNORECASE)
+_AUTHORITY_KEYS = ("AUTHORITY", "ID")
+_COMPOUND_KEYS = ("COMPD_CS", "COMPOUNDCRS")
+_CRS_KEYS = _GEOG_KEYS + _PROJ_KEYS + _VERT_KEYS + _COMPOUND_KEYS + ("GEOCCS", "ENGCRS", "LOCAL_CS")
+
+
+def _root(crs: str) -> list | None:
+    try:
+        roots = [n for n in _parse(crs) if isinstance(n, list)]
+    except ValueError:
+        return None
+    return roots[0] if roots else None
+
+
+def _authority(node: list) -> tuple | None:
+    for child in node[1:]:
+        if isinstance(child, list) and str(child[0]).upper() in _AUTHORITY_KEYS and len(child) >= 3:
+            return ("AUTH", str(child[1]).upper(), str(child[2]).strip())
+    return None
+
+
+def _node_identity(node: list) -> tuple:
+    auth = _authority(node)
+    if auth is not None:
+        return auth
+    if str(node[0]).upper() in _COMPOUND_KEYS:
+        parts = tuple(_node_identity(c) for c in node[1:]
+                      if isinstance(c, list) and str(c[0]).upper() in _CRS_KEYS)
+        return ("COMPOUND", parts)
+    name = node[1] if len(node) > 1 and isinstance(node[1], str) else ""
+    return ("NAME", " ".join(name.lower().split()))
+
+
+def _identity(crs: str) -> tuple | None:
+    m = _EPSG_TEXT.fullmatch(crs)
+    if m:
+        return ("AUTH", "EPSG", m.group(1))
+    root = _root(crs)
+    return None if root is None else _node_identity(root)
+
+
+def _same_identity(a: tuple, b: tuple) -> bool | None:
+    if a == b:
+        return True
+    if a[0] == b[0] and a[0] in ("AUTH", "NAME"):
+        return False
+    if a[0] == b[0] == "COMPOUND" and len(a[1]) == len(b[1]) and a[1]:
+        answers = [_same_identity(x, y) for x, y in zip(a[1], b[1])]
+        if False in answers:
+            return False
+        return True if all(answers) else None
+    for compound, single in ((a, b), (b, a)):  # a 2D/3D CRS against a compound's horizontal part
+        if compound[0] == "COMPOUND" and single[0] != "COMPOUND" and compound[1]:
+            return False if _same_identity(compound[1][0], single) is False else None
+    return None  # e.g. an EPSG code against a WKT without one: cannot tell without pyproj
+
+
+def same_crs(a: str | None, b: str | None) -> bool | None:
+    """True / False when two CRS strings (WKT 1 or 2, or ``"EPSG:<code>"``) can be told to be
+    the same / different, None when either is unknown or they cannot be compared without a
+    full CRS library. Equal texts (up to white space) are the same; otherwise the root's
+    authority code (``AUTHORITY``/``ID``), compound parts one by one, or the root names are
+    compared, so two WKT spellings of one EPSG CRS count as the same."""
+    if not a or not b:
+        return None
+    if " ".join(a.split()) == " ".join(b.split()):
+        return True
+    ia, ib = _identity(a), _identity(b)
+    if ia is None or ib is None:
+        return None
+    return _same_identity(ia, ib)
+
+
+def crs_label(crs: str | None, limit: int = 120) -> str:
+    """A one-line name for a CRS: ``'NAME' (EPSG:code)``, ``EPSG:code`` or the text cut short."""
+    if not crs:
+        return "unknown"
+    if _EPSG_TEXT.fullmatch(crs):
+        return crs.strip()
+    root = _root(crs)
+    if root is not None and len(root) > 1 and isinstance(root[1], str):
+        auth = _authority(root)
+        label = repr(root[1]) + (f" ({auth[1]}:{auth[2]})" if auth else "")
+    else:
+        label = " ".join(crs.split())
+    return label if len(label) <= limit else label[: limit - 3] + "..."

@@ -8,6 +8,8 @@ import numpy as np
 
 from ..errors import CloudReadError, CloudWriteError, UsageError
 from .cloud import Cloud
+from .guard import available_memory, format_bytes, read_errors
+from .las_header import check_las_file
 from .registry import SUPPORTED_READ, SUPPORTED_WRITE, extension_of, format_for, sniff
 
 __all__ = ["read_cloud", "write_cloud_table", "info"]
@@ -20,6 +22,8 @@ def _open_checked(path: Path, columns) -> Cloud:
         raise CloudReadError(f"{path}: no such file")
     if path.is_dir():
         raise CloudReadError(f"{path}: is a directory, not a point-cloud file")
+    if not path.is_file():  # a FIFO, socket or device: reading could block forever
+        raise CloudReadError(f"{path}: not a regular file")
     fmt = format_for(path)
     if fmt is None:
         raise CloudReadError(f"{path}: unknown point-cloud file extension {extension_of(path)!r} "
@@ -35,11 +39,39 @@ def _open_checked(path: Path, columns) -> Cloud:
     if found is not None and found != fmt.name:
         raise CloudReadError(f"{path}: the content is {found}, not {fmt.name} as the extension "
                              f"{extension_of(path)!r} says")
+    _check_read_memory(path, fmt)
     if columns is not None:
         if not fmt.takes_columns:
             raise UsageError(f"{path}: column selection applies to text files only")
         return fmt.read(path, columns=columns)
     return fmt.read(path)
+
+
+#: Bytes of memory a read takes per point beyond the file's own record: the float64 x, y, z.
+XYZ_BYTES_PER_POINT = 24
+
+
+def estimated_read_bytes(path: Path, fmt=None) -> int:
+    """A lower bound of the memory reading `path` takes: for LAS/LAZ the header's point count
+    times (24 bytes of float64 x, y, z + the point record length); for other formats the file
+    size (a text, PLY or .npy file holds at least as many bytes as its points need)."""
+    fmt = fmt or format_for(path)
+    if fmt is not None and fmt.name == "LAS/LAZ":
+        with read_errors(path):
+            layout = check_las_file(path)
+        return layout.point_count * (XYZ_BYTES_PER_POINT + layout.record_length)
+    return path.stat().st_size
+
+
+def _check_read_memory(path: Path, fmt, available: int | None = None) -> None:
+    available = available_memory() if available is None else available
+    if available is None:
+        return
+    needed = estimated_read_bytes(path, fmt)
+    if needed > available:
+        raise CloudReadError(f"{path}: reading it needs at least {format_bytes(needed)} of memory but only "
+                             f"{format_bytes(available)} is available; process the clouds in tiles "
+                             f"(--tile-size) or thin the file first")
 
 
 def read_cloud(path: str | os.PathLike, *, columns: tuple[int, int, int] | None = None,

@@ -1,13 +1,15 @@
 """Turning the reading libraries' exceptions into :class:`CloudReadError` / :class:`CloudWriteError`."""
 from __future__ import annotations
 
+import os
 import struct
 from contextlib import contextmanager
+from pathlib import Path
 from typing import Iterator
 
 from ..errors import CloudReadError, CloudWriteError, M3C2Error
 
-__all__ = ["library_message", "read_errors", "write_errors"]
+__all__ = ["library_message", "read_errors", "write_errors", "available_memory", "format_bytes"]
 
 # What malformed input makes numpy, laspy (LaspyException), lazrs (LazrsError is a RuntimeError),
 # pye57 (E57Exception) and our own parsers raise. TypeError/AttributeError are left alone on
@@ -75,3 +77,71 @@ def write_errors(path: object) -> Iterator[None]:
         if _is_rust_panic(e):
             raise CloudWriteError(f"{path}: {library_message(e)}") from e
         raise
+
+
+# ------------------------------------------------------------------------------ memory budget
+
+#: Environment variable that overrides the detected available memory (bytes), e.g. to allow a
+#: run that swap or memory overcommit can serve, or to test the check.
+MEMORY_ENV = "M3C2_AVAILABLE_MEMORY"
+_CGROUP_FILES = (("/sys/fs/cgroup/memory.max", "/sys/fs/cgroup/memory.current"),  # cgroup v2
+                 ("/sys/fs/cgroup/memory/memory.limit_in_bytes",  # cgroup v1
+                  "/sys/fs/cgroup/memory/memory.usage_in_bytes"))
+
+
+def _read_int(path: str) -> int | None:
+    try:
+        text = Path(path).read_text().strip()
+    except OSError:
+        return None
+    return int(text) if text.isdigit() else None  # "max" (no limit) -> None
+
+
+def _meminfo_available() -> int | None:
+    try:
+        with open("/proc/meminfo") as f:
+            for line in f:
+                if line.startswith("MemAvailable:"):
+                    return int(line.split()[1]) * 1024
+    except (OSError, ValueError, IndexError):
+        pass
+    return None
+
+
+def available_memory() -> int | None:
+    """Bytes of memory a new allocation can still get, or None when unknown.
+
+    ``$M3C2_AVAILABLE_MEMORY`` (bytes) wins when set. Otherwise the system's available memory:
+    ``MemAvailable`` of /proc/meminfo (free memory plus reclaimable page cache), else
+    ``SC_AVPHYS_PAGES * SC_PAGE_SIZE`` (free pages only), capped by the cgroup's limit minus
+    its usage (``/sys/fs/cgroup/memory.max`` - ``memory.current``, or the cgroup v1 files).
+    """
+    override = os.environ.get(MEMORY_ENV, "").strip()
+    if override:
+        try:
+            return max(int(float(override)), 0)
+        except ValueError:
+            pass
+    available = _meminfo_available()
+    if available is None:
+        try:
+            available = os.sysconf("SC_AVPHYS_PAGES") * os.sysconf("SC_PAGE_SIZE")
+        except (AttributeError, ValueError, OSError):
+            available = None
+    for limit_file, usage_file in _CGROUP_FILES:
+        limit = _read_int(limit_file)
+        if limit is None or limit >= 1 << 60:  # v1 writes a huge number for "no limit"
+            continue
+        room = max(limit - (_read_int(usage_file) or 0), 0)
+        available = room if available is None else min(available, room)
+        break
+    return available
+
+
+def format_bytes(n: float) -> str:
+    """``"1.5 GiB"``-style size."""
+    for unit in ("bytes", "KiB", "MiB", "GiB"):
+        if abs(n) < 1024 or unit == "GiB":
+            return f"{n:.0f} {unit}" if unit == "bytes" else f"{n:.1f} {unit}"
+        n /= 1024
+    return f"{n:.1f} GiB"

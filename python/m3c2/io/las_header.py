@@ -31,6 +31,7 @@ class LasLayout:
     point_count: int
     compressed: bool
     copc: bool
+    record_length: int = 0  # bytes per point record (uncompressed)
 
 
 def _read_exact(f, size: int) -> bytes:
@@ -103,7 +104,7 @@ def check_las_file(path: os.PathLike | str) -> LasLayout:
         if available < count:
             raise ValueError(f"truncated: the header declares {count} points but the file holds "
                              f"only {available}")
-    return LasLayout(f"{major}.{minor}", point_format, count, compressed, copc)
+    return LasLayout(f"{major}.{minor}", point_format, count, compressed, copc, record_length)
 
 
 def _check_evlrs(f, size: int, start: int, count: int) -> None:

@@ -216,4 +216,4 @@ def write(path: Path, xyz: np.ndarray, fields: dict[str, np.ndarray], like: Clou
         table[name] = values
     with write_errors(path), atomic_output(path) as tmp, open(tmp, "wb") as out:
         out.write(("\n".join(header) + "\n").encode("ascii"))
-        table.tofile(out)
+        out.write(table.view(np.uint8).data)  # not tofile(): its short write raises an OSError without errno
