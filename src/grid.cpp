@@ -20,6 +20,7 @@ std::uint64_t cell_index(double v, double origin, double cell, std::uint64_t cou
 Grid grid_core_points(PointsView points, double cell) {
   detail::require_positive("cell", cell);
   detail::require_finite_points("points", points);
+  detail::require_cell_count("cell", cell, points);
   Grid grid;
   grid.cell = cell;
   if (points.empty()) return grid;

@@ -25,6 +25,7 @@ struct CellHash {
 std::vector<std::uint64_t> subsample_min_spacing(PointsView points, double min_spacing) {
   detail::require_positive("min_spacing", min_spacing);
   detail::require_finite_points("points", points);
+  detail::require_cell_count("min_spacing", min_spacing, points);
   // Greedy in input order over a hash grid of cell = spacing: a candidate only needs the kept
   // points of its 27 surrounding cells. Serial, so the result is one and the same everywhere.
   std::unordered_map<CellKey, std::vector<std::uint64_t>, CellHash> kept_in_cell;

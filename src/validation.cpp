@@ -34,6 +34,16 @@ void require_finite_points(std::string_view name, PointsView points) {
                           " non-finite coordinates (NaN or Inf)");
 }
 
+void require_cell_count(std::string_view name, double cell, PointsView points) {
+  if (points.empty()) return;
+  Vec3 lo = points[0], hi = points[0];
+  for (std::size_t i = 1; i < points.size(); ++i) lo = lo.cwiseMin(points[i]), hi = hi.cwiseMax(points[i]);
+  const double cells = (hi - lo).maxCoeff() / cell;
+  if (!(cells <= 1099511627776.0))  // 2^40
+    throw InvalidArgument(std::string(name) + " " + format(cell) + " is too small for the points' extent " +
+                          format((hi - lo).maxCoeff()) + " (more than 2^40 cells along an axis)");
+}
+
 void validate_normal_params(const Params& p) {
   if (p.normal_diameters.empty()) throw InvalidArgument("normal_diameters (D) must not be empty");
   for (const double d : p.normal_diameters) require_positive("normal diameter D", d);

@@ -10,6 +10,8 @@ namespace m3c2::detail {
 
 void require_positive(std::string_view name, double value);
 void require_finite_points(std::string_view name, PointsView points);
+/// Cell indices (extent / cell) must stay exact integers: at most 2^40 cells along an axis.
+void require_cell_count(std::string_view name, double cell, PointsView points);
 void validate_normal_params(const Params& params);
 void validate_orientation(const Orientation& orientation);
 void validate_params(const Params& params);

@@ -97,3 +97,18 @@ TEST(ImposedNormals, OrientationIsStillValidated) {
 
 }  // namespace
 }  // namespace m3c2::test
+
+namespace m3c2::test {
+namespace {
+
+TEST(CellIndices, AbsurdExtentForTheSpacingIsRefusedNotOverflowed) {
+  // A stray point at 1e300 once overflowed the int64 cell index (undefined behaviour).
+  Cloud c;
+  c.add(0.0, 0.0, 0.0);
+  c.add(1e300, 0.0, 0.0);
+  EXPECT_THROW(subsample_min_spacing(c.view(), 0.1), InvalidArgument);
+  EXPECT_THROW(grid_core_points(c.view(), 0.1), InvalidArgument);
+}
+
+}  // namespace
+}  // namespace m3c2::test
