@@ -55,9 +55,9 @@ def scale_range(minimum: float, maximum: float, step: float) -> list[float]:
     return [s for s in (minimum + k * step for k in range(count + 1)) if s <= limit]
 
 
-def normal_scales(spec) -> list[float]:
-    """D from '2', '0.5,1,2', 'MIN:MAX:STEP', a number or a sequence of numbers."""
-    name = "--normal-scale"
+def normal_scales(spec, name: str = "--normal-scale") -> list[float]:
+    """Diameters from '2', '0.5,1,2', 'MIN:MAX:STEP' (MAX included), a number or a sequence of
+    numbers; errors name the option `name`."""
     if isinstance(spec, (int, float, np.floating, np.integer)):
         return [positive(name, spec)]
     if isinstance(spec, str):

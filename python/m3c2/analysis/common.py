@@ -9,30 +9,12 @@ import numpy as np
 from .. import _core
 from ..errors import UsageError
 from ..io.atomic import atomic_output
-from ..options import positive, scale_range
+from ..options import normal_scales, positive
 
 
 def scales(name: str, spec) -> np.ndarray:
     """Diameters from 'MIN:MAX:STEP' (MAX included), 'a,b,c', a number or a sequence."""
-    if isinstance(spec, str):
-        text = spec.strip()
-        if ":" in text:
-            parts = text.split(":")
-            if len(parts) != 3:
-                raise UsageError(f"{name} range must be MIN:MAX:STEP, got {spec!r}")
-            lo, hi, step = (positive(name, p) for p in parts)
-            try:
-                return np.array(scale_range(lo, hi, step))
-            except ValueError as e:
-                raise UsageError(f"{name} range {spec!r}: {e}") from None
-        values = [positive(name, p) for p in text.split(",") if p.strip()]
-    elif np.isscalar(spec):
-        values = [positive(name, spec)]
-    else:
-        values = [positive(name, p) for p in spec]
-    if not values:
-        raise UsageError(f"{name} is empty")
-    return np.array(values, dtype=float)
+    return np.array(normal_scales(spec, name), dtype=float)
 
 
 def value_range(name: str, spec) -> tuple[float, float] | None:

@@ -50,33 +50,29 @@ def library_message(err: BaseException) -> str:
 
 
 @contextmanager
-def read_errors(path: object) -> Iterator[None]:
+def _library_errors(error: type[M3C2Error], path: object, panic_note: str) -> Iterator[None]:
+    """Re-raises a library exception from the body as ``error(f"{path}: {message}")``; a Rust
+    panic from lazrs (a BaseException) is caught too, other BaseExceptions pass."""
+    try:
+        yield
+    except M3C2Error:
+        raise
+    except _INPUT_ERRORS as e:
+        raise error(f"{path}: {library_message(e)}") from e
+    except BaseException as e:
+        if _is_rust_panic(e):
+            raise error(f"{path}: {panic_note}{library_message(e)}{')' if panic_note else ''}") from e
+        raise
+
+
+def read_errors(path: object):
     """Re-raises a library exception from the body as ``CloudReadError(f"{path}: {message}")``."""
-    try:
-        yield
-    except M3C2Error:
-        raise
-    except _INPUT_ERRORS as e:
-        raise CloudReadError(f"{path}: {library_message(e)}") from e
-    except BaseException as e:
-        if _is_rust_panic(e):
-            raise CloudReadError(f"{path}: corrupt or unsupported data ({library_message(e)})") from e
-        raise
+    return _library_errors(CloudReadError, path, "corrupt or unsupported data (")
 
 
-@contextmanager
-def write_errors(path: object) -> Iterator[None]:
+def write_errors(path: object):
     """Re-raises a library exception from the body as ``CloudWriteError(f"{path}: {message}")``."""
-    try:
-        yield
-    except M3C2Error:
-        raise
-    except _INPUT_ERRORS as e:
-        raise CloudWriteError(f"{path}: {library_message(e)}") from e
-    except BaseException as e:
-        if _is_rust_panic(e):
-            raise CloudWriteError(f"{path}: {library_message(e)}") from e
-        raise
+    return _library_errors(CloudWriteError, path, "")
 
 
 # ------------------------------------------------------------------------------ memory budget
