@@ -95,12 +95,6 @@ TEST(ImposedNormals, OrientationIsStillValidated) {
   EXPECT_THROW(compute(c.view(), c.view(), c.view(), p), InvalidArgument);
 }
 
-}  // namespace
-}  // namespace m3c2::test
-
-namespace m3c2::test {
-namespace {
-
 TEST(CellIndices, AbsurdExtentForTheSpacingIsRefusedNotOverflowed) {
   // A stray point at 1e300 once overflowed the int64 cell index (undefined behaviour).
   Cloud c;
