@@ -209,7 +209,7 @@ def main() -> None:
             for tool, r in rows.items():
                 print(f"| {name} | {tool} | {r['index']:.2f} | {r['normals']:.2f} | {r['projection']:.2f} | "
                       f"{r['wall']:.2f} | {r['peak'] / n_in:.0f} ({r['peak'] / 2**20:.0f} MiB) | {n_core / r['wall']:,.0f} | "
-                      f"{f'{ratio:.1f}x' if tool == 'm3c2' else ''} | {agree if tool == 'm3c2' else ''} |",
+                      f"{f'{ratio:.1f}x' if tool == 'm3c2' and ratio == ratio else ''} | {agree if tool == 'm3c2' else ''} |",
                       flush=True)
             print(f"<!-- {name}: {desc}; {n_in:,} input points, {n_core:,} core points, D={D}, d={d}, depth={L} -->",
                   flush=True)

@@ -2,15 +2,12 @@
 
 import os
 import re
-import sys
 from pathlib import Path
 
 import pytest
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "python"))
-
-from m3c2.cloudcompare_params import read_cloudcompare_params  # noqa: E402
-from m3c2.errors import UsageError  # noqa: E402
+from m3c2.cloudcompare_params import read_cloudcompare_params
+from m3c2.errors import UsageError
 
 # The parameter file behind /work/shared/data/pairs/autzen-bmx/autzen-bmx-cc.txt, in the key
 # order qM3C2 writes.  The multi-scale keys are unused (NormalMode=0) and hold the values qM3C2's
