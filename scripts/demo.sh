@@ -1,9 +1,10 @@
 #!/usr/bin/env bash
 # README command (1): install m3c2, then measure the change between the 2015 and 2023 airborne
-# lidar surveys of Tommy Thompson Park (Toronto) bundled in data/toronto-ttp.
+# lidar surveys of Tommy Thompson Park (Toronto) bundled in data/toronto-ttp, with the parameters
+# `m3c2 suggest` proposes for this rough urban scene (multi-scale normals, d with >= 30 points).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 bash scripts/install.sh
 mkdir -p out
 python3 -m m3c2 compare data/toronto-ttp/TTP_15.laz data/toronto-ttp/TTP_23.laz -o out/toronto-m3c2.laz \
-  --core-spacing 5 --normal-scale 10 --projection-scale 5 --max-depth 10 "$@"
+  --core-spacing 5 --normal-scale 8:40:8 --projection-scale 10 --max-depth 30 "$@"
