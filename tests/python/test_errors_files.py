@@ -3,7 +3,6 @@ a timeout (a hang fails the test), every broken LAS/LAZ/E57/PLY/ASCII file exits
 message naming the file and leaves no output file."""
 from __future__ import annotations
 
-import os
 import subprocess
 import sys
 from pathlib import Path
@@ -12,7 +11,7 @@ import numpy as np
 import pye57
 import pytest
 
-import m3c2
+from child_env import child_env
 from m3c2.io import write_cloud_table
 
 BASE = ["--normal-scale", "0.5", "--projection-scale", "0.3", "--max-depth", "0.5", "--quiet"]
@@ -36,14 +35,11 @@ SHARED_BROKEN = {
 }
 
 
-def _env():
-    package_root = str(Path(m3c2.__file__).resolve().parents[1])
-    return dict(os.environ, PYTHONPATH=os.pathsep.join([package_root, os.environ.get("PYTHONPATH", "")]))
 
 
 def cli(*args, cwd=None):
     return subprocess.run([sys.executable, "-m", "m3c2", *map(str, args)], capture_output=True, text=True,
-                          timeout=TIMEOUT, env=_env(), cwd=cwd)
+                          timeout=TIMEOUT, env=child_env(), cwd=cwd)
 
 
 @pytest.fixture(scope="module")

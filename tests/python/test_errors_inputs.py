@@ -14,6 +14,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from child_env import child_env
 
 import m3c2
 from m3c2.cli import main
@@ -62,10 +63,6 @@ def pair(tmp_path):
     return tmp_path
 
 
-def subprocess_env():
-    # The child imports the same m3c2 as this test (installed, or the source tree).
-    package_root = str(Path(m3c2.__file__).resolve().parents[1])
-    return dict(os.environ, PYTHONPATH=os.pathsep.join([package_root, os.environ.get("PYTHONPATH", "")]))
 
 
 # ------------------------------------------------------------------------ missing / unreadable
@@ -112,7 +109,7 @@ def test_fifo_is_refused_without_blocking(pair):
     os.mkfifo(fifo)
     proc = subprocess.run([sys.executable, "-m", "m3c2", "compare", str(fifo), str(pair / "cmp.xyz"), "-o",
                            str(pair / "out.csv"), *BASE], capture_output=True, text=True, timeout=60,
-                          env=subprocess_env())
+                          env=child_env())
     assert proc.returncode == 1
     assert proc.stderr.endswith(f"m3c2: error: {fifo}: not a regular file\n")
     assert leftovers(pair) == []

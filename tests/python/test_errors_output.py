@@ -14,8 +14,8 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from child_env import child_env
 
-import m3c2
 from m3c2 import cli
 from m3c2.cli import main
 from m3c2.io import ascii as io_ascii
@@ -160,7 +160,7 @@ def test_file_size_limit_in_the_middle_of_the_write(pair, ext):
     out = pair / f"out{ext}"
     proc = subprocess.run([sys.executable, "-c", _FSIZE_CHILD, "compare", str(pair / "ref.xyz"),
                            str(pair / "cmp.xyz"), "-o", str(out), *BASE], capture_output=True, text=True,
-                          timeout=120, env=_env())
+                          timeout=120, env=child_env())
     assert proc.returncode == 1, proc.stderr
     assert proc.stderr == f"m3c2: error: {out}: File too large\n"
     assert stray(pair) == []
@@ -207,9 +207,6 @@ def big_pair(tmp_path_factory):
     return d
 
 
-def _env():
-    package_root = str(Path(m3c2.__file__).resolve().parents[1])
-    return dict(os.environ, PYTHONPATH=os.pathsep.join([package_root, os.environ.get("PYTHONPATH", "")]))
 
 
 @pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM], ids=["SIGINT", "SIGTERM"])
@@ -219,7 +216,7 @@ def test_signal_during_the_run(big_pair, tmp_path, sig, ext):
     proc = subprocess.Popen([sys.executable, str(big_pair / "hook.py"), "compare", str(big_pair / "ref.npy"),
                              str(big_pair / "cmp.npy"), "-o", str(out), "--normal-scale", "3", "--projection-scale",
                              "1", "--max-depth", "1", "--threads", "2", "--quiet"],
-                            stderr=subprocess.PIPE, stdout=subprocess.PIPE, text=True, env=_env())
+                            stderr=subprocess.PIPE, stdout=subprocess.PIPE, text=True, env=child_env())
     try:
         first = proc.stderr.readline()  # blocks until the engine reports progress
         assert first == "ENGINE-RUNNING\n", first + proc.stderr.read()

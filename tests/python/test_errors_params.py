@@ -4,7 +4,6 @@ unknown or malformed keys, the summary warnings for a too thin cylinder and a to
 --max-depth, the CRS/units check and --ignore-crs, and the memory estimate."""
 from __future__ import annotations
 
-import csv
 from pathlib import Path
 from types import SimpleNamespace
 

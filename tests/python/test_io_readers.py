@@ -1,7 +1,6 @@
 """m3c2.io readers: every shared reader file, text layouts, PLY encodings, E57 poses, bad input."""
 from __future__ import annotations
 
-import os
 import re
 import subprocess
 import sys
@@ -12,6 +11,7 @@ import laspy
 import numpy as np
 import pye57
 import pytest
+from child_env import child_env
 
 from m3c2.errors import CloudReadError, UsageError
 from m3c2.io import SUPPORTED_READ, info, read_cloud
@@ -168,9 +168,7 @@ else:
 
 def _read_in_child(path: Path, timeout: float = 60) -> str:
     """Reads `path` in a fresh interpreter, so a hang or a hard crash fails this test only."""
-    env = dict(os.environ, RUST_BACKTRACE="0")
-    env["PYTHONPATH"] = os.pathsep.join([str(Path(__file__).resolve().parents[2] / "python"),
-                                         env.get("PYTHONPATH", "")])
+    env = child_env(RUST_BACKTRACE="0")
     done = subprocess.run([sys.executable, "-c", _CHILD, str(path)], capture_output=True, text=True,
                           timeout=timeout, env=env)
     assert done.returncode == 0, done.stderr[-2000:]
