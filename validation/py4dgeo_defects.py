@@ -10,10 +10,7 @@ differences are decisions, not precision.
 """
 from __future__ import annotations
 
-import io
 import logging
-import sys
-from contextlib import redirect_stdout
 
 import numpy as np
 

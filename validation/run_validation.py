@@ -174,7 +174,7 @@ def cloudcompare_section(ref, cmp, core, cc):
              f"| {g(ang[i], 4)} | {e_ours[0]}/{e_ours[1]} | {e_cc[0]}/{e_cc[1]} | {ch[0]}/{ch[1]} "
              f"| {g(rc.distance[i], 3)}, {g(rc.lod[i], 3)}, {rc.n1[i]}, {rc.n2[i]} | {'yes' if rep else 'no'} |")
     emit("")
-    emit(f"With CloudCompare's own (quantised, printed) normal, m3c2 reproduces CloudCompare's distance, LOD,")
+    emit("With CloudCompare's own (quantised, printed) normal, m3c2 reproduces CloudCompare's distance, LOD,")
     emit(f"n1 and n2 at {explained} of the {len(differ)} differing core points: the difference is the normal's")
     emit("direction, not the cylinder test or the statistics. Where n1 or n2 differ, the \"points changing")
     emit("side\" column shows the points that the ~0.1 degree rotation moves across the wall (a point")

@@ -19,7 +19,6 @@ from .io.crs import crs_label, same_crs
 from .progress import ProgressBar
 from .report.outputs import write_compare_outputs
 from .summary import summary_lines
-from .writing import write
 
 SCALE_HELP = ("D, the normal scale: DIAMETER of the sphere of neighbours (as in the paper and CloudCompare). "
               "One value, a list '0.5,1,2' or a range 'MIN:MAX:STEP' (multi-scale: the most planar scale wins)")

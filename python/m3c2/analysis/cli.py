@@ -9,17 +9,12 @@ import numpy as np
 from ..errors import UsageError
 from ..io import read_cloud, write_cloud_table
 from ..progress import ProgressBar
-import sys
+from importlib import import_module
 
-from . import roughness as roughness_mod
-from .calibrate import calibrate as _calibrate  # noqa: F401  (loads the modules below)
-from .simplify import simplify as _simplify  # noqa: F401
-from .suggest import suggest as _suggest  # noqa: F401
-
-# The package exports functions named like these modules: take the modules themselves.
-calibrate_mod = sys.modules[__package__ + ".calibrate"]
-simplify_mod = sys.modules[__package__ + ".simplify"]
-suggest_mod = sys.modules[__package__ + ".suggest"]
+# The package exports functions named like these modules, so `from . import calibrate` would give
+# the function: import the modules by name.
+roughness_mod, calibrate_mod, simplify_mod, suggest_mod = (
+    import_module(f"{__package__}.{name}") for name in ("roughness", "calibrate", "simplify", "suggest"))
 from .baselines import c2c
 from .common import scales, value_range, write_csv
 
@@ -33,7 +28,7 @@ def _read(path: Path):
 
 def _core_options(p, what="cloud") -> None:
     core = p.add_mutually_exclusive_group()
-    core.add_argument("--core", type=Path, help=f"core points file (default: see the command's help)")
+    core.add_argument("--core", type=Path, help="core points file (default: see the command's help)")
     core.add_argument("--core-spacing", type=float, help=f"core points = the {what} subsampled to this minimum spacing")
 
 

@@ -249,7 +249,6 @@ class TableWriter:
     def _start(self, fields) -> None:
         self._started = True
         if self.mode == "text":
-            from .ascii import _text_column  # noqa: F401  (checked import: same formatting)
             self._sep = "," if self.path.suffix.lower() == ".csv" else " "
             for name in fields:
                 if not name or self._sep in name or any(c.isspace() or c in "\"'" for c in name):
