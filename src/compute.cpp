@@ -9,12 +9,11 @@
 #include "normals.hpp"
 #include "orientation.hpp"
 #include "parallel_for.hpp"
+#include "plane_fit.hpp"
 #include "projection.hpp"
 #include "spatial_order.hpp"
 #include "statistics.hpp"
 #include "validation.hpp"
-
-#include <Eigen/Eigenvalues>
 
 #include <algorithm>
 #include <cmath>
@@ -247,8 +246,8 @@ std::vector<double> roughness_by_scale(PointsView cloud, PointsView core_points,
           for (std::size_t k = 0; k < scales; ++k) {
             const auto& m = s.moments[k];
             if (m.count < min_points) continue;
-            const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> solver(m.comoment, Eigen::EigenvaluesOnly);
-            out[i * scales + by_size[k]] = detail::plane_roughness(solver.eigenvalues()(0), m.count, variance);
+            out[i * scales + by_size[k]] =
+                detail::plane_roughness(detail::comoment_eigenvalues(m.comoment)(0), m.count, variance);
           }
         }
       });

@@ -1,33 +1,12 @@
 #include "normals.hpp"
 
-#include <Eigen/Eigenvalues>
+#include "plane_fit.hpp"
 
 #include <algorithm>
 #include <cmath>
 
 namespace m3c2::detail {
 namespace {
-
-// Neighbourhoods whose middle eigenvalue is below this share of the largest are lines or single
-// points: the plane, hence the normal, is undefined there.
-constexpr double kCollinearRatio = 1e-12;
-
-struct ScaleFit {
-  Vec3 normal;
-  Eigen::Vector3d eigenvalues;  // ascending, of the co-moment matrix
-  bool degenerate = true;
-};
-
-ScaleFit fit_plane(const ScaleMoments& m) {
-  const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> solver(m.comoment);
-  ScaleFit fit;
-  fit.eigenvalues = solver.eigenvalues();
-  fit.normal = solver.eigenvectors().col(0).normalized();
-  const double largest = fit.eigenvalues(2);
-  fit.degenerate = !(largest > 0.0) || !(fit.eigenvalues(1) > kCollinearRatio * largest) ||
-                   !fit.normal.allFinite();
-  return fit;
-}
 
 /// Smaller is more planar. kMostPlanar: the paper's lambda3 share (3.2). kCloudCompare: minus
 /// its score 2 s0 + 4 s1 - 2, s_k the squared eigenvalues' shares, largest first.
@@ -134,7 +113,7 @@ NormalEstimate NormalEstimator::estimate(const Vec3& core, NormalScratch& scratc
   for (std::size_t k = radii_.size(); k-- > 0;) {
     const ScaleMoments& m = scratch.moments[k];
     if (m.count < min_points_) continue;
-    const ScaleFit fit = fit_plane(m);
+    const PlaneFit fit = fit_plane(m.comoment);
     if (fit.degenerate) {
       if (best.status == PointStatus::kTooFewNormalPoints) best.status = PointStatus::kDegenerateNormal;
       continue;
