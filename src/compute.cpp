@@ -5,7 +5,7 @@
 
 #include "bootstrap.hpp"
 #include "confidence.hpp"
-#include "kdtree.hpp"
+#include "octree.hpp"
 #include "normals.hpp"
 #include "orientation.hpp"
 #include "parallel_for.hpp"
@@ -15,27 +15,60 @@
 #include "statistics.hpp"
 #include "validation.hpp"
 
+#include <omp.h>
+
 #include <algorithm>
 #include <cmath>
+#include <future>
 #include <memory>
 #include <optional>
 
 namespace m3c2 {
 namespace {
 
-using detail::KdTree;
+using detail::Octree;
+using detail::OctreeGrid;
 using detail::NormalEstimate;
 using detail::NormalEstimator;
+
+/// The octree grid of a run (octree.hpp): derived from the scales alone, the normal diameters when
+/// there are any, so that compute(), compute_normals() and every tile of a run share it.
+OctreeGrid grid_for(const std::vector<double>& normal_diameters, double projection_diameter) {
+  if (normal_diameters.empty()) return detail::octree_grid(projection_diameter, 0.0);
+  const auto [smallest, largest] = std::minmax_element(normal_diameters.begin(), normal_diameters.end());
+  return detail::octree_grid(*smallest, *largest);
+}
+
+/// Whether the normals of this cloud are summed from its own index (not a thinned copy's).
+bool moments_needed(const Params& params, bool reference) {
+  if (params.normal_subsample_spacing > 0.0) return false;
+  const NormalSource src = params.normal_source;
+  if (src == NormalSource::kMean) return true;
+  return reference ? src == NormalSource::kReference || src == NormalSource::kHorizontal
+                   : src == NormalSource::kCompared;
+}
+
+/// Both clouds' indexes, the compared one on a second thread when the run has two: they are
+/// independent, and each is built the same way whatever the thread.
+std::pair<Octree, Octree> build_indexes(PointsView reference, PointsView compared, const Params& params,
+                                        OctreeGrid grid, const RunOptions& run) {
+  const bool ref_moments = moments_needed(params, true), cmp_moments = moments_needed(params, false);
+  const int threads = run.threads > 0 ? run.threads : omp_get_max_threads();
+  if (threads < 2) return {Octree(reference, grid, ref_moments), Octree(compared, grid, cmp_moments)};
+  auto other = std::async(std::launch::async, [&] { return Octree(compared, grid, cmp_moments); });
+  Octree first(reference, grid, ref_moments);
+  return {std::move(first), other.get()};
+}
 
 /// A cloud for normals, optionally thinned to params.normal_subsample_spacing (5.1: normals on a
 /// subsampled cloud barely change and cost far less).
 class NormalCloud {
  public:
-  NormalCloud(PointsView cloud, const KdTree& full_tree, const Params& params) {
+  NormalCloud(PointsView cloud, const Octree& full_tree, const Params& params, OctreeGrid grid) {
     if (params.normal_subsample_spacing > 0.0) {
       for (const std::uint64_t i : subsample_min_spacing(cloud, params.normal_subsample_spacing))
         for (int a = 0; a < 3; ++a) thinned_.push_back(cloud.coord(i, a));
-      own_tree_ = std::make_unique<KdTree>(PointsView(thinned_.data(), thinned_.size() / 3));
+      own_tree_ = std::make_unique<Octree>(PointsView(thinned_.data(), thinned_.size() / 3), grid, true);
     }
     estimator_.emplace(own_tree_ ? *own_tree_ : full_tree, params);
   }
@@ -43,7 +76,7 @@ class NormalCloud {
 
  private:
   std::vector<double> thinned_;
-  std::unique_ptr<KdTree> own_tree_;
+  std::unique_ptr<Octree> own_tree_;
   std::optional<NormalEstimator> estimator_;
 };
 
@@ -74,14 +107,20 @@ struct Scratch {
 
 class Pipeline {
  public:
-  Pipeline(PointsView reference, PointsView compared, const Params& params, const std::vector<double>& core_normals)
-      : params_(params), core_normals_(core_normals), reference_tree_(reference), compared_tree_(compared),
+  Pipeline(PointsView reference, PointsView compared, const Params& params, const std::vector<double>& core_normals,
+           const RunOptions& run)
+      : params_(params),
+        core_normals_(core_normals),
+        grid_(grid_for(params.normal_diameters, params.projection_diameter)),
+        trees_(build_indexes(reference, compared, params, grid_, run)),
+        reference_tree_(trees_.first),
+        compared_tree_(trees_.second),
         z_(detail::z_critical(params.confidence)) {
     const NormalSource src = params.normal_source;
     if (src == NormalSource::kReference || src == NormalSource::kMean || src == NormalSource::kHorizontal)
-      reference_normals_.emplace(reference, reference_tree_, params);
+      reference_normals_.emplace(reference, reference_tree_, params, grid_);
     if (src == NormalSource::kCompared || src == NormalSource::kMean)
-      compared_normals_.emplace(compared, compared_tree_, params);
+      compared_normals_.emplace(compared, compared_tree_, params, grid_);
   }
 
   void run(const Vec3& core, std::size_t i, Result& r, Scratch& s) const {
@@ -163,7 +202,9 @@ class Pipeline {
 
   const Params& params_;
   const std::vector<double>& core_normals_;
-  KdTree reference_tree_, compared_tree_;
+  OctreeGrid grid_;
+  std::pair<Octree, Octree> trees_;
+  const Octree &reference_tree_, &compared_tree_;
   std::optional<NormalCloud> reference_normals_, compared_normals_;
   double z_;
 };
@@ -182,7 +223,7 @@ Result compute(PointsView reference, PointsView compared, PointsView core_points
     throw InvalidArgument("core_normals must hold 3 values per core point (" + std::to_string(3 * core_points.size()) +
                           "), got " + std::to_string(core_normals.size()));
 
-  const Pipeline pipeline(reference, compared, params, core_normals);
+  const Pipeline pipeline(reference, compared, params, core_normals, run);
   Result result;
   result.resize(core_points.size());
   const auto order = detail::morton_order(core_points);
@@ -197,8 +238,9 @@ NormalsResult compute_normals(PointsView cloud, PointsView core_points, const Pa
   if (cloud.empty()) throw InvalidArgument("the cloud is empty");
   detail::require_finite_points("cloud", cloud);
   detail::require_finite_points("core points", core_points);
-  const KdTree tree(cloud);
-  const NormalCloud normals(cloud, tree, params);
+  const OctreeGrid grid = grid_for(params.normal_diameters, 0.0);
+  const Octree tree(cloud, grid, params.normal_subsample_spacing <= 0.0);
+  const NormalCloud normals(cloud, tree, params, grid);
   NormalsResult out;
   out.resize(core_points.size());
   const auto order = detail::morton_order(core_points);
@@ -234,7 +276,7 @@ std::vector<double> roughness_by_scale(PointsView cloud, PointsView core_points,
   std::vector<double> radii;
   for (const std::size_t k : by_size) radii.push_back(0.5 * diameters[k]);
 
-  const KdTree tree(cloud);
+  const Octree tree(cloud, grid_for(diameters, 0.0), true);
   const std::size_t scales = diameters.size();
   std::vector<double> out(core_points.size() * scales, std::numeric_limits<double>::quiet_NaN());
   const auto order = detail::morton_order(core_points);

@@ -86,7 +86,7 @@ void KdTree::visit(Prune&& prune, Accept&& accept) const {
     const Node& node = nodes_[stack[--top]];
     if (prune(node.lo, node.hi)) continue;
     if (node.left == 0) {
-      for (std::uint32_t s = node.begin; s < node.end; ++s) accept(s, slot_xyz(s));
+      for (std::uint32_t s = node.begin; s < node.end; ++s) accept(s, xyz_.data() + 3 * std::size_t(s));
     } else {
       stack[top++] = node.left + 1;
       stack[top++] = node.left;
@@ -100,39 +100,6 @@ void KdTree::ball(const Vec3& centre, double radius, std::vector<std::uint32_t>&
         [&](std::uint32_t s, const double* p) {
           if (squared_distance(p, centre) <= r2) out.push_back(index_[s]);
         });
-}
-
-void KdTree::ball_keys(const Vec3& centre, double radius, std::vector<std::uint64_t>& out) const {
-  const double r2 = radius * radius, prune_r2 = r2 * (1.0 + kRelativeMargin) + 1e-300;
-  visit([&](const auto& lo, const auto& hi) { return box_distance2(lo, hi, centre) > prune_r2; },
-        [&](std::uint32_t s, const double* p) {
-          if (squared_distance(p, centre) <= r2) out.push_back(std::uint64_t(index_[s]) << 32 | s);
-        });
-}
-
-void KdTree::cylinder(const Cylinder& cyl, std::vector<std::pair<std::uint32_t, double>>& out) const {
-  const Vec3& c = cyl.core;
-  const Vec3& n = cyl.normal;
-  const double r2 = cyl.radius * cyl.radius;
-  // A node is skipped when its bounding sphere (centre m, radius |half extent|) misses the
-  // cylinder: the distance from m to the axis segment exceeds r plus that radius.
-  const double scale = c.cwiseAbs().maxCoeff() + cyl.radius + std::max(std::abs(cyl.t_min), std::abs(cyl.t_max));
-  const double slack = kRelativeMargin * scale;
-  visit(
-      [&](const auto& lo, const auto& hi) {
-        const Vec3 m(0.5 * (lo[0] + hi[0]), 0.5 * (lo[1] + hi[1]), 0.5 * (lo[2] + hi[2]));
-        const double extent = 0.5 * Vec3(hi[0] - lo[0], hi[1] - lo[1], hi[2] - lo[2]).norm();
-        const Vec3 v = m - c;
-        const double s = std::clamp(v.dot(n), cyl.t_min, cyl.t_max);
-        return (v - s * n).norm() > cyl.radius + extent + slack;
-      },
-      [&](std::uint32_t s, const double* p) {
-        const double vx = p[0] - c.x(), vy = p[1] - c.y(), vz = p[2] - c.z();
-        const double t = vx * n.x() + vy * n.y() + vz * n.z();
-        if (t < cyl.t_min || t > cyl.t_max) return;
-        const double wx = vx - t * n.x(), wy = vy - t * n.y(), wz = vz - t * n.z();
-        if (wx * wx + wy * wy + wz * wz <= r2) out.emplace_back(index_[s], t);
-      });
 }
 
 }  // namespace m3c2::detail

@@ -18,19 +18,6 @@ double planarity_cost(const Eigen::Vector3d& ascending, ScaleSelection selection
   return -(2.0 * (l1 * l1 / sum2) + 4.0 * (l2 * l2 / sum2) - 2.0);
 }
 
-/// Sorts point indices ascending: LSD radix sort on 11-bit digits, as many passes as indices
-/// below `point_count` need.
-void sort_indices(std::vector<std::uint32_t>& keys, std::vector<std::uint32_t>& buffer, std::size_t point_count) {
-  buffer.resize(keys.size());
-  for (int shift = 0; shift < 32 && ((point_count - 1) >> shift) != 0; shift += 11) {
-    std::uint32_t count[2049] = {};
-    for (const std::uint32_t k : keys) ++count[((k >> shift) & 2047u) + 1];
-    for (int b = 0; b < 2048; ++b) count[b + 1] += count[b];
-    for (const std::uint32_t k : keys) buffer[count[(k >> shift) & 2047u]++] = k;
-    keys.swap(buffer);
-  }
-}
-
 }  // namespace
 
 double plane_roughness(double smallest_eigenvalue_of_comoment, std::uint32_t n, Variance variance) {
@@ -38,61 +25,18 @@ double plane_roughness(double smallest_eigenvalue_of_comoment, std::uint32_t n, 
   return std::sqrt(std::max(smallest_eigenvalue_of_comoment, 0.0) / denom);
 }
 
-void moments_by_scale(const KdTree& tree, const Vec3& core, const std::vector<double>& radii_ascending,
+void moments_by_scale(const Octree& tree, const Vec3& core, const std::vector<double>& radii_ascending,
                       NormalScratch& s) {
-  s.indices.clear();
-  tree.ball(core, radii_ascending.back(), s.indices);
-  sort_indices(s.indices, s.sort_buffer, tree.points().size());
-  const PointsView pts = tree.points();
-  const std::size_t shells = radii_ascending.size();
-  s.moments.assign(shells, ScaleMoments{});
-  s.shell_sum.assign(shells, Vec3::Zero());
-  auto offset = [&](std::uint32_t i) {
-    return Vec3(pts.coord(i, 0) - core.x(), pts.coord(i, 1) - core.y(), pts.coord(i, 2) - core.z());
-  };
-  auto add_comoment = [](Eigen::Matrix3d& m, const Vec3& d) {
-    m(0, 0) += d.x() * d.x(), m(0, 1) += d.x() * d.y(), m(0, 2) += d.x() * d.z();
-    m(1, 1) += d.y() * d.y(), m(1, 2) += d.y() * d.z(), m(2, 2) += d.z() * d.z();
-  };
-  if (shells == 1) {  // one scale: two passes about the mean, nothing else to keep
-    for (const std::uint32_t i : s.indices) s.shell_sum[0] += offset(i);
-    s.moments[0].count = std::uint32_t(s.indices.size());
-    if (!s.indices.empty()) s.shell_sum[0] /= double(s.indices.size());
-    for (const std::uint32_t i : s.indices) add_comoment(s.moments[0].comoment, offset(i) - s.shell_sum[0]);
-    s.moments[0].comoment = s.moments[0].comoment.selfadjointView<Eigen::Upper>();
-    return;
+  tree.ball_moments(core, radii_ascending, s.octree, s.sums);
+  s.moments.resize(s.sums.size());
+  for (std::size_t k = 0; k < s.sums.size(); ++k) {
+    const auto& c = s.sums[k].comoment;
+    s.moments[k].count = static_cast<std::uint32_t>(s.sums[k].count);
+    s.moments[k].comoment << c[0], c[1], c[2], c[1], c[3], c[4], c[2], c[4], c[5];
   }
-  s.shell.resize(s.indices.size());
-  for (std::size_t j = 0; j < s.indices.size(); ++j) {
-    const Vec3 v = offset(s.indices[j]);
-    const double d2 = v.x() * v.x() + v.y() * v.y() + v.z() * v.z();
-    std::size_t k = 0;
-    while (d2 > radii_ascending[k] * radii_ascending[k]) ++k;  // the ball query bounds k < shells
-    s.shell[j] = static_cast<std::uint16_t>(k);
-    s.shell_sum[k] += v;
-    ++s.moments[k].count;
-  }
-  for (std::size_t k = 0; k < shells; ++k)
-    if (s.moments[k].count) s.shell_sum[k] /= double(s.moments[k].count);  // now the shell's mean
-  for (std::size_t j = 0; j < s.indices.size(); ++j)
-    add_comoment(s.moments[s.shell[j]].comoment, offset(s.indices[j]) - s.shell_sum[s.shell[j]]);
-  // Cumulative merge, inside out: moments[k] becomes that of the whole ball of radius k.
-  Vec3 mean = s.shell_sum[0];
-  for (std::size_t k = 1; k < shells; ++k) {
-    const double na = s.moments[k - 1].count, nb = s.moments[k].count, n = na + nb;
-    if (nb > 0.0) {
-      const Vec3 delta = s.shell_sum[k] - mean;
-      s.moments[k].comoment += s.moments[k - 1].comoment + (na * nb / n) * (delta * delta.transpose());
-      mean += delta * (nb / n);
-    } else {
-      s.moments[k].comoment = s.moments[k - 1].comoment;
-    }
-    s.moments[k].count += s.moments[k - 1].count;
-  }
-  for (auto& m : s.moments) m.comoment = m.comoment.selfadjointView<Eigen::Upper>();
 }
 
-NormalEstimator::NormalEstimator(const KdTree& tree, const Params& params)
+NormalEstimator::NormalEstimator(const Octree& tree, const Params& params)
     : tree_(tree),
       diameters_(params.normal_diameters),
       selection_(params.scale_selection),

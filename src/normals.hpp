@@ -1,7 +1,7 @@
 #pragma once
 // Normals by PCA of the neighbours within a sphere of diameter D (sections 3.1.2 and 3.2).
 
-#include "kdtree.hpp"
+#include "octree.hpp"
 
 #include <m3c2/params.hpp>
 #include <m3c2/result.hpp>
@@ -20,19 +20,15 @@ struct ScaleMoments {
 };
 
 struct NormalScratch {
-  std::vector<std::uint32_t> indices, sort_buffer;
-  std::vector<std::uint16_t> shell;
-  std::vector<Vec3> shell_sum;
+  OctreeScratch octree;
+  std::vector<Moments> sums;
   std::vector<ScaleMoments> moments;
 };
 
-/// Moments at every radius of `radii_ascending` from ONE ball query at the largest radius. Each
-/// neighbour belongs to the shell between two consecutive radii (j is within radius r iff
-/// squared_distance <= r^2); each shell's moments are taken in two passes about its own mean, in
-/// point-index order, and the shells are merged from the inside out with the exact pairwise
-/// update of Chan, Golub & LeVeque (1979). A scale therefore sees exactly its own neighbours
-/// (never another scale's), and the result does not depend on how the tree orders its output.
-void moments_by_scale(const KdTree& tree, const Vec3& core, const std::vector<double>& radii_ascending,
+/// Moments at every radius of `radii_ascending` (j is within radius r iff squared_distance <=
+/// r^2), from one traversal of the octree (octree.hpp): a scale sees exactly its own neighbours,
+/// and the sums are a function of that set alone, not of what else the index holds.
+void moments_by_scale(const Octree& tree, const Vec3& core, const std::vector<double>& radii_ascending,
                       NormalScratch& scratch);
 
 struct NormalEstimate {
@@ -47,11 +43,11 @@ struct NormalEstimate {
 /// params.scale_selection when there are several. Immutable; estimate() is thread-safe.
 class NormalEstimator {
  public:
-  NormalEstimator(const KdTree& tree, const Params& params);
+  NormalEstimator(const Octree& tree, const Params& params);
   NormalEstimate estimate(const Vec3& core, NormalScratch& scratch) const;
 
  private:
-  const KdTree& tree_;
+  const Octree& tree_;
   std::vector<double> diameters_;  // ascending, unique
   std::vector<double> radii_;
   std::uint32_t min_points_;

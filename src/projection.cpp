@@ -33,17 +33,17 @@ void progressive_truncate(std::vector<double>& t, const Params& params, Projecti
 
 }  // namespace
 
-void project(const KdTree& reference, const KdTree& compared, const Vec3& core, const Vec3& normal,
+void project(const Octree& reference, const Octree& compared, const Vec3& core, const Vec3& normal,
              const Params& params, ProjectionScratch& s, std::vector<double>& t1, std::vector<double>& t2) {
   if (params.depth_search == DepthSearch::kTwoPass) {
     const Cylinder short_cyl = make_cylinder(core, normal, params, params.first_pass_depth);
-    cylinder_offsets(reference, short_cyl, s.cylinder, t1);
-    cylinder_offsets(compared, short_cyl, s.cylinder, t2);
+    reference.cylinder(short_cyl, t1);
+    compared.cylinder(short_cyl, t2);
     if (!t1.empty() && !t2.empty()) return;
   }
   const Cylinder cyl = make_cylinder(core, normal, params, params.max_depth);
-  cylinder_offsets(reference, cyl, s.cylinder, t1);
-  cylinder_offsets(compared, cyl, s.cylinder, t2);
+  reference.cylinder(cyl, t1);
+  compared.cylinder(cyl, t2);
   if (params.depth_search == DepthSearch::kProgressive) {
     progressive_truncate(t1, params, s);
     progressive_truncate(t2, params, s);

@@ -1,7 +1,7 @@
 #pragma once
 // Step 2 of the algorithm (section 3.1.3): the two clouds' offsets along the normal.
 
-#include "cylinder.hpp"
+#include "octree.hpp"
 
 #include <m3c2/params.hpp>
 
@@ -10,11 +10,11 @@
 namespace m3c2::detail {
 
 struct ProjectionScratch {
-  CylinderScratch cylinder;
   std::vector<double> full, work;
 };
 
-/// Offsets of both clouds in the cylinder at `core` along `normal`, with the depth search of
+/// Offsets of both clouds in the cylinder at `core` along `normal` (in the octree's key order,
+/// the same in any tile), with the depth search of
 /// params.depth_search:
 /// - kSinglePass: half-length max_depth.
 /// - kTwoPass (5.3): half-length first_pass_depth; the full max_depth only when that short
@@ -22,7 +22,7 @@ struct ProjectionScratch {
 /// - kProgressive (CloudCompare): for each cloud on its own, the half-length grows by d/2 up to
 ///   max_depth; at each length that added points, the search stops if the cloud has
 ///   >= min_points points and |i| + 2 sigma < h; the offsets of that truncated cylinder are kept.
-void project(const KdTree& reference, const KdTree& compared, const Vec3& core, const Vec3& normal,
+void project(const Octree& reference, const Octree& compared, const Vec3& core, const Vec3& normal,
              const Params& params, ProjectionScratch& scratch, std::vector<double>& t1,
              std::vector<double>& t2);
 

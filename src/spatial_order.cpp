@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <numeric>
+#include <utility>
 
 namespace m3c2::detail {
 namespace {
@@ -18,6 +19,33 @@ std::uint64_t spread_bits(std::uint64_t v) {
   return v;
 }
 
+/// Stable LSD radix sort of (key, index) pairs by key: 11-bit digits, the histograms of all six
+/// digits taken in one pass, and a pass skipped where every key has the same digit. Replaces a
+/// std::stable_sort through an index lambda (same order): morton_order of W1's 90k core points,
+/// run serially before the parallel loop of every call, 4.5 -> 3.7 ms (the rest is first-touch
+/// page faults of the buffers and the key computation).
+struct Keyed {
+  std::uint64_t key;
+  std::uint32_t index;
+};
+
+void radix_sort(std::vector<Keyed>& items) {
+  constexpr int kBits = 11, kDigits = 6;  // 66 >= the 63 bits of a 3 x 21-bit Morton key
+  constexpr std::size_t kBuckets = std::size_t(1) << kBits;
+  std::vector<std::size_t> count(kDigits * kBuckets, 0);
+  for (const Keyed& it : items)
+    for (int d = 0; d < kDigits; ++d) ++count[d * kBuckets + ((it.key >> (kBits * d)) & (kBuckets - 1))];
+  std::vector<Keyed> buffer(items.size());
+  for (int d = 0; d < kDigits; ++d) {
+    std::size_t* c = &count[d * kBuckets];
+    if (*std::max_element(c, c + kBuckets) == items.size()) continue;  // one digit value for all
+    std::size_t sum = 0;
+    for (std::size_t b = 0; b < kBuckets; ++b) sum += std::exchange(c[b], sum);  // bucket starts
+    for (const Keyed& it : items) buffer[c[(it.key >> (kBits * d)) & (kBuckets - 1)]++] = it;
+    items.swap(buffer);
+  }
+}
+
 }  // namespace
 
 std::vector<std::uint32_t> morton_order(PointsView points) {
@@ -29,14 +57,15 @@ std::vector<std::uint32_t> morton_order(PointsView points) {
   for (std::size_t i = 1; i < n; ++i) lo = lo.cwiseMin(points[i]), hi = hi.cwiseMax(points[i]);
   const double extent = std::max((hi - lo).maxCoeff(), 1e-300);
   const double cells = double((1u << 21) - 1);
-  std::vector<std::uint64_t> key(n);
+  std::vector<Keyed> items(n);
   for (std::size_t i = 0; i < n; ++i) {
     std::uint64_t k = 0;
     for (int a = 0; a < 3; ++a)
-      k |= spread_bits(std::uint64_t(std::floor((points.coord(i, a) - lo(a)) / extent * cells))) << a;
-    key[i] = k;
+      k |= spread_bits(std::uint64_t((points.coord(i, a) - lo(a)) / extent * cells)) << a;  // >= 0: truncation is floor
+    items[i] = {k, std::uint32_t(i)};
   }
-  std::stable_sort(order.begin(), order.end(), [&](std::uint32_t a, std::uint32_t b) { return key[a] < key[b]; });
+  radix_sort(items);  // stable: ties keep input order
+  for (std::size_t i = 0; i < n; ++i) order[i] = items[i].index;
   return order;
 }
 

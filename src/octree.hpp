@@ -1,0 +1,93 @@
+#pragma once
+// Spatial index of the M3C2 pipeline: an octree on a grid anchored at the coordinate origin,
+// whose nodes carry the moments of their points, so that a normal's neighbourhood (3.1.2) is
+// summed from whole nodes and only the nodes crossing the sphere cost per-point work.
+//
+// Canonical sums. The points are ordered by the Morton key of their cell on the global grid
+// (cell side `cell`, a power of two), ties by original index. The moments of a set S are
+// defined as a nested fold over the compressed octree (radix tree on those keys) of S itself:
+// the points of one grid cell in two passes (moments.hpp), then at each branching the children
+// merged in key order (merge_into). A query folds whole nodes inside the sphere and recurses
+// into the others; because merging with an empty set copies, the fold over a subtree restricted
+// to the sphere equals the fold over the radix tree of the neighbours alone. The moments of a
+// neighbourhood are therefore a function of the set of neighbours (and their relative input
+// order), whatever else the index holds: a tile sees the same bits as the whole cloud.
+//
+// Frames. Moments of nodes inside one block (an aligned cell of side cell * 2^block_level, at
+// least the largest normal diameter) are taken about the block's corner, which keeps UTM-sized
+// coordinates exact (Sterbenz); nodes spanning blocks hold no moments and fold their children's
+// after moving them to the core point's frame.
+
+#include "cylinder.hpp"
+#include "distance.hpp"
+#include "moments.hpp"
+
+#include <m3c2/points_view.hpp>
+
+#include <array>
+#include <cstdint>
+#include <span>
+#include <vector>
+
+namespace m3c2::detail {
+
+/// Grid of an octree: finest cell side (a power of two) and the block level.
+struct OctreeGrid {
+  double cell = 0.0;
+  int block_level = 0;
+};
+
+/// The grid for a run with these scales (diameters): cells of about min / 32, blocks at least
+/// max wide. Derived from the parameters only, so that every tile of a run shares it.
+OctreeGrid octree_grid(double smallest_scale, double largest_normal_diameter);
+
+struct OctreeScratch {
+  std::vector<Moments> stack;
+  std::vector<double> d2;
+  std::vector<std::array<std::int64_t, 3>> keys;
+};
+
+class Octree {
+ public:
+  /// Indexes `points` (kept by reference); `with_moments` adds the node moments of normals.
+  Octree(PointsView points, OctreeGrid grid, bool with_moments);
+
+  PointsView points() const { return points_; }
+
+  /// Replaces `t_out` with the axial offsets t of the points inside `cylinder` (the inclusive
+  /// test of cylinder.hpp), in key order: the same order in any tile.
+  void cylinder(const Cylinder& cylinder, std::vector<double>& t_out) const;
+
+  /// Moments, about any origin, of the points within each radius of `radii_ascending` of
+  /// `centre` (squared_distance <= r^2), written to out[k]. Requires with_moments.
+  void ball_moments(const Vec3& centre, std::span<const double> radii_ascending, OctreeScratch& scratch,
+                    std::vector<Moments>& out) const;
+
+ private:
+  struct Node {
+    std::array<double, 3> lo, hi;  // bounding box of the node's points
+    std::uint32_t begin, end;      // slots
+    std::uint32_t first_child = 0; // children first_child .. first_child + children - 1, key order; 0: a leaf
+    std::uint8_t children = 0;
+    std::int8_t level = -1;        // the key digit its points first differ at; -1: one grid cell
+    bool in_block = true;          // all its points lie in one block
+  };
+  struct BallQuery;
+
+  void build(std::vector<std::uint32_t>& order);
+  std::array<std::int64_t, 3> cell_of(const double* p) const;
+  Vec3 block_corner(const double* p) const;
+  Moments subtree_moments(std::uint32_t begin, std::uint32_t end, const std::array<std::int64_t, 3>* keys,
+                          const Vec3& origin) const;
+  const double* slot_xyz(std::uint32_t slot) const { return xyz_.data() + 3 * std::size_t(slot); }
+
+  PointsView points_;
+  OctreeGrid grid_;
+  double inverse_cell_;
+  std::vector<double> xyz_;            // 3 per slot, in key order
+  std::vector<std::uint32_t> index_;   // original index of each slot
+  std::vector<Node> nodes_;
+  std::vector<Moments> moments_;       // per node, about its block's corner (in-block nodes only)
+};
+
+}  // namespace m3c2::detail

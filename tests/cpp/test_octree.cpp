@@ -1,0 +1,184 @@
+// The octree of the pipeline (src/octree.hpp) against brute force: the neighbourhood moments of
+// a ball and the cylinder offsets. And its promise: the moments of a neighbourhood, and the order
+// of a cylinder's offsets, depend only on the neighbours (and their relative input order), never
+// on the other points the index holds, which is what makes tiled runs bit-identical.
+
+#include "test_support.hpp"
+
+#include "octree.hpp"
+
+#include <algorithm>
+#include <cstring>
+#include <random>
+
+namespace m3c2::test {
+namespace {
+
+using detail::Moments;
+using detail::Octree;
+using detail::OctreeGrid;
+using detail::OctreeScratch;
+
+/// Moments of the points of `cloud` within `radius` of `c`, two-pass in input order (the oracle).
+Moments brute_moments(const Cloud& cloud, const Vec3& c, double radius) {
+  std::vector<Vec3> in;
+  for (std::size_t i = 0; i < cloud.size(); ++i) {
+    const Vec3 d = cloud[i] - c;
+    if (d.x() * d.x() + d.y() * d.y() + d.z() * d.z() <= radius * radius) in.push_back(d);
+  }
+  Moments m;
+  m.count = double(in.size());
+  if (in.empty()) return m;
+  Vec3 mean = Vec3::Zero();
+  for (const Vec3& v : in) mean += v;
+  mean /= m.count;
+  for (const Vec3& v0 : in) {
+    const Vec3 v = v0 - mean;
+    m.comoment[0] += v.x() * v.x(), m.comoment[1] += v.x() * v.y(), m.comoment[2] += v.x() * v.z();
+    m.comoment[3] += v.y() * v.y(), m.comoment[4] += v.y() * v.z(), m.comoment[5] += v.z() * v.z();
+  }
+  return m;
+}
+
+bool same_bits(const Moments& a, const Moments& b) {
+  return a.count == b.count && std::memcmp(a.comoment.data(), b.comoment.data(), sizeof(a.comoment)) == 0;
+}
+
+/// A rough surface with duplicates and a dense cluster, shifted to UTM-sized coordinates.
+Cloud test_cloud(std::uint64_t seed, std::size_t n, const Vec3& offset) {
+  std::mt19937_64 rng(seed);
+  std::uniform_real_distribution<double> u(0.0, 6.0), noise(-0.02, 0.02);
+  Cloud c;
+  for (std::size_t i = 0; i < n; ++i) {
+    const double x = u(rng), y = u(rng);
+    c.add(Vec3(x, y, 0.3 * std::sin(x) * std::cos(1.3 * y) + noise(rng)) + offset);
+    if (i % 97 == 0) c.add(c[c.size() - 1]);                                  // an exact duplicate
+    if (i % 211 == 0) c.add(Vec3(3.0 + 1e-4 * noise(rng), 3.0, 0.1) + offset);  // a tight cluster
+  }
+  return c;
+}
+
+void expect_moments_match_brute_force(const Vec3& offset) {
+  const Cloud cloud = test_cloud(7, 20000, offset);
+  const std::vector<double> radii = {0.15, 0.4, 0.75};
+  const OctreeGrid grid = detail::octree_grid(0.3, 1.5);
+  const Octree tree(cloud.view(), grid, true);
+  OctreeScratch scratch;
+  std::vector<Moments> out;
+  std::mt19937_64 rng(11);
+  std::uniform_real_distribution<double> u(0.0, 6.0);
+  for (int q = 0; q < 150; ++q) {
+    const Vec3 core = q % 10 == 0 ? cloud[std::size_t(q) * 37] : Vec3(u(rng), u(rng), 0.0) + offset;
+    tree.ball_moments(core, radii, scratch, out);
+    for (std::size_t k = 0; k < radii.size(); ++k) {
+      const Moments want = brute_moments(cloud, core, radii[k]);
+      ASSERT_EQ(out[k].count, want.count) << "query " << q << " radius " << radii[k];
+      const double scale = want.comoment[0] + want.comoment[3] + want.comoment[5];
+      for (int j = 0; j < 6; ++j) EXPECT_NEAR(out[k].comoment[j], want.comoment[j], 1e-11 * scale + 1e-300) << q;
+    }
+  }
+}
+
+TEST(Octree, BallMomentsMatchBruteForce) { expect_moments_match_brute_force(Vec3::Zero()); }
+
+TEST(Octree, BallMomentsMatchBruteForceAtUtmCoordinates) {
+  expect_moments_match_brute_force(Vec3(512345.25, 5412345.75, 812.5));
+}
+
+TEST(Octree, InclusiveSphereBoundaryOnQuantisedPoints) {
+  // Coordinates on a 1/8 grid: many points lie exactly at distance r, and must be counted.
+  Cloud cloud;
+  for (int i = 0; i <= 32; ++i)
+    for (int j = 0; j <= 32; ++j) cloud.add(0.125 * i, 0.125 * j, 0.125 * ((i * j) % 3));
+  const Octree tree(cloud.view(), detail::octree_grid(0.5, 1.0), true);
+  OctreeScratch scratch;
+  std::vector<Moments> out;
+  for (const Vec3& c : {Vec3(2.0, 2.0, 0.0), Vec3(1.5, 2.25, 0.125), Vec3(0.0, 0.0, 0.0)}) {
+    const std::vector<double> radii = {0.25, 0.5};
+    tree.ball_moments(c, radii, scratch, out);
+    for (std::size_t k = 0; k < 2; ++k) EXPECT_EQ(out[k].count, brute_moments(cloud, c, radii[k]).count);
+  }
+}
+
+TEST(Octree, NeighbourhoodMomentsDoNotDependOnTheOtherPoints) {
+  // The index of a tile holds the neighbours of its core points plus an arbitrary subset of
+  // the rest, in the same relative order: the moments must be the same bits.
+  const Cloud cloud = test_cloud(3, 30000, Vec3(600000.0, 4200000.0, 50.0));
+  const std::vector<double> radii = {0.2, 0.5};
+  const OctreeGrid grid = detail::octree_grid(0.4, 1.0);
+  const Octree whole(cloud.view(), grid, true);
+  std::mt19937_64 rng(5);
+  OctreeScratch scratch;
+  std::vector<Moments> a, b;
+  for (int trial = 0; trial < 40; ++trial) {
+    const Vec3 core = cloud[std::size_t(trial) * 701 % cloud.size()] + Vec3(0.01, -0.02, 0.0);
+    std::bernoulli_distribution keep(trial % 2 ? 0.05 : 0.6);
+    Cloud part;
+    for (std::size_t i = 0; i < cloud.size(); ++i)
+      if ((cloud[i] - core).norm() <= 0.5 + 1e-9 || keep(rng)) part.add(cloud[i]);
+    const Octree tile(part.view(), grid, true);
+    whole.ball_moments(core, radii, scratch, a);
+    tile.ball_moments(core, radii, scratch, b);
+    for (std::size_t k = 0; k < radii.size(); ++k) {
+      EXPECT_GT(a[k].count, 0.0);
+      EXPECT_TRUE(same_bits(a[k], b[k])) << "trial " << trial << " radius " << radii[k];
+    }
+  }
+}
+
+TEST(Octree, EachScaleOfAMultiScaleQueryEqualsItsSingleScaleQuery) {
+  const Cloud cloud = test_cloud(9, 20000, Vec3(1000.0, 2000.0, 0.0));
+  const OctreeGrid grid = detail::octree_grid(0.2, 1.6);
+  const Octree tree(cloud.view(), grid, true);
+  const std::vector<double> radii = {0.1, 0.25, 0.4, 0.8};
+  OctreeScratch scratch;
+  std::vector<Moments> all, one;
+  for (int q = 0; q < 60; ++q) {
+    const Vec3 core = cloud[std::size_t(q) * 301];
+    tree.ball_moments(core, radii, scratch, all);
+    for (std::size_t k = 0; k < radii.size(); ++k) {
+      tree.ball_moments(core, std::span<const double>(&radii[k], 1), scratch, one);
+      EXPECT_TRUE(same_bits(all[k], one[0])) << q << " " << k;
+    }
+  }
+}
+
+TEST(Octree, CylinderOffsetsMatchBruteForceAndKeepTheirOrderInASubset) {
+  const Cloud cloud = test_cloud(13, 30000, Vec3(300000.0, 5000000.0, 100.0));
+  const OctreeGrid grid = detail::octree_grid(0.3, 0.0);
+  const Octree whole(cloud.view(), grid, false);
+  std::mt19937_64 rng(17);
+  std::vector<double> t_whole, t_tile;
+  for (int q = 0; q < 40; ++q) {
+    const Vec3 core = cloud[std::size_t(q) * 577 % cloud.size()];
+    const Vec3 n = Vec3(0.3 * std::sin(q), 0.2 * std::cos(q), 1.0).normalized();
+    const detail::Cylinder cyl{core, n, 0.15, -0.6, 0.6};
+    whole.cylinder(cyl, t_whole);
+    EXPECT_EQ(t_whole.size(), brute_cylinder_count(cloud, core, n, 0.15, -0.6, 0.6)) << q;
+    std::bernoulli_distribution keep(0.3);
+    Cloud part;
+    for (std::size_t i = 0; i < cloud.size(); ++i)
+      if ((cloud[i] - core).norm() <= 0.7 || keep(rng)) part.add(cloud[i]);
+    const Octree tile(part.view(), grid, false);
+    tile.cylinder(cyl, t_tile);
+    EXPECT_EQ(t_whole, t_tile) << q;  // the same values in the same order
+  }
+}
+
+TEST(Octree, RejectsCoordinatesBeyondTheGridRange) {
+  Cloud cloud;
+  cloud.add(0.0, 0.0, 0.0);
+  cloud.add(1e12, 0.0, 0.0);
+  EXPECT_THROW(Octree(cloud.view(), detail::octree_grid(0.01, 0.01), false), InvalidArgument);
+}
+
+TEST(Octree, GridIsAPowerOfTwoFromTheScalesAlone) {
+  const OctreeGrid g = detail::octree_grid(1.0, 2.5);
+  EXPECT_EQ(g.cell, 1.0 / 32.0);  // the largest power of two <= 1/32
+  EXPECT_EQ(detail::octree_grid(0.9, 2.5).cell, 1.0 / 64.0);
+  EXPECT_GE(std::ldexp(g.cell, g.block_level), 2.5);
+  EXPECT_LT(std::ldexp(g.cell, g.block_level - 1), 2.5);
+}
+
+}  // namespace
+}  // namespace m3c2::test
