@@ -19,6 +19,7 @@ constexpr std::uint32_t kLeafSize = 16;
 // three axes interleave into one 126-bit Morton key.
 constexpr int kAxisBits = 42;
 constexpr std::int64_t kBias = std::int64_t(1) << (kAxisBits - 1);
+constexpr double kBlockDiameters = 1024.0;
 // Box tests that prune use this relative margin (as kdtree.cpp) so that rounding can never drop
 // a point the exact per-point test keeps; the "inside" test needs none (see farthest_distance2).
 constexpr double kRelativeMargin = 1e-9;
@@ -56,7 +57,7 @@ std::uint64_t spread_bits(std::uint64_t v) {
   return v;
 }
 
-Key morton_key(const std::array<std::int64_t, 3>& u) {
+Key morton_key(const CellKey& u) {
   Key low = 0, high = 0;
   for (int a = 0; a < 3; ++a) {
     low |= Key(spread_bits(std::uint64_t(u[a]))) << a;
@@ -71,13 +72,9 @@ int highest_bit(Key x) {
 }
 
 /// The digit (level) at which cell keys a and b first differ, -1 when equal.
-int differing_level(const std::array<std::int64_t, 3>& a, const std::array<std::int64_t, 3>& b) {
+int differing_level(const CellKey& a, const CellKey& b) {
   const std::uint64_t x = std::uint64_t((a[0] ^ b[0]) | (a[1] ^ b[1]) | (a[2] ^ b[2]));
   return x ? 63 - std::countl_zero(x) : -1;
-}
-
-int digit(const std::array<std::int64_t, 3>& k, int level) {
-  return int((k[0] >> level) & 1) | int((k[1] >> level) & 1) << 1 | int((k[2] >> level) & 1) << 2;
 }
 
 /// Sorts `order` by `keys` (stable: ties keep their order), LSD radix on the low `bits` bits.
@@ -107,15 +104,25 @@ OctreeGrid octree_grid(double smallest_scale, double largest_normal_diameter) {
   int exponent = 0;
   std::frexp(smallest_scale / 32.0, &exponent);  // smallest/32 in [2^(e-1), 2^e)
   grid.cell = std::ldexp(1.0, exponent - 1);
-  grid.block_level = 1;
-  while (std::ldexp(grid.cell, grid.block_level) < largest_normal_diameter && grid.block_level < kAxisBits - 1)
+  // Blocks only keep the moments' coordinates small (about the block corner): 1024 diameters
+  // wide they lose nothing measurable (1e-13 m at 1 km), and nodes rarely straddle two.
+  // Without normals there are no moments: one block (no forced splits).
+  grid.block_level = largest_normal_diameter > 0.0 ? 1 : kAxisBits;
+  while (std::ldexp(grid.cell, grid.block_level) < kBlockDiameters * largest_normal_diameter &&
+         grid.block_level < kAxisBits)
     ++grid.block_level;
   return grid;
 }
 
-std::array<std::int64_t, 3> Octree::cell_of(const double* p) const {
-  std::array<std::int64_t, 3> k;
-  for (int a = 0; a < 3; ++a) k[a] = std::int64_t(std::floor(p[a] * inverse_cell_)) + kBias;
+CellKey Octree::cell_of(const double* p) const {
+  CellKey k;
+  for (int a = 0; a < 3; ++a) {
+    // floor() without the library call: the constructor checked |x| < 2^41, so the truncation
+    // is exact and only negative non-integers need the step down.
+    const double x = p[a] * inverse_cell_;
+    const auto t = std::int64_t(x);
+    k[a] = t - (double(t) > x) + kBias;
+  }
   return k;
 }
 
@@ -145,14 +152,16 @@ Octree::Octree(PointsView points, OctreeGrid grid, bool with_moments)
   build(order);
   if (with_moments) {
     moments_.resize(nodes_.size());
-    std::vector<std::array<std::int64_t, 3>> keys;
+    std::vector<CellKey> keys;
+    FoldStack stack;
     for (std::size_t k = nodes_.size(); k-- > 0;) {
       const Node& node = nodes_[k];
       if (!node.in_block) continue;
       if (node.first_child == 0) {
         keys.clear();
         for (std::uint32_t s = node.begin; s < node.end; ++s) keys.push_back(cell_of(slot_xyz(s)));
-        moments_[k] = subtree_moments(node.begin, node.end, keys.data() - node.begin, block_corner(slot_xyz(node.begin)));
+        moments_[k] = radix_fold(node.begin, node.end, keys.data() - node.begin, block_corner(slot_xyz(node.begin)),
+                                 [](std::uint32_t) { return true; }, stack);
       } else {
         for (std::uint32_t c = node.first_child; c < node.first_child + node.children; ++c)
           merge_into(moments_[k], moments_[c]);
@@ -164,7 +173,7 @@ Octree::Octree(PointsView points, OctreeGrid grid, bool with_moments)
 void Octree::build(std::vector<std::uint32_t>& order) {
   const std::size_t n = order.size();
   std::vector<Key> keys(n);
-  std::array<std::int64_t, 3> lo, hi;
+  CellKey lo, hi;
   lo.fill(std::numeric_limits<std::int64_t>::max());
   hi.fill(std::numeric_limits<std::int64_t>::min());
   for (std::size_t i = 0; i < n; ++i) {
@@ -223,19 +232,46 @@ void Octree::build(std::vector<std::uint32_t>& order) {
   }
 }
 
-Moments Octree::subtree_moments(std::uint32_t begin, std::uint32_t end, const std::array<std::int64_t, 3>* keys,
-                                const Vec3& origin) const {
-  const int level = differing_level(keys[begin], keys[end - 1]);
-  if (level < 0) return two_pass_moments(xyz_.data(), begin, end, origin, [](std::uint32_t) { return true; });
-  Moments m;
-  for (std::uint32_t b = begin; b < end;) {
-    const int d = digit(keys[b], level);
-    std::uint32_t e = b + 1;
-    while (e < end && digit(keys[e], level) == d) ++e;
-    merge_into(m, subtree_moments(b, e, keys, origin));
-    b = e;
+template <class Keep>
+Moments Octree::radix_fold(std::uint32_t begin, std::uint32_t end, const CellKey* keys, const Vec3& origin, Keep&& keep,
+                           FoldStack& stack) const {
+  // One pass in key order with a stack of the open branchings (their digit, their children's
+  // fold so far): a point diverging from the previous one at digit L closes every branching
+  // below L, then joins the one at L or opens it. Children are merged in key order, each
+  // branching's fold from its first child: exactly the nested fold of octree.hpp.
+  stack.clear();
+  Moments current;
+  bool any = false;
+  std::uint32_t previous = 0;
+  for (std::uint32_t i = begin; i < end;) {
+    if (!keep(i)) {
+      ++i;
+      continue;
+    }
+    std::uint32_t cell_end = i + 1;
+    while (cell_end < end && differing_level(keys[cell_end], keys[i]) < 0) ++cell_end;
+    const Moments cell = two_pass_moments(xyz_.data(), i, cell_end, origin, keep);
+    if (any) {
+      const int level = differing_level(keys[previous], keys[i]);
+      while (!stack.empty() && stack.back().first < level) {
+        merge_into(stack.back().second, current);
+        current = stack.back().second;
+        stack.pop_back();
+      }
+      if (!stack.empty() && stack.back().first == level) merge_into(stack.back().second, current);
+      else stack.emplace_back(level, current);
+    }
+    current = cell;
+    any = true;
+    previous = i;
+    i = cell_end;
   }
-  return m;
+  while (!stack.empty()) {
+    merge_into(stack.back().second, current);
+    current = stack.back().second;
+    stack.pop_back();
+  }
+  return current;
 }
 
 /// One ball_moments() call: the recursion over the nodes crossing the spheres.
@@ -249,9 +285,11 @@ struct Octree::BallQuery {
 
   Moments* level_out(int depth) { return s.stack.data() + std::size_t(depth) * scales; }
 
-  /// Writes the moments of node n's points within radius k to out[k], k in [ka, kb), which the
-  /// caller left empty: about the node's block corner for an in-block node, else about centre.
-  void node(std::uint32_t n, std::size_t ka, std::size_t kb, Moments* out, int depth) {
+  /// Merges into out[k], k in [ka, kb), the moments of node n's points within radius k: in the
+  /// frame of n's block, or moved to centre's frame when `to_centre` (n in a block, its parent
+  /// spanning blocks). A node inside a sphere gives its stored moments, one outside nothing, and
+  /// the others the fold of their children's (or of their points, for a leaf).
+  void node(std::uint32_t n, std::size_t ka, std::size_t kb, Moments* out, int depth, bool to_centre) {
     const Node& node = tree.nodes_[n];
     const double near2 = nearest_distance2(node.lo, node.hi, centre);
     while (ka < kb && near2 > prune_r2[ka]) ++ka;  // outside the small spheres
@@ -260,24 +298,35 @@ struct Octree::BallQuery {
     if (node.in_block) {
       const double far2 = farthest_distance2(node.lo, node.hi, centre);
       while (inside > ka && far2 <= r2[inside - 1]) --inside;
-      for (std::size_t k = inside; k < kb; ++k) out[k] = tree.moments_[n];
+    }
+    const Vec3 shift = to_centre ? Vec3(tree.block_corner(tree.slot_xyz(node.begin)) - centre) : Vec3::Zero();
+    for (std::size_t k = inside; k < kb; ++k) {
+      if (!to_centre) {
+        merge_into(out[k], tree.moments_[n]);
+        continue;
+      }
+      Moments moved = tree.moments_[n];
+      moved.mean += shift;
+      merge_into(out[k], moved);
     }
     if (ka == inside) return;
-    if (node.first_child == 0) return leaf(n, ka, inside, out, depth);
-    for (std::uint32_t c = node.first_child; c < node.first_child + node.children; ++c) {
-      Moments* child = level_out(depth + 1);
-      std::fill(child + ka, child + inside, Moments{});
-      this->node(c, ka, inside, child, depth + 1);
-      if (!node.in_block && tree.nodes_[c].in_block) {
-        const Vec3 shift = tree.block_corner(tree.slot_xyz(tree.nodes_[c].begin)) - centre;
-        for (std::size_t k = ka; k < inside; ++k) child[k].mean += shift;
-      }
-      for (std::size_t k = ka; k < inside; ++k) merge_into(out[k], child[k]);
+    Moments* fold = level_out(depth + 1);
+    std::fill(fold + ka, fold + inside, Moments{});
+    if (node.first_child == 0) {
+      leaf(n, ka, inside, fold);
+    } else {
+      for (std::uint32_t c = node.first_child; c < node.first_child + node.children; ++c)
+        this->node(c, ka, inside, fold, depth + 1, !node.in_block && tree.nodes_[c].in_block);
+    }
+    for (std::size_t k = ka; k < inside; ++k) {
+      if (to_centre) fold[k].mean += shift;
+      merge_into(out[k], fold[k]);
     }
   }
 
-  /// A leaf crossing the spheres [ka, kb): per-point distances, then the leaf's own radix tree.
-  void leaf(std::uint32_t n, std::size_t ka, std::size_t kb, Moments* out, int depth) {
+  /// A leaf crossing the spheres [ka, kb): per-point distances; a sphere holding some of its
+  /// points only folds those over their own radix tree.
+  void leaf(std::uint32_t n, std::size_t ka, std::size_t kb, Moments* out) {
     const Node& node = tree.nodes_[n];
     const std::uint32_t m = node.end - node.begin;
     s.d2.resize(m);
@@ -294,53 +343,12 @@ struct Octree::BallQuery {
     s.keys.clear();
     for (std::uint32_t j = 0; j < m; ++j) s.keys.push_back(tree.cell_of(tree.slot_xyz(node.begin + j)));
     const Vec3 origin = tree.block_corner(tree.slot_xyz(node.begin));
-    sub(node.begin, node.begin, node.end, partial_begin, partial_end, out, depth, origin);
-  }
-
-  /// The radix subtree of slots [b, e) of the leaf starting at slot `base`.
-  void sub(std::uint32_t base, std::uint32_t b, std::uint32_t e, std::size_t ka, std::size_t kb, Moments* out,
-           int depth, const Vec3& origin) {
-    const double* d2 = s.d2.data() - base;
-    const auto* keys = s.keys.data() - base;
-    // Counts of points within each radius; radii ascend, so the partial scales are contiguous.
-    std::size_t partial_begin = kb, partial_end = ka;
-    bool whole_needed = false;
-    for (std::size_t k = ka; k < kb; ++k) {
-      std::uint32_t count = 0;
-      for (std::uint32_t i = b; i < e; ++i) count += d2[i] <= r2[k];
-      if (count == e - b) whole_needed = true;
-      else if (count > 0) partial_begin = std::min(partial_begin, k), partial_end = k + 1;
+    const double* d2 = s.d2.data() - node.begin;
+    for (std::size_t k = partial_begin; k < partial_end; ++k) {
+      const double limit = r2[k];
+      out[k] = tree.radix_fold(node.begin, node.end, s.keys.data() - node.begin, origin,
+                               [&](std::uint32_t i) { return d2[i] <= limit; }, s.fold);
     }
-    if (whole_needed) {
-      const Moments whole = tree.subtree_moments(b, e, keys, origin);
-      for (std::size_t k = ka; k < kb; ++k)
-        if (d2_all_within(d2, b, e, r2[k])) out[k] = whole;
-    }
-    if (partial_begin >= partial_end) return;
-    const int level = differing_level(keys[b], keys[e - 1]);
-    if (level < 0) {  // one grid cell: its points within each radius, in two passes
-      for (std::size_t k = partial_begin; k < partial_end; ++k) {
-        const double limit = r2[k];
-        out[k] = two_pass_moments(tree.xyz_.data(), b, e, origin, [&](std::uint32_t i) { return d2[i] <= limit; });
-      }
-      return;
-    }
-    for (std::uint32_t cb = b; cb < e;) {
-      const int dg = digit(keys[cb], level);
-      std::uint32_t ce = cb + 1;
-      while (ce < e && digit(keys[ce], level) == dg) ++ce;
-      Moments* child = level_out(depth + 1);
-      std::fill(child + partial_begin, child + partial_end, Moments{});
-      sub(base, cb, ce, partial_begin, partial_end, child, depth + 1, origin);
-      for (std::size_t k = partial_begin; k < partial_end; ++k) merge_into(out[k], child[k]);
-      cb = ce;
-    }
-  }
-
-  static bool d2_all_within(const double* d2, std::uint32_t b, std::uint32_t e, double limit) {
-    for (std::uint32_t i = b; i < e; ++i)
-      if (!(d2[i] <= limit)) return false;
-    return true;
   }
 };
 
@@ -357,7 +365,7 @@ void Octree::ball_moments(const Vec3& centre, std::span<const double> radii_asce
   // below the key's 42 digits plus the root.
   if (scratch.stack.size() < (kAxisBits + 4) * scales) scratch.stack.resize((kAxisBits + 4) * scales);
   std::fill(scratch.stack.begin(), scratch.stack.begin() + scales, Moments{});
-  if (!nodes_.empty()) q.node(0, 0, scales, scratch.stack.data(), 0);
+  if (!nodes_.empty()) q.node(0, 0, scales, scratch.stack.data(), 0, false);
   out.assign(scratch.stack.begin(), scratch.stack.begin() + scales);
 }
 

@@ -14,7 +14,7 @@
 // order), whatever else the index holds: a tile sees the same bits as the whole cloud.
 //
 // Frames. Moments of nodes inside one block (an aligned cell of side cell * 2^block_level, at
-// least the largest normal diameter) are taken about the block's corner, which keeps UTM-sized
+// least 1024 largest normal diameters) are taken about the block's corner, which keeps UTM-sized
 // coordinates exact (Sterbenz); nodes spanning blocks hold no moments and fold their children's
 // after moving them to the core point's frame.
 
@@ -27,6 +27,7 @@
 #include <array>
 #include <cstdint>
 #include <span>
+#include <utility>
 #include <vector>
 
 namespace m3c2::detail {
@@ -38,13 +39,19 @@ struct OctreeGrid {
 };
 
 /// The grid for a run with these scales (diameters): cells of about min / 32, blocks at least
-/// max wide. Derived from the parameters only, so that every tile of a run shares it.
+/// 1024 max wide. Derived from the parameters only, so that every tile of a run shares it.
 OctreeGrid octree_grid(double smallest_scale, double largest_normal_diameter);
+
+/// A point's grid cell: floor(coordinate / cell) + 2^41 on each axis.
+using CellKey = std::array<std::int64_t, 3>;
+/// Open branchings of a radix fold: (digit, fold of the children so far).
+using FoldStack = std::vector<std::pair<int, Moments>>;
 
 struct OctreeScratch {
   std::vector<Moments> stack;
   std::vector<double> d2;
-  std::vector<std::array<std::int64_t, 3>> keys;
+  std::vector<CellKey> keys;
+  FoldStack fold;
 };
 
 class Octree {
@@ -75,10 +82,13 @@ class Octree {
   struct BallQuery;
 
   void build(std::vector<std::uint32_t>& order);
-  std::array<std::int64_t, 3> cell_of(const double* p) const;
+  CellKey cell_of(const double* p) const;
   Vec3 block_corner(const double* p) const;
-  Moments subtree_moments(std::uint32_t begin, std::uint32_t end, const std::array<std::int64_t, 3>* keys,
-                          const Vec3& origin) const;
+  /// Moments about `origin` of the slots i in [begin, end) with keep(i) (keys[i]: their cells):
+  /// the nested fold over the radix tree of those points alone.
+  template <class Keep>
+  Moments radix_fold(std::uint32_t begin, std::uint32_t end, const CellKey* keys, const Vec3& origin, Keep&& keep,
+                     FoldStack& stack) const;
   const double* slot_xyz(std::uint32_t slot) const { return xyz_.data() + 3 * std::size_t(slot); }
 
   PointsView points_;

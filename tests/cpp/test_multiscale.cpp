@@ -123,9 +123,10 @@ TEST(Multiscale, SingleScaleNeedsOnlyMinPointsNormal) {
 TEST(Multiscale, ChosenScaleGivesSameResultAsThatScaleAlone) {
   // No leakage between scales: where a multi-scale run picks D_k, a run with {D_k} alone must
   // see the very same neighbours (identical count) and give the same normal and roughness. The
-  // multi-scale moments are merged shell by shell (exact in real arithmetic), so the values
-  // agree to rounding: 1e-12 on unit normals, 1e-9 relative on roughness (a square root of a
-  // small eigenvalue, which amplifies rounding).
+  // two runs index the cloud on different grids (the octree's cell follows the smallest
+  // diameter), so their sums are folded in a different order and the values agree to rounding:
+  // 1e-11 on unit normals, 1e-9 relative on roughness (a square root of a small eigenvalue,
+  // which amplifies rounding). On one grid they are the same bits (test_octree.cpp).
   const Pair pr = rough_pair(2718, 8000, 10.0, 0.05, 0.0);
   const std::vector<double> scales = {0.3, 0.6, 1.2, 2.4};
   Params p;
@@ -141,7 +142,7 @@ TEST(Multiscale, ChosenScaleGivesSameResultAsThatScaleAlone) {
       chosen.insert(D);
       ASSERT_EQ(one.status[i], PointStatus::kOk) << "core " << i << " D " << D;
       for (int a = 0; a < 3; ++a)
-        EXPECT_NEAR(multi.normal[3 * i + a], one.normal[3 * i + a], 1e-12) << "core " << i << " D " << D;
+        EXPECT_NEAR(multi.normal[3 * i + a], one.normal[3 * i + a], 1e-11) << "core " << i << " D " << D;
       EXPECT_NEAR(multi.roughness[i], one.roughness[i], 1e-9 * one.roughness[i]) << "core " << i << " D " << D;
       EXPECT_EQ(multi.count[i], one.count[i]) << "core " << i << " D " << D;
     }

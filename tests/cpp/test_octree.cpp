@@ -177,7 +177,8 @@ TEST(Octree, GridIsAPowerOfTwoFromTheScalesAlone) {
   EXPECT_EQ(g.cell, 1.0 / 32.0);  // the largest power of two <= 1/32
   EXPECT_EQ(detail::octree_grid(0.9, 2.5).cell, 1.0 / 64.0);
   EXPECT_GE(std::ldexp(g.cell, g.block_level), 2.5);
-  EXPECT_LT(std::ldexp(g.cell, g.block_level - 1), 2.5);
+  EXPECT_GE(std::ldexp(g.cell, g.block_level), 1024 * 2.5);  // blocks: 1024 diameters at least
+  EXPECT_LT(std::ldexp(g.cell, g.block_level - 1), 1024 * 2.5);
 }
 
 }  // namespace
