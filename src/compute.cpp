@@ -223,6 +223,9 @@ Result compute(PointsView reference, PointsView compared, PointsView core_points
     throw InvalidArgument("core_normals must hold 3 values per core point (" + std::to_string(3 * core_points.size()) +
                           "), got " + std::to_string(core_normals.size()));
 
+  const OctreeGrid grid = grid_for(params.normal_diameters, params.projection_diameter);
+  detail::require_within_grid("the reference cloud", reference, grid);
+  detail::require_within_grid("the compared cloud", compared, grid);
   const Pipeline pipeline(reference, compared, params, core_normals, run);
   Result result;
   result.resize(core_points.size());
@@ -233,12 +236,17 @@ Result compute(PointsView reference, PointsView compared, PointsView core_points
   return result;
 }
 
+double max_abs_coordinate(const Params& params) {
+  return grid_for(params.normal_diameters, params.projection_diameter).max_abs_coordinate();
+}
+
 NormalsResult compute_normals(PointsView cloud, PointsView core_points, const Params& params, const RunOptions& run) {
   detail::validate_normal_params(params);
   if (cloud.empty()) throw InvalidArgument("the cloud is empty");
   detail::require_finite_points("cloud", cloud);
   detail::require_finite_points("core points", core_points);
   const OctreeGrid grid = grid_for(params.normal_diameters, 0.0);
+  detail::require_within_grid("the cloud", cloud, grid);
   const Octree tree(cloud, grid, params.normal_subsample_spacing <= 0.0);
   const NormalCloud normals(cloud, tree, params, grid);
   NormalsResult out;
@@ -276,7 +284,9 @@ std::vector<double> roughness_by_scale(PointsView cloud, PointsView core_points,
   std::vector<double> radii;
   for (const std::size_t k : by_size) radii.push_back(0.5 * diameters[k]);
 
-  const Octree tree(cloud, grid_for(diameters, 0.0), true);
+  const OctreeGrid grid = grid_for(diameters, 0.0);
+  detail::require_within_grid("the cloud", cloud, grid);
+  const Octree tree(cloud, grid, true);
   const std::size_t scales = diameters.size();
   std::vector<double> out(core_points.size() * scales, std::numeric_limits<double>::quiet_NaN());
   const auto order = detail::morton_order(core_points);

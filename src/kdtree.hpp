@@ -1,6 +1,6 @@
 #pragma once
-// Spatial index over one cloud for the baselines and subsampling: ball queries with exact,
-// inclusive boundaries. The M3C2 pipeline uses octree.hpp.
+// Spatial index over one cloud for the C2C baselines: ball queries with exact, inclusive
+// boundaries. The M3C2 pipeline uses octree.hpp.
 
 #include "distance.hpp"
 

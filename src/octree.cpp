@@ -114,6 +114,19 @@ OctreeGrid octree_grid(double smallest_scale, double largest_normal_diameter) {
   return grid;
 }
 
+double OctreeGrid::max_abs_coordinate() const { return std::ldexp(cell, kAxisBits - 1); }
+
+void require_within_grid(const char* what, PointsView points, OctreeGrid grid) {
+  const double limit = grid.max_abs_coordinate();
+  for (std::size_t i = 0; i < points.size(); ++i)
+    for (int a = 0; a < 3; ++a)
+      if (!(std::abs(points.coord(i, a)) < limit))
+        throw InvalidArgument(std::string(what) + " has a coordinate (" + std::to_string(points.coord(i, a)) +
+                              ") beyond +-" + std::to_string(limit) + ", the range of the spatial index for these "
+                              "scales (2^41 cells of " + std::to_string(grid.cell) +
+                              "); remove far outliers or shift the coordinates to a local origin");
+}
+
 CellKey Octree::cell_of(const double* p) const {
   CellKey k;
   for (int a = 0; a < 3; ++a) {
@@ -139,13 +152,7 @@ Octree::Octree(PointsView points, OctreeGrid grid, bool with_moments)
   if (points.size() >= std::numeric_limits<std::uint32_t>::max())
     throw InvalidArgument("a cloud has " + std::to_string(points.size()) +
                           " points; one spatial index holds at most 4294967294 (use --tile-size)");
-  const double limit = std::ldexp(grid.cell, kAxisBits - 1);
-  for (std::size_t i = 0; i < points.size(); ++i)
-    for (int a = 0; a < 3; ++a)
-      if (!(std::abs(points.coord(i, a)) < limit))
-        throw InvalidArgument("a coordinate (" + std::to_string(points.coord(i, a)) + ") is too far from the origin for "
-                              "scales this small: |coordinate| must stay below " + std::to_string(limit) +
-                              "; shift the clouds to a local origin");
+  require_within_grid("a cloud", points, grid);
   if (points.empty()) return;
   std::vector<std::uint32_t> order(points.size());
   std::iota(order.begin(), order.end(), 0u);
@@ -186,7 +193,7 @@ void Octree::build(std::vector<std::uint32_t>& order) {
   const int varying = differing_level(lo, hi) + 1;
   radix_sort(keys, order, 3 * varying);
 
-  index_ = order;
+  index_ = std::move(order);
   xyz_.resize(3 * n);
   for (std::size_t s = 0; s < n; ++s)
     for (int a = 0; a < 3; ++a) xyz_[3 * s + a] = points_.coord(index_[s], a);
@@ -281,7 +288,8 @@ struct Octree::BallQuery {
   std::span<const double> radii;
   OctreeScratch& s;
   std::size_t scales = radii.size();
-  double r2[64] = {}, prune_r2[64] = {};
+  const double* r2;        // radius^2 per scale
+  const double* prune_r2;  // beyond this a box holds no neighbour
 
   Moments* level_out(int depth) { return s.stack.data() + std::size_t(depth) * scales; }
 
@@ -355,12 +363,12 @@ struct Octree::BallQuery {
 void Octree::ball_moments(const Vec3& centre, std::span<const double> radii_ascending, OctreeScratch& scratch,
                           std::vector<Moments>& out) const {
   const std::size_t scales = radii_ascending.size();
-  if (scales > 64) throw InvalidArgument("at most 64 normal scales");
-  BallQuery q{*this, centre, radii_ascending, scratch};
+  scratch.r2.resize(2 * scales);
   for (std::size_t k = 0; k < scales; ++k) {
-    q.r2[k] = radii_ascending[k] * radii_ascending[k];
-    q.prune_r2[k] = q.r2[k] * (1.0 + kRelativeMargin) + 1e-300;
+    scratch.r2[k] = radii_ascending[k] * radii_ascending[k];
+    scratch.r2[scales + k] = scratch.r2[k] * (1.0 + kRelativeMargin) + 1e-300;
   }
+  BallQuery q{*this, centre, radii_ascending, scratch, scales, scratch.r2.data(), scratch.r2.data() + scales};
   // One level of results per depth; a branching always lowers the digit, so the depth stays
   // below the key's 42 digits plus the root.
   if (scratch.stack.size() < (kAxisBits + 4) * scales) scratch.stack.resize((kAxisBits + 4) * scales);

@@ -36,7 +36,13 @@ namespace m3c2::detail {
 struct OctreeGrid {
   double cell = 0.0;
   int block_level = 0;
+
+  /// The largest |coordinate| the grid indexes: 2^41 cells (keys of 42 bits per axis).
+  double max_abs_coordinate() const;
 };
+
+/// Throws InvalidArgument naming `what` when a coordinate of `points` is beyond the grid's range.
+void require_within_grid(const char* what, PointsView points, OctreeGrid grid);
 
 /// The grid for a run with these scales (diameters): cells of about min / 32, blocks at least
 /// 1024 max wide. Derived from the parameters only, so that every tile of a run shares it.
@@ -48,6 +54,7 @@ using CellKey = std::array<std::int64_t, 3>;
 using FoldStack = std::vector<std::pair<int, Moments>>;
 
 struct OctreeScratch {
+  std::vector<double> r2;
   std::vector<Moments> stack;
   std::vector<double> d2;
   std::vector<CellKey> keys;

@@ -1,6 +1,6 @@
 #include <m3c2/m3c2.hpp>
 
-#include "kdtree.hpp"
+#include "distance.hpp"
 #include "validation.hpp"
 
 #include <cmath>

@@ -120,7 +120,7 @@ def multiscale_recount():
     print(f"- py4dgeo, normal_radii=[1.0]:      normal {fmt(n_one[0])}")
     print(f"- exact, PCA of the {len(ref)} points within 1.0: {fmt(exact)}")
     print(f"- PCA with the {len(first)} points within 0.3 counted twice ({len(ref) + len(first)} points): {fmt(twice)}")
-    print(f"- m3c2 normal at D = 2.0 (m3c2 sorts each scale's own neighbours): {fmt(r['normal'][0])}")
+    print(f"- m3c2 normal at D = 2.0 (m3c2 sums each scale's own neighbours): {fmt(r['normal'][0])}")
     print(f"\nAngle between py4dgeo's two-radius normal and the exact one: {deg(n_two[0], exact):.6f} degrees;")
     print(f"and the PCA with the first radius' points counted twice: {deg(n_two[0], twice):.2e} degrees.")
     print(f"m3c2 vs exact: {deg(r['normal'][0], exact):.2e} degrees. The effect grows with the share of")

@@ -22,6 +22,11 @@ Result compute(PointsView reference, PointsView compared, PointsView core_points
                const Params& params, const RunOptions& run = {},
                const std::vector<double>& core_normals = {});
 
+/// The largest |coordinate| of a cloud compute() accepts with these parameters: its spatial index
+/// keys 2^41 cells of a grid that follows the smallest diameter (D / 32, or d / 32 without
+/// normal diameters; docs/algorithm.md). Beyond it compute() throws InvalidArgument.
+double max_abs_coordinate(const Params& params);
+
 /// Normals of `cloud` at `core_points` with params.normal_diameters (one scale or multi-scale),
 /// oriented by params.orientation, with roughness sigma(D) (sections 3.1.2, 3.2, 6.3).
 /// Reads normal_diameters, scale_selection, min_points_normal, min_points_multiscale,

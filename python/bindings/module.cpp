@@ -185,6 +185,9 @@ NB_MODULE(_core, m) {
     return names;
   });
 
+  m.def("max_abs_coordinate", &m3c2::max_abs_coordinate, "params"_a,
+        "The largest |coordinate| of a cloud compute() indexes with these parameters.");
+
   m.def(
       "compute",
       [](const Points& reference, const Points& compared, const Points& core, const m3c2::Params& params,

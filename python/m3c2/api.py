@@ -10,7 +10,7 @@ from typing import Callable
 import numpy as np
 
 from . import _core
-from .errors import M3C2Error, UsageError
+from .errors import CloudReadError, M3C2Error, UsageError
 from .io.guard import available_memory, format_bytes
 from .options import non_negative, normal_scales, orientation, positive
 from .result import Result
@@ -135,6 +135,23 @@ def check_spacing(name: str, spacing: float, *clouds) -> float:
     return spacing
 
 
+def check_coordinate_range(name: str, source, points: np.ndarray, limit: float) -> None:
+    """The engine's spatial index keys coordinates below `limit` in magnitude (2**41 cells of a
+    grid that follows the smallest diameter, docs/errors.md): a far outlier, or coordinates far
+    from any local origin, is refused naming the file when there is one (exit 1), else the array."""
+    if len(points) == 0:
+        return
+    worst = max(float(points.max()), -float(points.min()))  # no |points| temporary
+    if worst < limit:
+        return
+    message = (f"a coordinate ({worst:.6g}) lies beyond +-{limit:.6g}, the range of the spatial index for these "
+               f"scales; remove far outliers or shift the coordinates to a local origin")
+    path = getattr(source, "path", None)
+    if path is not None:
+        raise CloudReadError(f"{path}: {message}")
+    raise UsageError(f"the {name} cloud: {message}")
+
+
 def core_points_for(reference: np.ndarray, core_points=None, core_spacing=None) -> np.ndarray:
     """The core points: given ones, the reference subsampled to a minimum spacing, or the reference."""
     if core_points is not None and core_spacing is not None:
@@ -169,6 +186,9 @@ def compare(reference, compared, core_points=None, *, normal_scale=None, project
     engine_params = build_params(normal_scale=normal_scale, projection_scale=projection_scale,
                                  max_depth=max_depth, **params)
     check_memory(len(ref), len(cmp_), len(core))
+    limit = _core.max_abs_coordinate(engine_params)
+    check_coordinate_range("reference", reference, ref, limit)
+    check_coordinate_range("compared", compared, cmp_, limit)
     if params.get("normal_subsample") is not None:
         check_spacing("--normal-subsample", engine_params.normal_subsample_spacing, ref, cmp_)
 

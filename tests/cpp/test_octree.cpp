@@ -172,6 +172,22 @@ TEST(Octree, RejectsCoordinatesBeyondTheGridRange) {
   EXPECT_THROW(Octree(cloud.view(), detail::octree_grid(0.01, 0.01), false), InvalidArgument);
 }
 
+TEST(Octree, ComputeRefusesAFarOutlierNamingTheCloud) {
+  Cloud ref = test_cloud(1, 500, Vec3::Zero()), cmp = ref;
+  cmp.add(0.0, 4e10, 0.0);  // beyond 2^41 cells of 2^-6 = 2^35 (D = 0.5)
+  Params p;
+  p.normal_diameters = {0.5};
+  p.projection_diameter = 0.3;
+  p.max_depth = 0.5;
+  EXPECT_EQ(max_abs_coordinate(p), std::ldexp(1.0, 35));
+  try {
+    compute(ref.view(), cmp.view(), ref.view(), p);
+    FAIL() << "no error";
+  } catch (const InvalidArgument& e) {
+    EXPECT_NE(std::string(e.what()).find("the compared cloud has a coordinate"), std::string::npos) << e.what();
+  }
+}
+
 TEST(Octree, GridIsAPowerOfTwoFromTheScalesAlone) {
   const OctreeGrid g = detail::octree_grid(1.0, 2.5);
   EXPECT_EQ(g.cell, 1.0 / 32.0);  // the largest power of two <= 1/32
