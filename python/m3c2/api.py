@@ -5,6 +5,7 @@ CloudCompare; ``max_depth`` is the half-length of the cylinder along the normal.
 """
 from __future__ import annotations
 
+import math
 from typing import Callable
 
 import numpy as np
@@ -142,8 +143,8 @@ def check_coordinate_range(name: str, source, points: np.ndarray, limit: float) 
     if len(points) == 0:
         return
     worst = max(float(points.max()), -float(points.min()))  # no |points| temporary
-    if worst < limit:
-        return
+    if worst < limit or not math.isfinite(worst):
+        return  # non-finite coordinates: the engine counts and names them first
     message = (f"a coordinate ({worst:.6g}) lies beyond +-{limit:.6g}, the range of the spatial index for these "
                f"scales; remove far outliers or shift the coordinates to a local origin")
     path = getattr(source, "path", None)
@@ -186,11 +187,11 @@ def compare(reference, compared, core_points=None, *, normal_scale=None, project
     engine_params = build_params(normal_scale=normal_scale, projection_scale=projection_scale,
                                  max_depth=max_depth, **params)
     check_memory(len(ref), len(cmp_), len(core))
+    if params.get("normal_subsample") is not None:
+        check_spacing("--normal-subsample", engine_params.normal_subsample_spacing, ref, cmp_)
     limit = _core.max_abs_coordinate(engine_params)
     check_coordinate_range("reference", reference, ref, limit)
     check_coordinate_range("compared", compared, cmp_, limit)
-    if params.get("normal_subsample") is not None:
-        check_spacing("--normal-subsample", engine_params.normal_subsample_spacing, ref, cmp_)
 
     normals = None
     if params.get("normal_source") == "core":

@@ -39,17 +39,34 @@ from .errors import M3C2Error, UsageError
 from .io.streaming import DEFAULT_CHUNK, PointSource, TableWriter, _in_box
 from .result import Result
 
-__all__ = ["halo", "run_tiled", "streaming_subsample", "parse_memory", "choose_tile_size", "compute_tile",
-           "TileTask", "TiledReport", "BYTES_PER_POINT", "BYTES_PER_CORE", "BASE_BYTES"]
+__all__ = ["halo", "run_tiled", "streaming_subsample", "parse_memory", "choose_tile_size", "plan_memory",
+           "MemoryPlan", "compute_tile", "TileTask", "TiledReport", "BYTES_PER_POINT", "BYTES_PER_CORE",
+           "BASE_BYTES", "STREAM_BYTES_PER_ROW", "MERGE_BYTES_PER_ROW"]
 
-#: Resident bytes per cloud point of a tile while it is computed: 24 B coordinates + the
-#: engine's spatial index and neighbour buffers (an estimate, conservative against the measured peak, docs/scaling.md).
-BYTES_PER_POINT = 64
-#: Resident bytes per core point of a tile: 24 B coordinates, ~120 B engine result, ~140 B the
-#: spilled copy (an estimate, docs/scaling.md).
+#: Resident bytes per cloud point of a tile while it is computed: 24 B coordinates read from the
+#: spill + the engine's octree (24 B slot copy, 4 B index, 24 B cell key and 4 B order while it is
+#: built, ~8 B nodes, ~10 B moments on the normals' cloud), measured at 59-67 B for the engine
+#: with both indexes built at once; rounded up (docs/scaling.md).
+BYTES_PER_POINT = 100
+#: Resident bytes per core point of a tile: 24 B coordinates, ~85 B engine result and scratch
+#: (measured), the ~150 B row copy spilled to disk, rounded up (docs/scaling.md).
 BYTES_PER_CORE = 320
-#: Interpreter, numpy, laspy and the engine module, plus the chunk buffers of the streaming passes.
-BASE_BYTES = 250 * 2**20
+#: The least resident size counted for the interpreter, numpy, laspy, lazrs and the engine module.
+BASE_BYTES = 96 * 2**20
+#: Added to the resident size measured when the run starts: libraries loaded later (lazrs),
+#: allocator slack between the phases.
+HEADROOM_BYTES = 48 * 2**20
+#: Resident bytes per row of a streaming pass's chunk (core-point plan, halo distribution,
+#: subsampling): the reader's record and the coordinates, tile keys, candidate indices and the
+#: sorted copy spilled to disk (measured ~250 B in the distribution pass, docs/scaling.md).
+STREAM_BYTES_PER_ROW = 320
+#: Resident bytes per row of the merge-and-write chunk: the result rows read back, the Result and
+#: its output columns, the LAS point record and laspy's temporaries (measured ~600 B for LAZ).
+MERGE_BYTES_PER_ROW = 800
+#: The smallest chunk a memory limit may ask for (smaller ones only cost time).
+MIN_CHUNK = 1 << 14
+#: The streaming and merge chunks take at most this share of the memory left beyond the base.
+CHUNK_SHARE = 0.25
 
 _PARAM_FIELDS = ("normal_diameters", "normal_source", "scale_selection", "min_points_normal",
                  "min_points_multiscale", "normal_subsample_spacing", "orientation_direction",
@@ -121,6 +138,63 @@ def choose_tile_size(limit: int, h: float, ref_density: float, cmp_density: floa
         mid = (lo + hi) / 2
         lo, hi = (mid, hi) if need(mid) <= budget else (lo, mid)
     return lo
+
+
+@dataclass
+class MemoryPlan:
+    """How a run under a memory limit spends it. The phases run one after the other, so the peak
+    is ``base`` plus the largest of: a streaming chunk (``stream_rows`` x STREAM_BYTES_PER_ROW),
+    a merge chunk (``merge_rows`` x MERGE_BYTES_PER_ROW) and one tile (``limit - base``, which
+    :func:`choose_tile_size` fills)."""
+
+    limit: int
+    base: int
+    stream_rows: int
+    merge_rows: int
+
+    @property
+    def stream_bytes(self) -> int:
+        return self.stream_rows * STREAM_BYTES_PER_ROW
+
+    @property
+    def merge_bytes(self) -> int:
+        return self.merge_rows * MERGE_BYTES_PER_ROW
+
+
+def _chunk_rows(budget: int, per_row: int, most: int) -> int:
+    rows = int(CHUNK_SHARE * budget) // per_row
+    return int(max(min(MIN_CHUNK, most), min(most, rows)))
+
+
+def plan_memory(limit: int, resident: int, chunk_size: int = DEFAULT_CHUNK) -> MemoryPlan:
+    """The fixed costs of a run under `limit` bytes with `resident` bytes already in use: base =
+    max(BASE_BYTES, resident + HEADROOM_BYTES); the streaming and merge chunks are sized to at most
+    CHUNK_SHARE of ``limit - base`` (never more than `chunk_size` rows nor, unless `chunk_size` is
+    smaller, fewer than MIN_CHUNK)."""
+    base = max(BASE_BYTES, int(resident) + HEADROOM_BYTES)
+    budget = limit - base
+    least = min(MIN_CHUNK, chunk_size) * max(STREAM_BYTES_PER_ROW, MERGE_BYTES_PER_ROW)
+    if budget < least:
+        raise UsageError(f"--memory-limit {limit} B is too small: this process already holds {resident / 2**20:.0f} MiB "
+                         f"and the run needs at least {(base + least) / 2**20:.0f} MiB (docs/scaling.md)")
+    return MemoryPlan(limit=limit, base=base, stream_rows=_chunk_rows(budget, STREAM_BYTES_PER_ROW, chunk_size),
+                      merge_rows=_chunk_rows(budget, MERGE_BYTES_PER_ROW, chunk_size))
+
+
+def _release_memory() -> None:
+    """Hands the allocator's free pages back to the system between phases (glibc), so that one
+    phase's freed buffers do not stay resident under the next phase's peak."""
+    if not _LIBC:
+        try:
+            import ctypes
+            _LIBC.append(ctypes.CDLL("libc.so.6").malloc_trim)
+        except (OSError, AttributeError):
+            _LIBC.append(None)
+    if _LIBC[0] is not None:
+        _LIBC[0](0)
+
+
+_LIBC: list = []
 
 
 # --------------------------------------------------------------------------- core points
@@ -269,6 +343,7 @@ class TiledReport:
     tile_points_total: int = 0        # sum over tiles (halo points counted once per tile)
     estimated_tile_bytes_max: int = 0
     memory_limit: int | None = None
+    memory_plan: MemoryPlan | None = None
     dask: bool = False
     workers: int = 1
     seconds: dict = field(default_factory=dict)
@@ -378,6 +453,15 @@ def run_tiled(reference, compared, *, output=None, core=None, core_spacing=None,
     ref_src = reference if isinstance(reference, PointSource) else PointSource(reference, drop_nonfinite=drop_nonfinite)
     cmp_src = compared if isinstance(compared, PointSource) else PointSource(compared, drop_nonfinite=drop_nonfinite)
 
+    # memory plan: the fixed costs (what this process holds, the streaming and merge chunks)
+    limit = plan = None
+    stream_rows = merge_rows = chunk_size
+    if memory_limit is not None:
+        limit = parse_memory(memory_limit) if not isinstance(memory_limit, (int, float)) else int(memory_limit)
+        report.memory_limit = limit
+        plan = plan_memory(limit, _rss_bytes(), chunk_size)
+        stream_rows = plan.stream_rows
+
     # 1. core points
     normals_arr = None
     if params.get("normal_source") == "core":
@@ -394,7 +478,7 @@ def run_tiled(reference, compared, *, output=None, core=None, core_spacing=None,
         cores = _CoreStream(array=core_arr, normals=normals_arr)
     elif core_spacing is not None:
         t0 = time.perf_counter()
-        core_arr = streaming_subsample(ref_src, api.positive("--core-spacing", core_spacing), chunk_size)
+        core_arr = streaming_subsample(ref_src, api.positive("--core-spacing", core_spacing), stream_rows)
         report.seconds["core_subsample"] = time.perf_counter() - t0
         cores = _CoreStream(array=core_arr, normals=normals_arr)
     else:
@@ -403,19 +487,43 @@ def run_tiled(reference, compared, *, output=None, core=None, core_spacing=None,
     if normals_arr is not None and (core_arr is None or len(normals_arr) != len(core_arr)):
         raise UsageError("core_normals must have one row per core point")
 
-    # tile size
+    # Tiles are anchored at the core points' lowest x and y where that is known without a pass
+    # (any anchor gives the same results): a tile as large as the survey is then one tile.
+    extent = None  # the core points' XY extent, where known
+    if core_arr is not None and len(core_arr):
+        origin = core_arr[:, :2].min(axis=0)
+        extent = core_arr[:, :2].max(axis=0) - origin
+    elif ref_src.kind in ("las", "copc"):
+        import laspy
+        with laspy.open(ref_src.path) as r:
+            origin = np.asarray(r.header.mins, dtype=np.float64)[:2]
+            extent = np.asarray(r.header.maxs, dtype=np.float64)[:2] - origin
+    else:
+        origin = None  # the first core point
+
+    # tile size; the plan again, now that the core points are held
+    if plan is not None:
+        plan = plan_memory(limit, _rss_bytes(), chunk_size)
+        stream_rows, merge_rows = plan.stream_rows, plan.merge_rows
+        report.memory_plan = plan
     if tile_size is None:
-        limit = parse_memory(memory_limit) if not isinstance(memory_limit, (int, float)) else int(memory_limit)
-        report.memory_limit = limit
-        n_ref, rho_ref = _density(ref_src, chunk_size)
-        _, rho_cmp = _density(cmp_src, chunk_size)
+        n_ref, rho_ref = _density(ref_src, stream_rows)
+        _, rho_cmp = _density(cmp_src, stream_rows)
         if core_arr is None:
             rho_core = rho_ref
         else:
             span = core_arr.max(axis=0) - core_arr.min(axis=0) if len(core_arr) else np.ones(3)
             rho_core = len(core_arr) / max(float(span[0] * span[1]), 1e-12)
-        tile_size = choose_tile_size(limit, h, rho_ref, rho_cmp, rho_core, base=max(BASE_BYTES, _rss_bytes()))
+        tile_size = choose_tile_size(limit, h, rho_ref, rho_cmp, rho_core, base=plan.base)
+        per_axis = np.maximum(np.ceil(extent / tile_size), 1) if extent is not None else np.ones(2)
+        if per_axis.max() >= 2:
+            # As many tiles per axis, all of one size: the smallest side that needs no more
+            # (at least half the chosen one); smaller tiles only lower the peak.
+            tile_size = min(tile_size, float((extent / per_axis).max()) * (1 + 1e-9))
         log(f"--memory-limit {limit} B: tile size {tile_size:.6g}")
+    if plan is not None:
+        log(f"memory plan: base {plan.base / 2**20:.0f} MiB, streaming chunks of {plan.stream_rows} rows, "
+            f"merge chunks of {plan.merge_rows} rows")
     size = float(tile_size)
     report.tile_size = size
 
@@ -430,7 +538,8 @@ def run_tiled(reference, compared, *, output=None, core=None, core_spacing=None,
         return _run_in(work, report, ref_src, cmp_src, cores, normals_arr is not None, size, hp, pdict,
                        output=output, dask_scheduler=dask_scheduler, client=client, threads=threads,
                        projected=projected, position=position, return_result=return_result,
-                       chunk_size=chunk_size, retries=retries, task_fn=task_fn or compute_tile, log=log,
+                       origin=origin, stream_rows=stream_rows, merge_rows=merge_rows, retries=retries,
+                       task_fn=task_fn or compute_tile, log=log,
                        record=dict(params, normal_scale=list(engine.normal_diameters),
                                    projection_scale=projection_scale, max_depth=max_depth), t_start=t_start)
     finally:
@@ -438,24 +547,22 @@ def run_tiled(reference, compared, *, output=None, core=None, core_spacing=None,
             shutil.rmtree(work, ignore_errors=True)
 
 
-def _run_in(work: Path, report: TiledReport, ref_src, cmp_src, cores: _CoreStream, with_normals: bool, size: float,
-            hp: float, pdict: dict, *, output, dask_scheduler, client, threads, projected, position,
-            return_result, chunk_size, retries, task_fn, log, record, t_start) -> TiledReport:
-    # 2. plan: tile of every core point, per-tile core spills and bounding boxes
-    t0 = time.perf_counter()
+def _plan_tiles(work: Path, cores: _CoreStream, size: float, origin, rows: int):
+    """Tile of every core point (``tile_of.u32``), per-tile core (and normal) spills, bounding
+    boxes and counts. Returns (ids, lo, hi, counts, origin, n_core)."""
     core_spill, normal_spill = _Spills(work, "core"), _Spills(work, "normals")
     ids: dict[tuple[int, int], int] = {}
     lo_l: list = []
     hi_l: list = []
     count_l: list = []
-    origin = None
     n_core = 0
     with open(work / "tile_of.u32", "wb") as tile_of:
-        for xyz, nrm in cores.chunks(chunk_size):
+        for xyz, nrm in cores.chunks(rows):
             if origin is None:
                 origin = xyz[0, :2].copy()
             keys = np.floor((xyz[:, :2] - origin) / size).astype(np.int64)
             uniq, inverse = np.unique(keys, axis=0, return_inverse=True)
+            del keys
             inverse = inverse.reshape(-1)
             local = np.empty(len(uniq), dtype=np.uint32)
             for j, k in enumerate(map(tuple, uniq.tolist())):
@@ -477,59 +584,81 @@ def _run_in(work: Path, report: TiledReport, ref_src, cmp_src, cores: _CoreStrea
             if nrm is not None:
                 normal_spill.append(tid, np.ascontiguousarray(nrm, dtype=np.float64))
             n_core += len(xyz)
+    return ids, np.array(lo_l).reshape(-1, 3), np.array(hi_l).reshape(-1, 3), np.array(count_l, dtype=np.int64), \
+        origin, n_core
+
+
+def _distribute(src: PointSource, spill: "_Spills", ids: dict, lo, hi, origin, size: float, hp: float,
+                rows: int) -> int:
+    """Streams one cloud once, appending each point to the spill of every tile whose box (lo, hi,
+    halo included) holds it, in file order within each tile. Returns the points read."""
+    karr = np.array(list(ids.keys()), dtype=np.int64)
+    kmin, kmax = karr.min(axis=0), karr.max(axis=0)
+    key_of = np.full(tuple(kmax - kmin + 1), -1, dtype=np.int64)
+    key_of[karr[:, 0] - kmin[0], karr[:, 1] - kmin[1]] = np.array(list(ids.values()))
+    reach = int(math.floor(2 * hp / size)) + 2
+    total = 0
+    for xyz in src.chunks(rows):
+        total += len(xyz)
+        base = np.floor((xyz[:, :2] - hp - origin) / size).astype(np.int64) - kmin
+        top = np.floor((xyz[:, :2] + hp - origin) / size).astype(np.int64) - kmin
+        sel_t, sel_i = [], []
+        for dx in range(reach):
+            for dy in range(reach):
+                kx, ky = base[:, 0] + dx, base[:, 1] + dy
+                ok = (kx <= top[:, 0]) & (ky <= top[:, 1]) & (kx >= 0) & (ky >= 0) \
+                    & (kx < key_of.shape[0]) & (ky < key_of.shape[1])
+                idx = np.flatnonzero(ok)
+                t = key_of[kx[idx], ky[idx]]
+                del kx, ky, ok
+                keep = t >= 0
+                idx, t = idx[keep], t[keep]
+                p = xyz[idx]
+                inside = ((p[:, 0] >= lo[t, 0]) & (p[:, 0] <= hi[t, 0]) & (p[:, 1] >= lo[t, 1])
+                          & (p[:, 1] <= hi[t, 1]) & (p[:, 2] >= lo[t, 2]) & (p[:, 2] <= hi[t, 2]))
+                del p
+                sel_t.append(t[inside])
+                sel_i.append(idx[inside])
+        del base, top
+        t_all, i_all = np.concatenate(sel_t), np.concatenate(sel_i)
+        del sel_t, sel_i
+        # Within a tile, points must keep file order: sort by (tile, index in chunk).
+        order = np.lexsort((i_all, t_all))
+        spill.append(t_all[order], xyz[i_all[order]])
+        del t_all, i_all, order
+    return total
+
+
+def _run_in(work: Path, report: TiledReport, ref_src, cmp_src, cores: _CoreStream, with_normals: bool, size: float,
+            hp: float, pdict: dict, *, output, dask_scheduler, client, threads, projected, position,
+            return_result, origin, stream_rows, merge_rows, retries, task_fn, log, record, t_start) -> TiledReport:
+    # Each phase runs in its own function, so that its buffers are gone (and handed back to the
+    # system, _release_memory) before the next phase's peak.
+    # 2. plan: tile of every core point, per-tile core spills and bounding boxes
+    t0 = time.perf_counter()
+    core_spill, normal_spill = _Spills(work, "core"), _Spills(work, "normals")
+    ids, lo, hi, counts, origin, n_core = _plan_tiles(work, cores, size, origin, stream_rows)
     n_tiles = len(ids)
     report.core_points, report.tiles = n_core, n_tiles
     if n_core == 0:
         raise UsageError("no core points")
-    lo = np.array(lo_l) - hp  # each tile's box: its core points' bounding box grown by the halo
-    hi = np.array(hi_l) + hp
-    counts = np.array(count_l, dtype=np.int64)
+    lo -= hp  # each tile's box: its core points' bounding box grown by the halo
+    hi += hp
+    _release_memory()
     report.seconds["plan"] = time.perf_counter() - t0
     log(f"{n_core} core points in {n_tiles} tiles of {size:.6g} (halo {hp:.6g})")
 
     # 3. clouds: spill non-COPC inputs into every tile box that holds each point
     t0 = time.perf_counter()
-    key_of = np.full((1, 1), -1, dtype=np.int64)
-    kmin = np.zeros(2, dtype=np.int64)
-    if ids:
-        karr = np.array(list(ids.keys()), dtype=np.int64)
-        kmin, kmax = karr.min(axis=0), karr.max(axis=0)
-        key_of = np.full(tuple(kmax - kmin + 1), -1, dtype=np.int64)
-        key_of[karr[:, 0] - kmin[0], karr[:, 1] - kmin[1]] = np.array(list(ids.values()))
-    reach = int(math.floor(2 * hp / size)) + 2
     n_points = {}
     spills = {}
     for name, src in (("reference", ref_src), ("compared", cmp_src)):
         if src.kind == "copc":
             spills[name] = None
             continue
-        spill = _Spills(work, name)
-        total = 0
-        for xyz in src.chunks(chunk_size):
-            total += len(xyz)
-            base = np.floor((xyz[:, :2] - hp - origin) / size).astype(np.int64) - kmin
-            top = np.floor((xyz[:, :2] + hp - origin) / size).astype(np.int64) - kmin
-            sel_t, sel_i = [], []
-            for dx in range(reach):
-                for dy in range(reach):
-                    kx, ky = base[:, 0] + dx, base[:, 1] + dy
-                    ok = (kx <= top[:, 0]) & (ky <= top[:, 1]) & (kx >= 0) & (ky >= 0) \
-                        & (kx < key_of.shape[0]) & (ky < key_of.shape[1])
-                    idx = np.flatnonzero(ok)
-                    t = key_of[kx[idx], ky[idx]]
-                    keep = t >= 0
-                    idx, t = idx[keep], t[keep]
-                    p = xyz[idx]
-                    inside = ((p[:, 0] >= lo[t, 0]) & (p[:, 0] <= hi[t, 0]) & (p[:, 1] >= lo[t, 1])
-                              & (p[:, 1] <= hi[t, 1]) & (p[:, 2] >= lo[t, 2]) & (p[:, 2] <= hi[t, 2]))
-                    sel_t.append(t[inside])
-                    sel_i.append(idx[inside])
-            t_all, i_all = np.concatenate(sel_t), np.concatenate(sel_i)
-            # Within a tile, points must keep file order: sort by (tile, index in chunk).
-            order = np.lexsort((i_all, t_all))
-            spill.append(t_all[order], xyz[i_all[order]])
-        n_points[name] = total
-        spills[name] = spill
+        spills[name] = _Spills(work, name)
+        n_points[name] = _distribute(src, spills[name], ids, lo, hi, origin, size, hp, stream_rows)
+        _release_memory()
     report.reference_points = n_points.get("reference", 0)
     report.compared_points = n_points.get("compared", 0)
     report.seconds["distribute"] = time.perf_counter() - t0
@@ -572,20 +701,23 @@ def _run_in(work: Path, report: TiledReport, ref_src, cmp_src, cores: _CoreStrea
     else:
         for i, task in enumerate(tasks):
             accept(task_fn(task, pdict, threads))
+            _release_memory()
             if (i + 1) % max(1, n_tiles // 20) == 0:
                 log(f"tile {i + 1}/{n_tiles}")
     if len(state["done"]) != n_tiles:
         raise M3C2Error(f"only {len(state['done'])} of {n_tiles} tiles were computed")
     report.tile_points_max = state["tile_points_max"]
     report.tile_points_total = state["tile_points_total"]
-    report.estimated_tile_bytes_max = int(BASE_BYTES + BYTES_PER_POINT * report.tile_points_max
+    base = report.memory_plan.base if report.memory_plan is not None else BASE_BYTES
+    report.estimated_tile_bytes_max = int(base + BYTES_PER_POINT * report.tile_points_max
                                           + BYTES_PER_CORE * int(counts.max()))
     report.seconds["compute"] = time.perf_counter() - t0
 
     # 5. merge in core order and write
+    _release_memory()
     t0 = time.perf_counter()
     _merge(work, result_spill, state["dtype"], counts, n_core, report, output=output, like=ref_src.like(),
-           projected=projected, position=position, return_result=return_result, chunk_size=chunk_size,
+           projected=projected, position=position, return_result=return_result, chunk_size=merge_rows,
            record=record)
     report.seconds["merge_write"] = time.perf_counter() - t0
     report.seconds["total"] = time.perf_counter() - t_start
@@ -658,7 +790,10 @@ def _merge(work: Path, result_spill: _Spills, dtype: np.dtype, counts, n_core: i
                     offsets[t] += c
                     taken[t] += c
                 raw = {k: rows[k] for k in _RESULT_KEYS}
-                yield Result.from_engine(np.ascontiguousarray(rows["core"]), raw, record)
+                chunk = Result.from_engine(np.ascontiguousarray(rows["core"]), raw, record)
+                del rows, raw  # one chunk alive at a time: the caller drops it before the next
+                yield chunk
+                del chunk
         if not np.array_equal(taken, counts):
             raise M3C2Error("core-point bookkeeping failed: rows taken per tile differ from the plan")
 
@@ -667,6 +802,7 @@ def _merge(work: Path, result_spill: _Spills, dtype: np.dtype, counts, n_core: i
         xyz_min = np.full(3, np.inf)
         for chunk in chunks():
             xyz_min = np.minimum(xyz_min, _output_xyz(chunk, projected, position).min(axis=0))
+            del chunk
     gathered = []
     status = np.zeros(256, dtype=np.int64)
     rows_written = 0
@@ -681,6 +817,7 @@ def _merge(work: Path, result_spill: _Spills, dtype: np.dtype, counts, n_core: i
             table = chunk.columns(projected=projected, position=position)
             xyz = np.column_stack([table.pop("x"), table.pop("y"), table.pop("z")])
             writer.write(xyz, table)
+            del xyz, table
         if return_result:
             gathered.append(chunk)
 
@@ -688,9 +825,11 @@ def _merge(work: Path, result_spill: _Spills, dtype: np.dtype, counts, n_core: i
         with TableWriter(output, like=like, xyz_min=xyz_min) as writer:
             for chunk in chunks():
                 consume(chunk, writer)
+                del chunk
     else:
         for chunk in chunks():
             consume(chunk)
+            del chunk
     if rows_written != n_core:
         raise M3C2Error(f"wrote {rows_written} rows for {n_core} core points")
     from .result import STATUS_NAMES
