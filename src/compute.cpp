@@ -48,14 +48,25 @@ bool moments_needed(const Params& params, bool reference) {
                    : src == NormalSource::kCompared;
 }
 
-/// Both clouds' indexes, the compared one on a second thread when the run has two: they are
-/// independent, and each is built the same way whatever the thread.
-std::pair<Octree, Octree> build_indexes(PointsView reference, PointsView compared, const Params& params,
-                                        OctreeGrid grid, const RunOptions& run) {
+int thread_count(const RunOptions& run) { return run.threads > 0 ? run.threads : omp_get_max_threads(); }
+
+/// Both clouds' indexes and the core points' processing order (morton_order), the compared
+/// index and the order on a second thread when the run has two: they are independent (the
+/// reference index, with its moments, takes about as long as the other two), and each is
+/// computed the same way whatever the thread.
+std::pair<Octree, Octree> build_indexes(PointsView reference, PointsView compared, PointsView core_points,
+                                        const Params& params, OctreeGrid grid, const RunOptions& run,
+                                        std::vector<std::uint32_t>& core_order) {
   const bool ref_moments = moments_needed(params, true), cmp_moments = moments_needed(params, false);
-  const int threads = run.threads > 0 ? run.threads : omp_get_max_threads();
-  if (threads < 2) return {Octree(reference, grid, ref_moments), Octree(compared, grid, cmp_moments)};
-  auto other = std::async(std::launch::async, [&] { return Octree(compared, grid, cmp_moments); });
+  if (thread_count(run) < 2) {
+    core_order = detail::morton_order(core_points);
+    return {Octree(reference, grid, ref_moments), Octree(compared, grid, cmp_moments)};
+  }
+  auto other = std::async(std::launch::async, [&] {
+    Octree tree(compared, grid, cmp_moments);
+    core_order = detail::morton_order(core_points);
+    return tree;
+  });
   Octree first(reference, grid, ref_moments);
   return {std::move(first), other.get()};
 }
@@ -107,12 +118,12 @@ struct Scratch {
 
 class Pipeline {
  public:
-  Pipeline(PointsView reference, PointsView compared, const Params& params, const std::vector<double>& core_normals,
-           const RunOptions& run)
+  Pipeline(PointsView reference, PointsView compared, PointsView core_points, const Params& params,
+           const std::vector<double>& core_normals, const RunOptions& run)
       : params_(params),
         core_normals_(core_normals),
         grid_(grid_for(params.normal_diameters, params.projection_diameter)),
-        trees_(build_indexes(reference, compared, params, grid_, run)),
+        trees_(build_indexes(reference, compared, core_points, params, grid_, run, core_order_)),
         reference_tree_(trees_.first),
         compared_tree_(trees_.second),
         z_(detail::z_critical(params.confidence)) {
@@ -122,6 +133,9 @@ class Pipeline {
     if (src == NormalSource::kCompared || src == NormalSource::kMean)
       compared_normals_.emplace(compared, compared_tree_, params, grid_);
   }
+
+  /// The order in which to process the core points (Morton order).
+  const std::vector<std::uint32_t>& core_order() const { return core_order_; }
 
   void run(const Vec3& core, std::size_t i, Result& r, Scratch& s) const {
     const OrientedNormal n = normal_at(core, i, s);
@@ -203,6 +217,7 @@ class Pipeline {
   const Params& params_;
   const std::vector<double>& core_normals_;
   OctreeGrid grid_;
+  std::vector<std::uint32_t> core_order_;  // before trees_: build_indexes() fills it
   std::pair<Octree, Octree> trees_;
   const Octree &reference_tree_, &compared_tree_;
   std::optional<NormalCloud> reference_normals_, compared_normals_;
@@ -226,10 +241,10 @@ Result compute(PointsView reference, PointsView compared, PointsView core_points
   const OctreeGrid grid = grid_for(params.normal_diameters, params.projection_diameter);
   detail::require_within_grid("the reference cloud", reference, grid);
   detail::require_within_grid("the compared cloud", compared, grid);
-  const Pipeline pipeline(reference, compared, params, core_normals, run);
+  const Pipeline pipeline(reference, compared, core_points, params, core_normals, run);
   Result result;
   result.resize(core_points.size());
-  const auto order = detail::morton_order(core_points);
+  const auto& order = pipeline.core_order();
   detail::parallel_blocks<Scratch>(core_points.size(), run, [&](std::size_t begin, std::size_t end, Scratch& s) {
     for (std::size_t k = begin; k < end; ++k) pipeline.run(core_points[order[k]], order[k], result, s);
   });

@@ -49,6 +49,9 @@ NormalEstimator::NormalEstimator(const Octree& tree, const Params& params)
 }
 
 NormalEstimate NormalEstimator::estimate(const Vec3& core, NormalScratch& scratch) const {
+  // Fewer than min_points within the largest sphere: too few at every scale (the common case
+  // on sparse clouds), known from a count that stops at min_points.
+  if (radii_.empty() || !tree_.ball_holds(core, radii_.back(), min_points_, &scratch.octree.descent)) return {};
   moments_by_scale(tree_, core, radii_, scratch);
   NormalEstimate best;
   double best_cost = std::numeric_limits<double>::infinity();

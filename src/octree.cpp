@@ -66,9 +66,23 @@ Key morton_key(const CellKey& u) {
   return low | high << 63;
 }
 
+/// The low 63 bits of morton_key(u): the whole key of a cloud whose cells differ only in their
+/// low 21 bits per axis (most clouds: 2^21 cells of D/32 on each axis).
+std::uint64_t low_morton_key(const CellKey& u) {
+  return spread_bits(std::uint64_t(u[0])) | spread_bits(std::uint64_t(u[1])) << 1 |
+         spread_bits(std::uint64_t(u[2])) << 2;
+}
+
+int highest_bit(std::uint64_t x) { return 63 - std::countl_zero(x); }
 int highest_bit(Key x) {
   const auto hi = std::uint64_t(x >> 64);
-  return hi ? 127 - std::countl_zero(hi) : 63 - std::countl_zero(std::uint64_t(x));
+  return hi ? 127 - std::countl_zero(hi) : highest_bit(std::uint64_t(x));
+}
+
+/// The digit (level) at which two Morton keys first differ, -1 when equal.
+template <class K>
+int differing_level(K a, K b) {
+  return a == b ? -1 : highest_bit(a ^ b) / 3;
 }
 
 /// The digit (level) at which cell keys a and b first differ, -1 when equal.
@@ -77,24 +91,72 @@ int differing_level(const CellKey& a, const CellKey& b) {
   return x ? 63 - std::countl_zero(x) : -1;
 }
 
-/// Sorts `order` by `keys` (stable: ties keep their order), LSD radix on the low `bits` bits.
-void radix_sort(std::vector<Key>& keys, std::vector<std::uint32_t>& order, int bits) {
-  constexpr int kDigitBits = 11;
-  std::vector<Key> key_buffer(keys.size());
+/// Sorts `keys` and `order` by key (stable: ties keep their order), LSD radix on the low `bits`
+/// bits: equal digits of at most 11 bits, every histogram from one pass over the keys, and a
+/// pass skipped where all keys have the same digit.
+template <class K>
+void radix_sort(std::vector<K>& keys, std::vector<std::uint32_t>& order, int bits) {
+  const int passes = (bits + 10) / 11;
+  if (passes == 0) return;
+  const int digit_bits = (bits + passes - 1) / passes;
+  const std::size_t buckets = std::size_t(1) << digit_bits, mask = buckets - 1;
+  std::vector<std::size_t> count(std::size_t(passes) * buckets, 0);
+  for (const K k : keys)
+    for (int p = 0; p < passes; ++p) ++count[p * buckets + (std::size_t(k >> (p * digit_bits)) & mask)];
+  std::vector<K> key_buffer(keys.size());
   std::vector<std::uint32_t> order_buffer(order.size());
-  for (int shift = 0; shift < bits; shift += kDigitBits) {
-    std::vector<std::size_t> count((1u << kDigitBits) + 1, 0);
-    constexpr std::size_t kMask = (1u << kDigitBits) - 1;
-    for (const Key k : keys) ++count[(std::size_t(k >> shift) & kMask) + 1];
-    for (std::size_t b = 1; b < count.size(); ++b) count[b] += count[b - 1];
+  for (int p = 0; p < passes; ++p) {
+    std::size_t* c = &count[p * buckets];
+    if (*std::max_element(c, c + buckets) == keys.size()) continue;
+    std::size_t sum = 0;
+    for (std::size_t b = 0; b < buckets; ++b) sum += std::exchange(c[b], sum);  // bucket starts
+    const int shift = p * digit_bits;
     for (std::size_t i = 0; i < keys.size(); ++i) {
-      const std::size_t slot = count[std::size_t(keys[i] >> shift) & kMask]++;
+      const std::size_t slot = c[std::size_t(keys[i] >> shift) & mask]++;
       key_buffer[slot] = keys[i];
       order_buffer[slot] = order[i];
     }
     keys.swap(key_buffer);
     order.swap(order_buffer);
   }
+}
+
+/// Sorts keys[0, n) and order alike by key, stably. The bits that vary within the range decide:
+/// when they fit 64 bits, an LSD radix sort on them alone; otherwise a stable split by the
+/// highest varying digit, then the same for each part. (A cloud straddling a coordinate plane
+/// through the grid's origin varies in every bit above its cells, each side in a few only.)
+void sort_keys(Key* keys, std::uint32_t* order, std::size_t n) {
+  if (n < 2) return;
+  Key diff = 0;
+  for (std::size_t i = 1; i < n; ++i) diff |= keys[i] ^ keys[0];
+  if (diff == 0) return;
+  const int level = highest_bit(diff) / 3;
+  if (level <= 20) {
+    const int bits = 3 * (level + 1);
+    const std::uint64_t mask = (std::uint64_t(1) << bits) - 1;
+    std::vector<std::uint64_t> low(n);
+    std::vector<std::uint32_t> low_order(order, order + n);
+    for (std::size_t i = 0; i < n; ++i) low[i] = std::uint64_t(keys[i]) & mask;
+    radix_sort(low, low_order, bits);
+    const Key common = keys[0] & ~Key(mask);
+    for (std::size_t i = 0; i < n; ++i) keys[i] = common | low[i], order[i] = low_order[i];
+    return;
+  }
+  std::array<std::size_t, 9> start{};
+  for (std::size_t i = 0; i < n; ++i) ++start[1 + (std::size_t(keys[i] >> (3 * level)) & 7u)];
+  for (int d = 0; d < 8; ++d) start[d + 1] += start[d];
+  {
+    std::vector<Key> split_keys(n);
+    std::vector<std::uint32_t> split_order(n);
+    std::array<std::size_t, 9> next = start;
+    for (std::size_t i = 0; i < n; ++i) {
+      const std::size_t slot = next[std::size_t(keys[i] >> (3 * level)) & 7u]++;
+      split_keys[slot] = keys[i], split_order[slot] = order[i];
+    }
+    std::copy(split_keys.begin(), split_keys.end(), keys);
+    std::copy(split_order.begin(), split_order.end(), order);
+  }
+  for (int d = 0; d < 8; ++d) sort_keys(keys + start[d], order + start[d], start[d + 1] - start[d]);
 }
 
 }  // namespace
@@ -154,49 +216,45 @@ Octree::Octree(PointsView points, OctreeGrid grid, bool with_moments)
                           " points; one spatial index holds at most 4294967294 (use --tile-size)");
   require_within_grid("a cloud", points, grid);
   if (points.empty()) return;
-  std::vector<std::uint32_t> order(points.size());
-  std::iota(order.begin(), order.end(), 0u);
-  build(order);
-  if (with_moments) {
-    moments_.resize(nodes_.size());
-    std::vector<CellKey> keys;
-    FoldStack stack;
-    for (std::size_t k = nodes_.size(); k-- > 0;) {
-      const Node& node = nodes_[k];
-      if (!node.in_block) continue;
-      if (node.first_child == 0) {
-        keys.clear();
-        for (std::uint32_t s = node.begin; s < node.end; ++s) keys.push_back(cell_of(slot_xyz(s)));
-        moments_[k] = radix_fold(node.begin, node.end, keys.data() - node.begin, block_corner(slot_xyz(node.begin)),
-                                 [](std::uint32_t) { return true; }, stack);
-      } else {
-        for (std::uint32_t c = node.first_child; c < node.first_child + node.children; ++c)
-          merge_into(moments_[k], moments_[c]);
-      }
-    }
-  }
-}
-
-void Octree::build(std::vector<std::uint32_t>& order) {
-  const std::size_t n = order.size();
-  std::vector<Key> keys(n);
+  const std::size_t n = points.size();
+  std::vector<std::uint64_t> low(n);
   CellKey lo, hi;
   lo.fill(std::numeric_limits<std::int64_t>::max());
   hi.fill(std::numeric_limits<std::int64_t>::min());
   for (std::size_t i = 0; i < n; ++i) {
     const auto u = cell_of(points_.data() + 3 * i);
-    keys[i] = morton_key(u);
+    low[i] = low_morton_key(u);
     for (int a = 0; a < 3; ++a) lo[a] = std::min(lo[a], u[a]), hi[a] = std::max(hi[a], u[a]);
   }
   // Every key lies between the smallest and the largest cell, so only the bits below their
-  // highest differing bit vary: sort on those alone.
+  // highest differing bit vary: sort on those alone, in 64 bits where they fit.
   const int varying = differing_level(lo, hi) + 1;
-  radix_sort(keys, order, 3 * varying);
+  std::vector<std::uint32_t> order(n);
+  std::iota(order.begin(), order.end(), 0u);
+  if (varying <= 21) {
+    radix_sort(low, order, 3 * varying);
+    build(low, order, with_moments);
+    return;
+  }
+  low = {};
+  std::vector<Key> keys(n);
+  for (std::size_t i = 0; i < n; ++i) keys[i] = morton_key(cell_of(points_.data() + 3 * i));
+  sort_keys(keys.data(), order.data(), n);
+  build(keys, order, with_moments);
+}
 
+template <class K>
+void Octree::build(const std::vector<K>& keys, std::vector<std::uint32_t>& order, bool with_moments) {
+  const std::size_t n = keys.size();
   index_ = std::move(order);
   xyz_.resize(3 * n);
-  for (std::size_t s = 0; s < n; ++s)
+  // A gather in key order: random reads when the input is not spatially ordered, so each is
+  // requested well ahead of its use.
+  constexpr std::size_t kAhead = 32;
+  for (std::size_t s = 0; s < n; ++s) {
+    if (s + kAhead < n) __builtin_prefetch(points_.data() + 3 * std::size_t(index_[s + kAhead]));
     for (int a = 0; a < 3; ++a) xyz_[3 * s + a] = points_.coord(index_[s], a);
+  }
 
   // Children of a node are stored together, in key order, so the tree is one flat array. A node
   // is split at the digit its keys first differ at (the radix tree), when it holds more than
@@ -205,8 +263,7 @@ void Octree::build(std::vector<std::uint32_t>& order) {
   nodes_.push_back({{}, {}, 0, std::uint32_t(n)});
   for (std::size_t k = 0; k < nodes_.size(); ++k) {
     Node node = nodes_[k];
-    const Key diff = keys[node.begin] ^ keys[node.end - 1];
-    node.level = std::int8_t(diff == 0 ? -1 : highest_bit(diff) / 3);
+    node.level = std::int8_t(differing_level(keys[node.begin], keys[node.end - 1]));
     node.in_block = node.level + 1 <= grid_.block_level;
     if (node.level >= 0 && (node.end - node.begin > kLeafSize || !node.in_block)) {
       node.first_child = std::uint32_t(nodes_.size());
@@ -215,15 +272,36 @@ void Octree::build(std::vector<std::uint32_t>& order) {
       while (begin < node.end) {
         const auto d = std::uint32_t(keys[begin] >> shift) & 7u;
         const auto end = std::uint32_t(std::partition_point(keys.begin() + begin, keys.begin() + node.end,
-                                                            [&](Key x) { return (std::uint32_t(x >> shift) & 7u) <= d; }) -
+                                                            [&](K x) { return (std::uint32_t(x >> shift) & 7u) <= d; }) -
                                        keys.begin());
         nodes_.push_back({{}, {}, begin, end});
+        nodes_.back().digit = std::uint8_t(d);
         ++node.children;
         begin = end;
       }
     }
     nodes_[k] = node;
   }
+  bound_nodes();
+  if (!with_moments) return;
+  // The keys in slot order give each leaf's cells and their branchings (as cell_of would).
+  moments_.resize(nodes_.size());
+  FoldStack stack;
+  const auto level = [&](std::uint32_t a, std::uint32_t b) { return differing_level(keys[a], keys[b]); };
+  for (std::size_t k = nodes_.size(); k-- > 0;) {
+    const Node& node = nodes_[k];
+    if (!node.in_block) continue;
+    if (node.first_child == 0) {
+      moments_[k] = radix_fold(node.begin, node.end, level, block_corner(slot_xyz(node.begin)),
+                               [](std::uint32_t) { return true; }, stack);
+    } else {
+      for (std::uint32_t c = node.first_child; c < node.first_child + node.children; ++c)
+        merge_into(moments_[k], moments_[c]);
+    }
+  }
+}
+
+void Octree::bound_nodes() {
   for (std::size_t k = nodes_.size(); k-- > 0;) {
     Node& node = nodes_[k];
     node.lo.fill(std::numeric_limits<double>::infinity());
@@ -239,9 +317,102 @@ void Octree::build(std::vector<std::uint32_t>& order) {
   }
 }
 
-template <class Keep>
-Moments Octree::radix_fold(std::uint32_t begin, std::uint32_t end, const CellKey* keys, const Vec3& origin, Keep&& keep,
-                           FoldStack& stack) const {
+DescentCache::Path& DescentCache::path_for(const Octree* tree) {
+  for (int k = 0; k < 2; ++k)
+    if (paths_[k].tree == tree) return paths_[last_ = k];
+  last_ = 1 - last_;  // replace the path used least recently
+  paths_[last_] = Path{};
+  paths_[last_].tree = tree;
+  return paths_[last_];
+}
+
+std::uint32_t Octree::covering_node(const std::array<double, 3>& lo, const std::array<double, 3>& hi,
+                                    DescentCache* cache) const {
+  // Core points are not range-checked like the clouds: a box beyond the grid starts at the root.
+  const double limit = grid_.max_abs_coordinate();
+  for (int a = 0; a < 3; ++a)
+    if (!(std::abs(lo[a]) < limit && std::abs(hi[a]) < limit)) return 0;
+  // Every point of the box has its cell between the two corners' cells on each axis, so it
+  // shares their key digits above `box_level`. Following those digits down the radix tree
+  // keeps every such point in the node reached; a node whose own common digits contradict
+  // them holds none.
+  const CellKey klo = cell_of(lo.data()), khi = cell_of(hi.data());
+  const int box_level = differing_level(klo, khi);
+  DescentCache::Path* path = cache ? &cache->path_for(this) : nullptr;
+  int depth = 0;
+  std::uint32_t n = 0;
+  if (path && path->size > 0) {
+    // The last descent branched at each node of its path by the digit of its own corner; where
+    // that digit is also this corner's (levels above `shared`), this descent takes the same child.
+    const int shared = differing_level(klo, path->klo);
+    while (depth + 1 < path->size) {
+      const int level = nodes_[path->node[depth]].level;
+      if (level <= box_level || level <= shared) break;
+      ++depth;
+    }
+    n = path->node[depth];
+  }
+  bool empty = false;
+  while (nodes_[n].level > box_level && nodes_[n].first_child != 0) {
+    const Node& node = nodes_[n];
+    const auto wanted = std::uint8_t(((klo[0] >> node.level) & 1) | ((klo[1] >> node.level) & 1) << 1 |
+                                     ((klo[2] >> node.level) & 1) << 2);
+    std::uint32_t c = node.first_child;
+    const std::uint32_t last = node.first_child + node.children;
+    while (c < last && nodes_[c].digit != wanted) ++c;
+    if (c == last) {
+      empty = true;
+      break;
+    }
+    n = c;
+    if (path) path->node[++depth] = n;
+  }
+  if (path) path->node[0] = 0, path->size = depth + 1, path->klo = klo;
+  if (empty) return kNoNode;
+  // One check of the common digits the branchings did not test, at the node reached: a node on
+  // the way whose digits contradict the box's passes the contradiction on to its descendants.
+  const Node& node = nodes_[n];
+  if (differing_level(cell_of(slot_xyz(node.begin)), klo) > std::max<int>(node.level, box_level)) return kNoNode;
+  return n;
+}
+
+std::uint32_t Octree::covering_node(const Vec3& centre, double radius, DescentCache* cache) const {
+  if (nodes_.empty()) return kNoNode;
+  // A point within the radius passes squared_distance() <= r^2, so each of its coordinates
+  // lies within r (plus rounding, far below this slack) of the centre's.
+  const double slack = kRelativeMargin * (centre.cwiseAbs().maxCoeff() + radius);
+  std::array<double, 3> lo, hi;
+  for (int a = 0; a < 3; ++a) lo[a] = centre(a) - radius - slack, hi[a] = centre(a) + radius + slack;
+  return covering_node(lo, hi, cache);
+}
+
+bool Octree::ball_holds(const Vec3& centre, double radius, std::uint32_t n, DescentCache* cache) const {
+  if (n == 0) return true;
+  const std::uint32_t start = covering_node(centre, radius, cache);
+  if (start == kNoNode) return false;
+  const double r2 = radius * radius, prune_r2 = r2 * (1.0 + kRelativeMargin) + 1e-300;
+  std::uint32_t stack[8 * 128];
+  int top = 0;
+  stack[top++] = start;
+  std::uint32_t found = 0;
+  while (top > 0) {
+    const Node& node = nodes_[stack[--top]];
+    if (nearest_distance2(node.lo, node.hi, centre) > prune_r2) continue;
+    if (farthest_distance2(node.lo, node.hi, centre) <= r2) {
+      found += node.end - node.begin;
+    } else if (node.first_child == 0) {
+      for (std::uint32_t s = node.begin; s < node.end; ++s) found += squared_distance(slot_xyz(s), centre) <= r2;
+    } else {
+      for (std::uint32_t c = node.first_child; c < node.first_child + node.children; ++c) stack[top++] = c;
+    }
+    if (found >= n) return true;
+  }
+  return false;
+}
+
+template <class Level, class Keep>
+Moments Octree::radix_fold(std::uint32_t begin, std::uint32_t end, Level&& level_between, const Vec3& origin,
+                           Keep&& keep, FoldStack& stack) const {
   // One pass in key order with a stack of the open branchings (their digit, their children's
   // fold so far): a point diverging from the previous one at digit L closes every branching
   // below L, then joins the one at L or opens it. Children are merged in key order, each
@@ -256,10 +427,10 @@ Moments Octree::radix_fold(std::uint32_t begin, std::uint32_t end, const CellKey
       continue;
     }
     std::uint32_t cell_end = i + 1;
-    while (cell_end < end && differing_level(keys[cell_end], keys[i]) < 0) ++cell_end;
+    while (cell_end < end && level_between(cell_end, i) < 0) ++cell_end;
     const Moments cell = two_pass_moments(xyz_.data(), i, cell_end, origin, keep);
     if (any) {
-      const int level = differing_level(keys[previous], keys[i]);
+      const int level = level_between(previous, i);
       while (!stack.empty() && stack.back().first < level) {
         merge_into(stack.back().second, current);
         current = stack.back().second;
@@ -348,13 +519,24 @@ struct Octree::BallQuery {
       else if (count > 0) partial_begin = std::min(partial_begin, k), partial_end = k + 1;
     }
     if (partial_begin >= partial_end) return;
-    s.keys.clear();
-    for (std::uint32_t j = 0; j < m; ++j) s.keys.push_back(tree.cell_of(tree.slot_xyz(node.begin + j)));
     const Vec3 origin = tree.block_corner(tree.slot_xyz(node.begin));
     const double* d2 = s.d2.data() - node.begin;
+    if (node.level < 0) {
+      // One grid cell: its radix fold is the cell's two-pass moments, no keys needed.
+      for (std::size_t k = partial_begin; k < partial_end; ++k) {
+        const double limit = r2[k];
+        out[k] = two_pass_moments(tree.xyz_.data(), node.begin, node.end, origin,
+                                  [&](std::uint32_t i) { return d2[i] <= limit; });
+      }
+      return;
+    }
+    s.keys.clear();
+    for (std::uint32_t j = 0; j < m; ++j) s.keys.push_back(tree.cell_of(tree.slot_xyz(node.begin + j)));
+    const CellKey* keys = s.keys.data() - node.begin;
+    const auto level = [keys](std::uint32_t a, std::uint32_t b) { return differing_level(keys[a], keys[b]); };
     for (std::size_t k = partial_begin; k < partial_end; ++k) {
       const double limit = r2[k];
-      out[k] = tree.radix_fold(node.begin, node.end, s.keys.data() - node.begin, origin,
+      out[k] = tree.radix_fold(node.begin, node.end, level, origin,
                                [&](std::uint32_t i) { return d2[i] <= limit; }, s.fold);
     }
   }
@@ -373,11 +555,17 @@ void Octree::ball_moments(const Vec3& centre, std::span<const double> radii_asce
   // below the key's 42 digits plus the root.
   if (scratch.stack.size() < (kAxisBits + 4) * scales) scratch.stack.resize((kAxisBits + 4) * scales);
   std::fill(scratch.stack.begin(), scratch.stack.begin() + scales, Moments{});
-  if (!nodes_.empty()) q.node(0, 0, scales, scratch.stack.data(), 0, false);
+  // Start at the deepest node holding the largest sphere's box. Its ancestors would only merge
+  // its result with empty sets (copies) and, below a node spanning blocks, move it to the
+  // centre's frame, which the start node then does itself: the same bits as from the root.
+  const std::uint32_t start =
+      covering_node(centre, radii_ascending.empty() ? 0.0 : radii_ascending.back(), &scratch.descent);
+  if (start != kNoNode)
+    q.node(start, 0, scales, scratch.stack.data(), 0, nodes_[start].in_block && !nodes_[0].in_block);
   out.assign(scratch.stack.begin(), scratch.stack.begin() + scales);
 }
 
-void Octree::cylinder(const Cylinder& cyl, std::vector<double>& t_out) const {
+void Octree::cylinder(const Cylinder& cyl, std::vector<double>& t_out, DescentCache* cache) const {
   t_out.clear();
   if (nodes_.empty()) return;
   const Vec3& c = cyl.core;
@@ -395,9 +583,12 @@ void Octree::cylinder(const Cylinder& cyl, std::vector<double>& t_out) const {
     const double grow = cyl.radius * std::sqrt(std::max(0.0, 1.0 - n(a) * n(a))) + slack;
     box_lo[a] = std::min(e0, e1) - grow, box_hi[a] = std::max(e0, e1) + grow;
   }
+  // Start at the deepest node holding the box: the points inside come out in the same key order.
+  const std::uint32_t start = covering_node(box_lo, box_hi, cache);
+  if (start == kNoNode) return;
   std::uint32_t stack[8 * 128];
   int top = 0;
-  stack[top++] = 0;
+  stack[top++] = start;
   while (top > 0) {
     const Node& node = nodes_[stack[--top]];
     if (node.lo[0] > box_hi[0] || node.hi[0] < box_lo[0] || node.lo[1] > box_hi[1] || node.hi[1] < box_lo[1] ||

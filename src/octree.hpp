@@ -53,7 +53,27 @@ using CellKey = std::array<std::int64_t, 3>;
 /// Open branchings of a radix fold: (digit, fold of the children so far).
 using FoldStack = std::vector<std::pair<int, Moments>>;
 
+class Octree;
+
+/// The paths of the last descents to a covering node, one per octree (a core point queries
+/// both clouds): a query near the last one (the core points run in Morton order) resumes from
+/// the deepest node the two descents share instead of the root. Per thread, like the scratch.
+class DescentCache {
+ private:
+  friend class Octree;
+  struct Path {
+    const Octree* tree = nullptr;
+    CellKey klo{};                         // the box corner's cell the path was taken for
+    int size = 0;                          // nodes on the path, the root first
+    std::array<std::uint32_t, 48> node{};  // levels fall from at most 41 to -1
+  };
+  Path& path_for(const Octree* tree);
+  std::array<Path, 2> paths_;
+  int last_ = 0;
+};
+
 struct OctreeScratch {
+  DescentCache descent;
   std::vector<double> r2;
   std::vector<Moments> stack;
   std::vector<double> d2;
@@ -70,7 +90,11 @@ class Octree {
 
   /// Replaces `t_out` with the axial offsets t of the points inside `cylinder` (the inclusive
   /// test of cylinder.hpp), in key order: the same order in any tile.
-  void cylinder(const Cylinder& cylinder, std::vector<double>& t_out) const;
+  void cylinder(const Cylinder& cylinder, std::vector<double>& t_out, DescentCache* cache = nullptr) const;
+
+  /// Whether at least `n` points lie within `radius` of `centre` (the test of ball_moments),
+  /// counted until n are found: a neighbourhood too small for a plane fit costs no moments.
+  bool ball_holds(const Vec3& centre, double radius, std::uint32_t n, DescentCache* cache = nullptr) const;
 
   /// Moments, about any origin, of the points within each radius of `radii_ascending` of
   /// `centre` (squared_distance <= r^2), written to out[k]. Requires with_moments.
@@ -85,16 +109,30 @@ class Octree {
     std::uint8_t children = 0;
     std::int8_t level = -1;        // the key digit its points first differ at; -1: one grid cell
     bool in_block = true;          // all its points lie in one block
+    std::uint8_t digit = 0;        // its points' digit at the parent's level (the root: 0)
   };
   struct BallQuery;
 
-  void build(std::vector<std::uint32_t>& order);
+  /// The tree over the points in key order: order[s] is the point of slot s, keys[s] its Morton
+  /// key. Nodes, their bounding boxes and, `with_moments`, their moments.
+  template <class K>
+  void build(const std::vector<K>& keys, std::vector<std::uint32_t>& order, bool with_moments);
+  void bound_nodes();
+  /// The deepest node holding every point of the box [lo, hi], or kNoNode when none of its
+  /// points lies in the box: a query starts there instead of at the root (octree.cpp).
+  /// `cache`, if any, holds the last descent in this tree, resumed where it applies.
+  std::uint32_t covering_node(const std::array<double, 3>& lo, const std::array<double, 3>& hi,
+                              DescentCache* cache) const;
+  /// covering_node() of the box of the sphere of `radius` about `centre`, grown for rounding.
+  std::uint32_t covering_node(const Vec3& centre, double radius, DescentCache* cache) const;
+  static constexpr std::uint32_t kNoNode = ~std::uint32_t(0);
   CellKey cell_of(const double* p) const;
   Vec3 block_corner(const double* p) const;
-  /// Moments about `origin` of the slots i in [begin, end) with keep(i) (keys[i]: their cells):
-  /// the nested fold over the radix tree of those points alone.
-  template <class Keep>
-  Moments radix_fold(std::uint32_t begin, std::uint32_t end, const CellKey* keys, const Vec3& origin, Keep&& keep,
+  /// Moments about `origin` of the slots i in [begin, end) with keep(i): the nested fold over the
+  /// radix tree of those points alone. level_between(i, j): the digit at which the cells of slots
+  /// i and j first differ, -1 for one cell.
+  template <class Level, class Keep>
+  Moments radix_fold(std::uint32_t begin, std::uint32_t end, Level&& level_between, const Vec3& origin, Keep&& keep,
                      FoldStack& stack) const;
   const double* slot_xyz(std::uint32_t slot) const { return xyz_.data() + 3 * std::size_t(slot); }
 

@@ -37,13 +37,13 @@ void project(const Octree& reference, const Octree& compared, const Vec3& core, 
              const Params& params, ProjectionScratch& s, std::vector<double>& t1, std::vector<double>& t2) {
   if (params.depth_search == DepthSearch::kTwoPass) {
     const Cylinder short_cyl = make_cylinder(core, normal, params, params.first_pass_depth);
-    reference.cylinder(short_cyl, t1);
-    compared.cylinder(short_cyl, t2);
+    reference.cylinder(short_cyl, t1, &s.descent);
+    compared.cylinder(short_cyl, t2, &s.descent);
     if (!t1.empty() && !t2.empty()) return;
   }
   const Cylinder cyl = make_cylinder(core, normal, params, params.max_depth);
-  reference.cylinder(cyl, t1);
-  compared.cylinder(cyl, t2);
+  reference.cylinder(cyl, t1, &s.descent);
+  compared.cylinder(cyl, t2, &s.descent);
   if (params.depth_search == DepthSearch::kProgressive) {
     progressive_truncate(t1, params, s);
     progressive_truncate(t2, params, s);

@@ -11,6 +11,7 @@ namespace m3c2::detail {
 
 struct ProjectionScratch {
   std::vector<double> full, work;
+  DescentCache descent;
 };
 
 /// Offsets of both clouds in the cylinder at `core` along `normal` (in the octree's key order,

@@ -100,19 +100,21 @@ TEST(Octree, InclusiveSphereBoundaryOnQuantisedPoints) {
   }
 }
 
-TEST(Octree, NeighbourhoodMomentsDoNotDependOnTheOtherPoints) {
-  // The index of a tile holds the neighbours of its core points plus an arbitrary subset of
-  // the rest, in the same relative order: the moments must be the same bits.
-  const Cloud cloud = test_cloud(3, 30000, Vec3(600000.0, 4200000.0, 50.0));
+/// The index of a tile holds the neighbours of its core points plus an arbitrary subset of the
+/// rest, in the same relative order: the moments must be the same bits. Trials alternate between
+/// keeping 60 %, 5 % and none of the other points (the last: the neighbours' own index, whose
+/// queries start at its root, while the whole cloud's start deep inside the tree).
+void expect_moments_independent_of_other_points(const Vec3& offset) {
+  const Cloud cloud = test_cloud(3, 30000, offset);
   const std::vector<double> radii = {0.2, 0.5};
   const OctreeGrid grid = detail::octree_grid(0.4, 1.0);
   const Octree whole(cloud.view(), grid, true);
   std::mt19937_64 rng(5);
   OctreeScratch scratch;
   std::vector<Moments> a, b;
-  for (int trial = 0; trial < 40; ++trial) {
+  for (int trial = 0; trial < 60; ++trial) {
     const Vec3 core = cloud[std::size_t(trial) * 701 % cloud.size()] + Vec3(0.01, -0.02, 0.0);
-    std::bernoulli_distribution keep(trial % 2 ? 0.05 : 0.6);
+    std::bernoulli_distribution keep(trial % 3 == 0 ? 0.6 : trial % 3 == 1 ? 0.05 : 0.0);
     Cloud part;
     for (std::size_t i = 0; i < cloud.size(); ++i)
       if ((cloud[i] - core).norm() <= 0.5 + 1e-9 || keep(rng)) part.add(cloud[i]);
@@ -124,6 +126,22 @@ TEST(Octree, NeighbourhoodMomentsDoNotDependOnTheOtherPoints) {
       EXPECT_TRUE(same_bits(a[k], b[k])) << "trial " << trial << " radius " << radii[k];
     }
   }
+}
+
+TEST(Octree, NeighbourhoodMomentsDoNotDependOnTheOtherPoints) {
+  expect_moments_independent_of_other_points(Vec3(600000.0, 4200000.0, 50.0));
+}
+
+TEST(Octree, NeighbourhoodMomentsDoNotDependOnTheOtherPointsAcrossBlocks) {
+  // Blocks are 1024 m wide here (1024 diameters of 1, a power of two): the cloud straddles the
+  // boundary at x = 1024 * 586, so nodes span blocks and move their children's moments.
+  expect_moments_independent_of_other_points(Vec3(1024.0 * 586 - 3.0, 4200000.0, 50.0));
+}
+
+TEST(Octree, NeighbourhoodMomentsDoNotDependOnTheOtherPointsAroundTheOrigin) {
+  // A cloud around the grid's origin varies in every key bit (its index sorts 128-bit keys
+  // split at the origin), a tile of neighbours on one side of it in a few (64-bit keys).
+  expect_moments_independent_of_other_points(Vec3(-3.0, -3.0, 0.0));
 }
 
 TEST(Octree, EachScaleOfAMultiScaleQueryEqualsItsSingleScaleQuery) {
