@@ -33,28 +33,25 @@ inline void merge_into(Moments& acc, const Moments& b) {
   acc.count = n;
 }
 
-/// Moments of the points p[i] - origin, i in [begin, end) with keep(i), in two passes (mean,
-/// then co-moment about it) in index order. The only place a set of points becomes moments.
-template <class Keep>
-Moments two_pass_moments(const double* xyz, std::uint32_t begin, std::uint32_t end, const Vec3& origin, Keep&& keep) {
+/// Moments of the points xyz[slots[j]] - origin, j in [0, n) (ascending slots), in two passes
+/// (mean, then co-moment about it) in that order. The only place a set of points becomes moments.
+inline Moments two_pass_moments(const double* xyz, const std::uint32_t* slots, std::uint32_t n, const Vec3& origin) {
   Moments m;
+  if (n == 0) return m;
   Vec3 sum = Vec3::Zero();
-  for (std::uint32_t i = begin; i < end; ++i)
-    if (keep(i)) {
-      const double* p = xyz + 3 * std::size_t(i);
-      sum += Vec3(p[0] - origin.x(), p[1] - origin.y(), p[2] - origin.z());
-      m.count += 1.0;
-    }
-  if (m.count == 0.0) return m;
+  for (std::uint32_t j = 0; j < n; ++j) {
+    const double* p = xyz + 3 * std::size_t(slots[j]);
+    sum += Vec3(p[0] - origin.x(), p[1] - origin.y(), p[2] - origin.z());
+  }
+  m.count = double(n);
   m.mean = sum / m.count;
   auto& c = m.comoment;
-  for (std::uint32_t i = begin; i < end; ++i)
-    if (keep(i)) {
-      const double* p = xyz + 3 * std::size_t(i);
-      const Vec3 v = Vec3(p[0] - origin.x(), p[1] - origin.y(), p[2] - origin.z()) - m.mean;
-      c[0] += v.x() * v.x(), c[1] += v.x() * v.y(), c[2] += v.x() * v.z();
-      c[3] += v.y() * v.y(), c[4] += v.y() * v.z(), c[5] += v.z() * v.z();
-    }
+  for (std::uint32_t j = 0; j < n; ++j) {
+    const double* p = xyz + 3 * std::size_t(slots[j]);
+    const Vec3 v = Vec3(p[0] - origin.x(), p[1] - origin.y(), p[2] - origin.z()) - m.mean;
+    c[0] += v.x() * v.x(), c[1] += v.x() * v.y(), c[2] += v.x() * v.z();
+    c[3] += v.y() * v.y(), c[4] += v.y() * v.z(), c[5] += v.z() * v.z();
+  }
   return m;
 }
 

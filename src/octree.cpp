@@ -27,8 +27,8 @@ constexpr double kRelativeMargin = 1e-9;
 double nearest_distance2(const std::array<double, 3>& lo, const std::array<double, 3>& hi, const Vec3& c) {
   double d2 = 0.0;
   for (int a = 0; a < 3; ++a) {
-    const double below = lo[a] - c(a), above = c(a) - hi[a];
-    const double gap = below > 0.0 ? below : above > 0.0 ? above : 0.0;
+    // At most one of the two is positive (lo <= hi): no branch to mispredict.
+    const double gap = std::max(std::max(lo[a] - c(a), c(a) - hi[a]), 0.0);
     d2 += gap * gap;
   }
   return d2;
@@ -287,13 +287,15 @@ void Octree::build(const std::vector<K>& keys, std::vector<std::uint32_t>& order
   // The keys in slot order give each leaf's cells and their branchings (as cell_of would).
   moments_.resize(nodes_.size());
   FoldStack stack;
+  std::vector<std::uint32_t> slots;
   const auto level = [&](std::uint32_t a, std::uint32_t b) { return differing_level(keys[a], keys[b]); };
   for (std::size_t k = nodes_.size(); k-- > 0;) {
     const Node& node = nodes_[k];
     if (!node.in_block) continue;
     if (node.first_child == 0) {
-      moments_[k] = radix_fold(node.begin, node.end, level, block_corner(slot_xyz(node.begin)),
-                               [](std::uint32_t) { return true; }, stack);
+      slots.resize(node.end - node.begin);
+      std::iota(slots.begin(), slots.end(), node.begin);
+      moments_[k] = radix_fold(slots.data(), node.end - node.begin, level, block_corner(slot_xyz(node.begin)), stack);
     } else {
       for (std::uint32_t c = node.first_child; c < node.first_child + node.children; ++c)
         merge_into(moments_[k], moments_[c]);
@@ -410,27 +412,21 @@ bool Octree::ball_holds(const Vec3& centre, double radius, std::uint32_t n, Desc
   return false;
 }
 
-template <class Level, class Keep>
-Moments Octree::radix_fold(std::uint32_t begin, std::uint32_t end, Level&& level_between, const Vec3& origin,
-                           Keep&& keep, FoldStack& stack) const {
+template <class Level>
+Moments Octree::radix_fold(const std::uint32_t* slots, std::uint32_t n, Level&& level_between, const Vec3& origin,
+                           FoldStack& stack) const {
   // One pass in key order with a stack of the open branchings (their digit, their children's
   // fold so far): a point diverging from the previous one at digit L closes every branching
   // below L, then joins the one at L or opens it. Children are merged in key order, each
   // branching's fold from its first child: exactly the nested fold of octree.hpp.
   stack.clear();
   Moments current;
-  bool any = false;
-  std::uint32_t previous = 0;
-  for (std::uint32_t i = begin; i < end;) {
-    if (!keep(i)) {
-      ++i;
-      continue;
-    }
+  for (std::uint32_t i = 0; i < n;) {
     std::uint32_t cell_end = i + 1;
-    while (cell_end < end && level_between(cell_end, i) < 0) ++cell_end;
-    const Moments cell = two_pass_moments(xyz_.data(), i, cell_end, origin, keep);
-    if (any) {
-      const int level = level_between(previous, i);
+    while (cell_end < n && level_between(slots[cell_end], slots[i]) < 0) ++cell_end;
+    const Moments cell = two_pass_moments(xyz_.data(), slots + i, cell_end - i, origin);
+    if (i > 0) {
+      const int level = level_between(slots[i - 1], slots[i]);
       while (!stack.empty() && stack.back().first < level) {
         merge_into(stack.back().second, current);
         current = stack.back().second;
@@ -440,8 +436,6 @@ Moments Octree::radix_fold(std::uint32_t begin, std::uint32_t end, Level&& level
       else stack.emplace_back(level, current);
     }
     current = cell;
-    any = true;
-    previous = i;
     i = cell_end;
   }
   while (!stack.empty()) {
@@ -468,9 +462,9 @@ struct Octree::BallQuery {
   /// frame of n's block, or moved to centre's frame when `to_centre` (n in a block, its parent
   /// spanning blocks). A node inside a sphere gives its stored moments, one outside nothing, and
   /// the others the fold of their children's (or of their points, for a leaf).
-  void node(std::uint32_t n, std::size_t ka, std::size_t kb, Moments* out, int depth, bool to_centre) {
+  /// near2: nearest_distance2() of n's box, which the caller computed to skip the nodes outside.
+  void node(std::uint32_t n, double near2, std::size_t ka, std::size_t kb, Moments* out, int depth, bool to_centre) {
     const Node& node = tree.nodes_[n];
-    const double near2 = nearest_distance2(node.lo, node.hi, centre);
     while (ka < kb && near2 > prune_r2[ka]) ++ka;  // outside the small spheres
     if (ka == kb) return;
     std::size_t inside = kb;
@@ -494,13 +488,29 @@ struct Octree::BallQuery {
     if (node.first_child == 0) {
       leaf(n, ka, inside, fold);
     } else {
-      for (std::uint32_t c = node.first_child; c < node.first_child + node.children; ++c)
-        this->node(c, ka, inside, fold, depth + 1, !node.in_block && tree.nodes_[c].in_block);
+      for (std::uint32_t c = node.first_child; c < node.first_child + node.children; ++c) {
+        const Node& child = tree.nodes_[c];
+        const double child_near2 = nearest_distance2(child.lo, child.hi, centre);
+        if (child_near2 > prune_r2[inside - 1]) continue;  // outside every sphere asked of it
+        this->node(c, child_near2, ka, inside, fold, depth + 1, !node.in_block && child.in_block);
+      }
     }
     for (std::size_t k = ka; k < inside; ++k) {
       if (to_centre) fold[k].mean += shift;
       merge_into(out[k], fold[k]);
     }
+  }
+
+  /// Writes to s.slots the slots begin + j, j < m, with s.d2[j] <= limit, in order, and returns
+  /// their number: no branch per point (about half of a crossing leaf's points are kept).
+  std::uint32_t gather_kept(std::uint32_t begin, std::uint32_t m, double limit) {
+    s.slots.resize(m);
+    std::uint32_t kept = 0;
+    for (std::uint32_t j = 0; j < m; ++j) {
+      s.slots[kept] = begin + j;
+      kept += s.d2[j] <= limit;
+    }
+    return kept;
   }
 
   /// A leaf crossing the spheres [ka, kb): per-point distances; a sphere holding some of its
@@ -520,24 +530,24 @@ struct Octree::BallQuery {
     }
     if (partial_begin >= partial_end) return;
     const Vec3 origin = tree.block_corner(tree.slot_xyz(node.begin));
-    const double* d2 = s.d2.data() - node.begin;
     if (node.level < 0) {
       // One grid cell: its radix fold is the cell's two-pass moments, no keys needed.
       for (std::size_t k = partial_begin; k < partial_end; ++k) {
-        const double limit = r2[k];
-        out[k] = two_pass_moments(tree.xyz_.data(), node.begin, node.end, origin,
-                                  [&](std::uint32_t i) { return d2[i] <= limit; });
+        const std::uint32_t kept = gather_kept(node.begin, m, r2[k]);
+        out[k] = two_pass_moments(tree.xyz_.data(), s.slots.data(), kept, origin);
       }
       return;
     }
-    s.keys.clear();
-    for (std::uint32_t j = 0; j < m; ++j) s.keys.push_back(tree.cell_of(tree.slot_xyz(node.begin + j)));
+    // Several cells: the cells only of the points the widest partial sphere keeps.
+    s.keys.resize(m);
+    const double widest = r2[partial_end - 1];
+    for (std::uint32_t j = 0; j < m; ++j)
+      if (s.d2[j] <= widest) s.keys[j] = tree.cell_of(tree.slot_xyz(node.begin + j));
     const CellKey* keys = s.keys.data() - node.begin;
     const auto level = [keys](std::uint32_t a, std::uint32_t b) { return differing_level(keys[a], keys[b]); };
     for (std::size_t k = partial_begin; k < partial_end; ++k) {
-      const double limit = r2[k];
-      out[k] = tree.radix_fold(node.begin, node.end, level, origin,
-                               [&](std::uint32_t i) { return d2[i] <= limit; }, s.fold);
+      const std::uint32_t kept = gather_kept(node.begin, m, r2[k]);
+      out[k] = tree.radix_fold(s.slots.data(), kept, level, origin, s.fold);
     }
   }
 };
@@ -561,7 +571,8 @@ void Octree::ball_moments(const Vec3& centre, std::span<const double> radii_asce
   const std::uint32_t start =
       covering_node(centre, radii_ascending.empty() ? 0.0 : radii_ascending.back(), &scratch.descent);
   if (start != kNoNode)
-    q.node(start, 0, scales, scratch.stack.data(), 0, nodes_[start].in_block && !nodes_[0].in_block);
+    q.node(start, nearest_distance2(nodes_[start].lo, nodes_[start].hi, centre), 0, scales, scratch.stack.data(), 0,
+           nodes_[start].in_block && !nodes_[0].in_block);
   out.assign(scratch.stack.begin(), scratch.stack.begin() + scales);
 }
 

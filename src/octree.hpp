@@ -78,6 +78,7 @@ struct OctreeScratch {
   std::vector<Moments> stack;
   std::vector<double> d2;
   std::vector<CellKey> keys;
+  std::vector<std::uint32_t> slots;
   FoldStack fold;
 };
 
@@ -128,11 +129,11 @@ class Octree {
   static constexpr std::uint32_t kNoNode = ~std::uint32_t(0);
   CellKey cell_of(const double* p) const;
   Vec3 block_corner(const double* p) const;
-  /// Moments about `origin` of the slots i in [begin, end) with keep(i): the nested fold over the
+  /// Moments about `origin` of the points of slots[0, n) (ascending): the nested fold over the
   /// radix tree of those points alone. level_between(i, j): the digit at which the cells of slots
   /// i and j first differ, -1 for one cell.
-  template <class Level, class Keep>
-  Moments radix_fold(std::uint32_t begin, std::uint32_t end, Level&& level_between, const Vec3& origin, Keep&& keep,
+  template <class Level>
+  Moments radix_fold(const std::uint32_t* slots, std::uint32_t n, Level&& level_between, const Vec3& origin,
                      FoldStack& stack) const;
   const double* slot_xyz(std::uint32_t slot) const { return xyz_.data() + 3 * std::size_t(slot); }
 
