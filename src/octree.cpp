@@ -67,7 +67,7 @@ Key morton_key(const CellKey& u) {
 }
 
 /// The low 63 bits of morton_key(u): the whole key of a cloud whose cells differ only in their
-/// low 21 bits per axis (most clouds: 2^21 cells of D/32 on each axis).
+/// low 21 bits per axis (most clouds: 2^21 cells of D/16 on each axis).
 std::uint64_t low_morton_key(const CellKey& u) {
   return spread_bits(std::uint64_t(u[0])) | spread_bits(std::uint64_t(u[1])) << 1 |
          spread_bits(std::uint64_t(u[2])) << 2;
@@ -164,7 +164,9 @@ void sort_keys(Key* keys, std::uint32_t* order, std::size_t n) {
 OctreeGrid octree_grid(double smallest_scale, double largest_normal_diameter) {
   OctreeGrid grid;
   int exponent = 0;
-  std::frexp(smallest_scale / 32.0, &exponent);  // smallest/32 in [2^(e-1), 2^e)
+  // Cells of D/16 hold ~40 points of a 10,000 points/m^2 survey: the fewest node visits and
+  // crossing points per neighbourhood of those measured (D/8, D/16, D/32, D/64; docs/performance.md).
+  std::frexp(smallest_scale / 16.0, &exponent);  // smallest/16 in [2^(e-1), 2^e)
   grid.cell = std::ldexp(1.0, exponent - 1);
   // Blocks only keep the moments' coordinates small (about the block corner): 1024 diameters
   // wide they lose nothing measurable (1e-13 m at 1 km), and nodes rarely straddle two.

@@ -44,7 +44,7 @@ struct OctreeGrid {
 /// Throws InvalidArgument naming `what` when a coordinate of `points` is beyond the grid's range.
 void require_within_grid(const char* what, PointsView points, OctreeGrid grid);
 
-/// The grid for a run with these scales (diameters): cells of about min / 32, blocks at least
+/// The grid for a run with these scales (diameters): cells of about min / 16, blocks at least
 /// 1024 max wide. Derived from the parameters only, so that every tile of a run shares it.
 OctreeGrid octree_grid(double smallest_scale, double largest_normal_diameter);
 

@@ -23,7 +23,7 @@ Result compute(PointsView reference, PointsView compared, PointsView core_points
                const std::vector<double>& core_normals = {});
 
 /// The largest |coordinate| of a cloud compute() accepts with these parameters: its spatial index
-/// keys 2^41 cells of a grid that follows the smallest diameter (D / 32, or d / 32 without
+/// keys 2^41 cells of a grid that follows the smallest diameter (D / 16, or d / 16 without
 /// normal diameters; docs/algorithm.md). Beyond it compute() throws InvalidArgument.
 double max_abs_coordinate(const Params& params);
 

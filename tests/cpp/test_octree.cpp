@@ -192,12 +192,12 @@ TEST(Octree, RejectsCoordinatesBeyondTheGridRange) {
 
 TEST(Octree, ComputeRefusesAFarOutlierNamingTheCloud) {
   Cloud ref = test_cloud(1, 500, Vec3::Zero()), cmp = ref;
-  cmp.add(0.0, 4e10, 0.0);  // beyond 2^41 cells of 2^-6 = 2^35 (D = 0.5)
+  cmp.add(0.0, 8e10, 0.0);  // beyond 2^41 cells of 2^-5 = 2^36 (D = 0.5)
   Params p;
   p.normal_diameters = {0.5};
   p.projection_diameter = 0.3;
   p.max_depth = 0.5;
-  EXPECT_EQ(max_abs_coordinate(p), std::ldexp(1.0, 35));
+  EXPECT_EQ(max_abs_coordinate(p), std::ldexp(1.0, 36));
   try {
     compute(ref.view(), cmp.view(), ref.view(), p);
     FAIL() << "no error";
@@ -208,8 +208,8 @@ TEST(Octree, ComputeRefusesAFarOutlierNamingTheCloud) {
 
 TEST(Octree, GridIsAPowerOfTwoFromTheScalesAlone) {
   const OctreeGrid g = detail::octree_grid(1.0, 2.5);
-  EXPECT_EQ(g.cell, 1.0 / 32.0);  // the largest power of two <= 1/32
-  EXPECT_EQ(detail::octree_grid(0.9, 2.5).cell, 1.0 / 64.0);
+  EXPECT_EQ(g.cell, 1.0 / 16.0);  // the largest power of two <= 1/16
+  EXPECT_EQ(detail::octree_grid(0.9, 2.5).cell, 1.0 / 32.0);
   EXPECT_GE(std::ldexp(g.cell, g.block_level), 2.5);
   EXPECT_GE(std::ldexp(g.cell, g.block_level), 1024 * 2.5);  // blocks: 1024 diameters at least
   EXPECT_LT(std::ldexp(g.cell, g.block_level - 1), 1024 * 2.5);
