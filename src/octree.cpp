@@ -14,7 +14,7 @@ namespace {
 
 __extension__ typedef unsigned __int128 Key;  // GCC and Clang; 3 x 42 bits
 
-constexpr std::uint32_t kLeafSize = 16;
+constexpr std::uint32_t kLeafSize = 32;
 // Cell coordinates are biased by 2^41 so that they are non-negative and fit 42 bits per axis:
 // three axes interleave into one 126-bit Morton key.
 constexpr int kAxisBits = 42;
