@@ -277,7 +277,7 @@ void Octree::build(const std::vector<K>& keys, std::vector<std::uint32_t>& order
                                                             [&](K x) { return (std::uint32_t(x >> shift) & 7u) <= d; }) -
                                        keys.begin());
         nodes_.push_back({{}, {}, begin, end});
-        nodes_.back().digit = std::uint8_t(d);
+        node.child_mask |= std::uint8_t(1u << d);
         ++node.children;
         begin = end;
       }
@@ -361,14 +361,12 @@ std::uint32_t Octree::covering_node(const std::array<double, 3>& lo, const std::
     const Node& node = nodes_[n];
     const auto wanted = std::uint8_t(((klo[0] >> node.level) & 1) | ((klo[1] >> node.level) & 1) << 1 |
                                      ((klo[2] >> node.level) & 1) << 2);
-    std::uint32_t c = node.first_child;
-    const std::uint32_t last = node.first_child + node.children;
-    while (c < last && nodes_[c].digit != wanted) ++c;
-    if (c == last) {
+    // The child is found from the node's own mask: no child's cache line is read to look.
+    if (!(node.child_mask >> wanted & 1u)) {
       empty = true;
       break;
     }
-    n = c;
+    n = node.first_child + std::uint32_t(std::popcount(unsigned(node.child_mask) & ((1u << wanted) - 1u)));
     if (path) path->node[++depth] = n;
   }
   if (path) path->node[0] = 0, path->size = depth + 1, path->klo = klo;

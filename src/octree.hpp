@@ -110,7 +110,7 @@ class Octree {
     std::uint8_t children = 0;
     std::int8_t level = -1;        // the key digit its points first differ at; -1: one grid cell
     bool in_block = true;          // all its points lie in one block
-    std::uint8_t digit = 0;        // its points' digit at the parent's level (the root: 0)
+    std::uint8_t child_mask = 0;   // bit d set: a child whose points have digit d at `level`
   };
   struct BallQuery;
 
