@@ -393,19 +393,25 @@ bool Octree::ball_holds(const Vec3& centre, double radius, std::uint32_t n, Desc
   const std::uint32_t start = covering_node(centre, radius, cache);
   if (start == kNoNode) return false;
   const double r2 = radius * radius, prune_r2 = r2 * (1.0 + kRelativeMargin) + 1e-300;
+  // Depth first; a node is stacked only when its box reaches the sphere, and a stacked leaf's
+  // points are requested from memory at once.
+  const auto reaches = [&](const Node& node) { return nearest_distance2(node.lo, node.hi, centre) <= prune_r2; };
   std::uint32_t stack[8 * 128];
   int top = 0;
-  stack[top++] = start;
+  if (reaches(nodes_[start])) stack[top++] = start;
   std::uint32_t found = 0;
   while (top > 0) {
     const Node& node = nodes_[stack[--top]];
-    if (nearest_distance2(node.lo, node.hi, centre) > prune_r2) continue;
     if (farthest_distance2(node.lo, node.hi, centre) <= r2) {
       found += node.end - node.begin;
     } else if (node.first_child == 0) {
       for (std::uint32_t s = node.begin; s < node.end; ++s) found += squared_distance(slot_xyz(s), centre) <= r2;
     } else {
-      for (std::uint32_t c = node.first_child; c < node.first_child + node.children; ++c) stack[top++] = c;
+      for (std::uint32_t c = node.first_child; c < node.first_child + node.children; ++c)
+        if (reaches(nodes_[c])) {
+          if (nodes_[c].first_child == 0) __builtin_prefetch(slot_xyz(nodes_[c].begin));
+          stack[top++] = c;
+        }
     }
     if (found >= n) return true;
   }
