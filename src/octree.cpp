@@ -211,12 +211,12 @@ Vec3 Octree::block_corner(const double* p) const {
   return corner;
 }
 
-Octree::Octree(PointsView points, OctreeGrid grid, bool with_moments)
+Octree::Octree(PointsView points, OctreeGrid grid, bool with_moments, const char* name)
     : points_(points), grid_(grid), inverse_cell_(1.0 / grid.cell) {
   if (points.size() >= std::numeric_limits<std::uint32_t>::max())
     throw InvalidArgument("a cloud has " + std::to_string(points.size()) +
                           " points; one spatial index holds at most 4294967294 (use --tile-size)");
-  require_within_grid("a cloud", points, grid);
+  require_within_grid(name, points, grid);
   if (points.empty()) return;
   const std::size_t n = points.size();
   std::vector<std::uint64_t> low(n);

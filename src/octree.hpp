@@ -85,7 +85,8 @@ struct OctreeScratch {
 class Octree {
  public:
   /// Indexes `points` (kept by reference); `with_moments` adds the node moments of normals.
-  Octree(PointsView points, OctreeGrid grid, bool with_moments);
+  /// Throws InvalidArgument naming `name` when a coordinate is beyond the grid's range.
+  Octree(PointsView points, OctreeGrid grid, bool with_moments, const char* name = "a cloud");
 
   PointsView points() const { return points_; }
 

@@ -27,9 +27,10 @@ namespace m3c2::detail {
 /// an idle machine but up to a scheduler time slice (measured: ~28 ms per call with 2 threads
 /// on the shared 2-core machine under load, against ~1 ms for the whole run on one thread),
 /// which small runs (a few hundred core points) then pay many times over. A long run loses at
-/// most kSerialLead * (threads - 1) / threads. Which thread runs a block never changes its bits.
+/// most kSerialLead * (threads - 1) / threads. A caller whose team has just run (and so spins,
+/// awake) passes `team_awake` and skips the lead. Which thread runs a block never changes its bits.
 template <class Scratch, class Fn>
-void parallel_blocks(std::size_t n, const RunOptions& run, Fn&& fn, std::size_t block = 64) {
+void parallel_blocks(std::size_t n, const RunOptions& run, Fn&& fn, std::size_t block = 64, bool team_awake = false) {
   constexpr auto kSerialLead = std::chrono::milliseconds(2);
   const int threads = run.threads > 0 ? run.threads : omp_get_max_threads();
   const auto blocks = static_cast<std::int64_t>((n + block - 1) / block);
@@ -58,7 +59,7 @@ void parallel_blocks(std::size_t n, const RunOptions& run, Fn&& fn, std::size_t 
     Scratch scratch;
     const auto start = std::chrono::steady_clock::now();
     while (first < blocks && !stop.load(std::memory_order_relaxed) &&
-           (threads <= 1 || std::chrono::steady_clock::now() - start < kSerialLead))
+           (threads <= 1 || (!team_awake && std::chrono::steady_clock::now() - start < kSerialLead)))
       run_block(first++, scratch);
   }
   if (first < blocks && !stop.load(std::memory_order_relaxed)) {

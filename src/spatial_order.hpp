@@ -10,7 +10,7 @@
 namespace m3c2::detail {
 
 /// A permutation of [0, points.size()) sorting the points along a 3D Morton curve over their
-/// bounding box (4096 cells per axis; ties keep input order). Only the processing order depends on
+/// bounding box (1024 cells per axis; ties keep input order). Only the processing order depends on
 /// it: results are written by index, so they do not.
 std::vector<std::uint32_t> morton_order(PointsView points);
 
