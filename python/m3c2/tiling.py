@@ -45,7 +45,7 @@ __all__ = ["halo", "run_tiled", "streaming_subsample", "parse_memory", "choose_t
 
 #: Resident bytes per cloud point of a tile while it is computed: 24 B coordinates read from the
 #: spill + the engine's octree (24 B slot copy, 4 B index; while it is built an 8 B key, 16 B for
-#: a cloud around the grid origin, and the sort's buffers; ~4 B nodes, ~5 B moments on the normals'
+#: a cloud around the grid origin, and the sort's buffers; ~2-4 B nodes, ~3-5 B moments on the normals'
 #: cloud), measured at 59-67 B for the engine
 #: with both indexes built at once; rounded up (docs/scaling.md).
 BYTES_PER_POINT = 100
