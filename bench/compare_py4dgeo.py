@@ -10,7 +10,7 @@ inputs share them); then each tool runs in its own process (so that its peak res
 its own): m3c2 with --threads threads, then (thread scaling, unless --no-scaling) m3c2 again with
 1 thread, then py4dgeo with --threads threads; each prints per-phase times. Each tool runs its
 whole computation --repeat times in its process and reports the shortest wall time (auto: 5 runs
-for workloads under 500k input points, W1, whose ~50 ms run is otherwise at the mercy of the
+for workloads under 500k input points, W1, whose ~35 ms run is otherwise at the mercy of the
 scheduler; 1 run for the others); the first run's wall is printed beside. The driver prints the
 table: phase times, wall time, peak memory (bytes per input point), core points per second, the
 ratio py4dgeo wall / m3c2 wall, and the agreement of the results (|Δdistance| and |ΔLOD| <= 1e-6,
@@ -332,7 +332,7 @@ def main() -> None:
     ap.add_argument("--repeat", default="auto",
                     help="runs of each tool's whole computation in its process, the shortest wall reported; auto: "
                          f"{SMALL_REPEAT} for workloads of fewer than {SMALL_INPUT:,} input points (W1: a single "
-                         "run of ~50 ms is at the mercy of the scheduler), else 1")
+                         "run of ~35 ms is at the mercy of the scheduler), else 1")
     ap.add_argument("--worker", nargs=2, metavar=("TOOL", "WORKLOAD"), help=argparse.SUPPRESS)
     ap.add_argument("--folder", help=argparse.SUPPRESS)
     ap.add_argument("--tag", help=argparse.SUPPRESS)
