@@ -296,11 +296,9 @@ double max_abs_coordinate(const Params& params) {
 NormalsResult compute_normals(PointsView cloud, PointsView core_points, const Params& params, const RunOptions& run) {
   detail::validate_normal_params(params);
   if (cloud.empty()) throw InvalidArgument("the cloud is empty");
-  detail::require_finite_points("cloud", cloud);
   detail::require_finite_points("core points", core_points);
   const OctreeGrid grid = grid_for(params.normal_diameters, 0.0);
-  detail::require_within_grid("the cloud", cloud, grid);
-  const Octree tree(cloud, grid, params.normal_subsample_spacing <= 0.0);
+  const Octree tree = index_of(cloud, "cloud", grid, params.normal_subsample_spacing <= 0.0);
   const NormalCloud normals(cloud, tree, params, grid);
   NormalsResult out;
   out.resize(core_points.size());
@@ -329,7 +327,6 @@ std::vector<double> roughness_by_scale(PointsView cloud, PointsView core_points,
   check.normal_diameters = diameters;
   detail::validate_normal_params(check);
   if (min_points < 3) throw InvalidArgument("min_points must be >= 3 for a plane fit, got " + std::to_string(min_points));
-  detail::require_finite_points("cloud", cloud);
   detail::require_finite_points("core points", core_points);
   std::vector<std::size_t> by_size(diameters.size());
   for (std::size_t k = 0; k < by_size.size(); ++k) by_size[k] = k;
@@ -337,9 +334,7 @@ std::vector<double> roughness_by_scale(PointsView cloud, PointsView core_points,
   std::vector<double> radii;
   for (const std::size_t k : by_size) radii.push_back(0.5 * diameters[k]);
 
-  const OctreeGrid grid = grid_for(diameters, 0.0);
-  detail::require_within_grid("the cloud", cloud, grid);
-  const Octree tree(cloud, grid, true);
+  const Octree tree = index_of(cloud, "cloud", grid_for(diameters, 0.0), true);
   const std::size_t scales = diameters.size();
   std::vector<double> out(core_points.size() * scales, std::numeric_limits<double>::quiet_NaN());
   const auto order = detail::morton_order(core_points);

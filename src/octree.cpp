@@ -1,5 +1,7 @@
 #include "octree.hpp"
 
+#include "morton.hpp"
+
 #include <m3c2/errors.hpp>
 
 #include <algorithm>
@@ -49,17 +51,6 @@ double farthest_distance2(const std::array<double, 3>& lo, const std::array<doub
     s[a] = std::max(dl * dl, dh * dh);
   }
   return s[0] + s[1] + s[2];
-}
-
-/// Spreads the low 21 bits of v so that bit k lands on bit 3k.
-std::uint64_t spread_bits(std::uint64_t v) {
-  v &= 0x1fffffULL;
-  v = (v | v << 32) & 0x1f00000000ffffULL;
-  v = (v | v << 16) & 0x1f0000ff0000ffULL;
-  v = (v | v << 8) & 0x100f00f00f00f00fULL;
-  v = (v | v << 4) & 0x10c30c30c30c30c3ULL;
-  v = (v | v << 2) & 0x1249249249249249ULL;
-  return v;
 }
 
 Key morton_key(const CellKey& u) {

@@ -1,5 +1,7 @@
 #include "spatial_order.hpp"
 
+#include "morton.hpp"
+
 #include <algorithm>
 #include <cmath>
 #include <numeric>
@@ -7,17 +9,6 @@
 
 namespace m3c2::detail {
 namespace {
-
-/// Spreads the low 21 bits of v so that bit k lands on bit 3k.
-std::uint64_t spread_bits(std::uint64_t v) {
-  v &= 0x1fffffULL;
-  v = (v | v << 32) & 0x1f00000000ffffULL;
-  v = (v | v << 16) & 0x1f0000ff0000ffULL;
-  v = (v | v << 8) & 0x100f00f00f00f00fULL;
-  v = (v | v << 4) & 0x10c30c30c30c30c3ULL;
-  v = (v | v << 2) & 0x1249249249249249ULL;
-  return v;
-}
 
 // A core point's Morton key (10 bits per axis, 1024 cells: finer buys no locality, only passes)
 // and its index share one 64-bit word, key above: sorting the words by their key bits alone is

@@ -21,6 +21,7 @@ Steps (:func:`run_tiled`):
 """
 from __future__ import annotations
 
+import functools
 import math
 import os
 import re
@@ -45,9 +46,8 @@ __all__ = ["halo", "run_tiled", "streaming_subsample", "parse_memory", "choose_t
 
 #: Resident bytes per cloud point of a tile while it is computed: 24 B coordinates read from the
 #: spill + the engine's octree (24 B slot copy, 4 B index; while it is built an 8 B key, 16 B for
-#: a cloud around the grid origin, and the sort's buffers; ~2-4 B nodes, ~3-5 B moments on the normals'
-#: cloud), measured at 59-67 B for the engine
-#: with both indexes built at once; rounded up (docs/scaling.md).
+#: a cloud around the grid origin, and the sort's buffers; ~2-4 B nodes, ~3-5 B moments on the
+#: normals' cloud), measured at 59-67 B with both indexes built at once; rounded up (docs/scaling.md).
 BYTES_PER_POINT = 100
 #: Resident bytes per core point of a tile: 24 B coordinates, ~85 B engine result and scratch
 #: (measured), the ~150 B row copy spilled to disk, rounded up (docs/scaling.md).
@@ -182,20 +182,22 @@ def plan_memory(limit: int, resident: int, chunk_size: int = DEFAULT_CHUNK) -> M
                       merge_rows=_chunk_rows(budget, MERGE_BYTES_PER_ROW, chunk_size))
 
 
+@functools.lru_cache(maxsize=1)
+def _malloc_trim():
+    """glibc's malloc_trim, or None where there is no glibc."""
+    try:
+        import ctypes
+        return ctypes.CDLL("libc.so.6").malloc_trim
+    except (OSError, AttributeError):
+        return None
+
+
 def _release_memory() -> None:
     """Hands the allocator's free pages back to the system between phases (glibc), so that one
     phase's freed buffers do not stay resident under the next phase's peak."""
-    if not _LIBC:
-        try:
-            import ctypes
-            _LIBC.append(ctypes.CDLL("libc.so.6").malloc_trim)
-        except (OSError, AttributeError):
-            _LIBC.append(None)
-    if _LIBC[0] is not None:
-        _LIBC[0](0)
-
-
-_LIBC: list = []
+    trim = _malloc_trim()
+    if trim is not None:
+        trim(0)
 
 
 # --------------------------------------------------------------------------- core points
@@ -548,10 +550,10 @@ def run_tiled(reference, compared, *, output=None, core=None, core_spacing=None,
             shutil.rmtree(work, ignore_errors=True)
 
 
-def _plan_tiles(work: Path, cores: _CoreStream, size: float, origin, rows: int):
+def _plan_tiles(work: Path, cores: _CoreStream, core_spill: "_Spills", normal_spill: "_Spills", size: float,
+                origin, rows: int):
     """Tile of every core point (``tile_of.u32``), per-tile core (and normal) spills, bounding
     boxes and counts. Returns (ids, lo, hi, counts, origin, n_core)."""
-    core_spill, normal_spill = _Spills(work, "core"), _Spills(work, "normals")
     ids: dict[tuple[int, int], int] = {}
     lo_l: list = []
     hi_l: list = []
@@ -638,7 +640,7 @@ def _run_in(work: Path, report: TiledReport, ref_src, cmp_src, cores: _CoreStrea
     # 2. plan: tile of every core point, per-tile core spills and bounding boxes
     t0 = time.perf_counter()
     core_spill, normal_spill = _Spills(work, "core"), _Spills(work, "normals")
-    ids, lo, hi, counts, origin, n_core = _plan_tiles(work, cores, size, origin, stream_rows)
+    ids, lo, hi, counts, origin, n_core = _plan_tiles(work, cores, core_spill, normal_spill, size, origin, stream_rows)
     n_tiles = len(ids)
     report.core_points, report.tiles = n_core, n_tiles
     if n_core == 0:
