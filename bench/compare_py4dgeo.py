@@ -23,14 +23,14 @@ W5 and W5mem are the same 10M + 10M-point pair with 2M core points, run two ways
 
 * W5 (out-of-core, the way a user runs a 20M-point pair in bounded memory): the clouds are
   written once as LAZ (or LAS, --stream-format) files and the core points as core.npy; the worker
-  runs m3c2.tiling.run_tiled -- what `m3c2 compare ref.laz cmp.laz --core core.npy -o change.laz
+  runs m3c2kit.tiling.run_tiled -- what `m3c2 compare ref.laz cmp.laz --core core.npy -o change.laz
   --memory-limit SIZE` runs -- which streams the files and never holds the whole clouds, and
   writes the result file. Its wall time covers everything (reading the core points, streaming and
   distributing both clouds into tiles, computing the tiles, merging and writing the output);
   its peak is the worker's VmHWM, measured before the output is read back for the checks.
   --memory-limit auto is 40 B per input point (the goal), at least 512 MiB.
 * W5mem (in memory, as W1-W4/W6): the same coordinates (the LAZ files read back by m3c2's reader,
-  saved as .npy) loaded into memory and passed to m3c2.compare.
+  saved as .npy) loaded into memory and passed to m3c2kit.compare.
 
 When both are run, the driver checks that their results are identical, bit for bit (every output
 column but x, y, z, which the LAS format rounds to its scale). py4dgeo has no out-of-core path: it
@@ -68,7 +68,7 @@ WORKLOADS = {
 # Workloads that share one set of inputs (generated once per run).
 INPUTS = {"W1": "toronto", "W2": "rough1M", "W3": "rough1M", "W4": "rough1M", "W6": "rough1M",
           "W5": "rough10M", "W5mem": "rough10M"}
-STREAMED = {"W5"}  # run through the out-of-core path (m3c2.tiling.run_tiled) from files
+STREAMED = {"W5"}  # run through the out-of-core path (m3c2kit.tiling.run_tiled) from files
 SMALL_INPUT, SMALL_REPEAT = 500_000, 5  # --repeat auto
 LAS_SCALE = 1e-5  # W5's files: coordinates quantised to 0.01 mm (the noise is 1 mm)
 COLUMNS = ("distance", "lod", "significant", "n1", "n2", "sigma1", "sigma2", "nx", "ny", "nz", "normal_scale",
@@ -81,9 +81,9 @@ def make_inputs(key: str, folder: Path, scale: float, stream_format: str) -> Non
     from common import rough_pair  # validation/common.py
 
     if key == "toronto":
-        import m3c2
-        ref = m3c2.read(REPO / "data/toronto-ttp/TTP_15.laz").xyz
-        cmp = m3c2.read(REPO / "data/toronto-ttp/TTP_23.laz").xyz
+        import m3c2kit
+        ref = m3c2kit.read(REPO / "data/toronto-ttp/TTP_15.laz").xyz
+        cmp = m3c2kit.read(REPO / "data/toronto-ttp/TTP_23.laz").xyz
         core = ref.copy()
     else:
         big = key == "rough10M"
@@ -95,12 +95,12 @@ def make_inputs(key: str, folder: Path, scale: float, stream_format: str) -> Non
         # boundary through the core point (its defect a) merely because the core is a cloud point.
         core = core + np.array([0.0, 0.0, 5e-4])
         if big:
-            import m3c2
+            import m3c2kit
             for name in ("ref", "cmp"):
                 path = folder / f"{name}.{stream_format}"
                 write_las(path, ref if name == "ref" else cmp)
                 # The in-memory variant gets exactly the coordinates the streamed one reads.
-                xyz = m3c2.read(path).xyz
+                xyz = m3c2kit.read(path).xyz
                 if name == "ref":
                     ref = xyz
                 else:
@@ -138,8 +138,8 @@ def save_table(path: Path, table: dict) -> None:
 
 
 def run_m3c2(folder: Path, D, d, L, normals: str, threads: int, tag: str, wall_only: bool, repeat: int) -> dict:
-    import m3c2
-    from m3c2 import _core
+    import m3c2kit
+    from m3c2kit import _core
 
     ref, cmp, core = (np.load(folder / f"{k}.npy") for k in ("ref", "cmp", "core"))
     params = dict(normal_scale=D, projection_scale=d, max_depth=L, min_points=1, threads=threads)
@@ -149,13 +149,13 @@ def run_m3c2(folder: Path, D, d, L, normals: str, threads: int, tag: str, wall_o
     walls = []
     for _ in range(repeat):
         t0 = time.perf_counter()
-        r = m3c2.compare(ref, cmp, core, **params)
+        r = m3c2kit.compare(ref, cmp, core, **params)
         walls.append(time.perf_counter() - t0)
     t_index = t_normals = t_projection = float("nan")
     if not wall_only:
         # Phases, measured after the real run: index builds (normals on no core point), normals,
         # and the projection alone (compare with these normals imposed).
-        from m3c2.api import build_params
+        from m3c2kit.api import build_params
         empty = np.empty((0, 3))
         p = build_params(normal_scale=D, projection_scale=d, max_depth=L)
         t = time.perf_counter(); _core.compute_normals(ref, empty, p, threads=threads)
@@ -168,7 +168,7 @@ def run_m3c2(folder: Path, D, d, L, normals: str, threads: int, tag: str, wall_o
             t_normals = time.perf_counter() - t - t_ref
         ok = np.isfinite(r.normal).all(1)
         t = time.perf_counter()
-        m3c2.compare(ref, cmp, core[ok], normal_source="core", core_normals=r.normal[ok], projection_scale=d,
+        m3c2kit.compare(ref, cmp, core[ok], normal_source="core", core_normals=r.normal[ok], projection_scale=d,
                      max_depth=L, min_points=1, threads=threads)
         t_projection = time.perf_counter() - t - t_index
     peak = peak_rss_bytes()
@@ -181,8 +181,8 @@ def run_m3c2_tiled(folder: Path, D, d, L, normals: str, threads: int, tag: str, 
                    tile_size: float | None, stream_format: str) -> dict:
     """The out-of-core path from files: what `m3c2 compare ref.laz cmp.laz --core core.npy
     -o change.laz --memory-limit SIZE` (or --tile-size S) runs."""
-    from m3c2.io import read_cloud
-    from m3c2.tiling import run_tiled
+    from m3c2kit.io import read_cloud
+    from m3c2kit.tiling import run_tiled
 
     params = dict(normal_scale=D, projection_scale=d, max_depth=L, min_points=1, threads=threads)
     if normals == "vertical":

@@ -36,7 +36,7 @@ PARAMS = ["--normal-scale", "4,8", "--projection-scale", "4", "--max-depth", "6"
 
 def derive(points: int, work: Path) -> tuple[Path, Path, int]:
     """Writes ref.npy / cmp.npy: copies of TTP_15 / TTP_23 shifted on a grid, file order copy by copy."""
-    from m3c2.io import read_cloud
+    from m3c2kit.io import read_cloud
     ref = read_cloud(REPO / "data/toronto-ttp/TTP_15.laz").xyz
     cmp_ = read_cloud(REPO / "data/toronto-ttp/TTP_23.laz").xyz
     copies = max(1, math.ceil(points / len(ref)))
@@ -110,7 +110,7 @@ def main() -> int:
 
         # 1. one machine, bounded memory, in a subprocess so its peak RSS is its own
         out1 = work / "one-machine.laz"
-        cmd = [sys.executable, "-m", "m3c2", "compare", str(ref), str(cmp_), "-o", str(out1), *PARAMS,
+        cmd = [sys.executable, "-m", "m3c2kit", "compare", str(ref), str(cmp_), "-o", str(out1), *PARAMS,
                "--memory-limit", args.memory_limit]
         env = dict(os.environ, PYTHONPATH=str(REPO / "python"))
         t0 = time.perf_counter()
@@ -136,7 +136,7 @@ def main() -> int:
         # 2. the same tiles on a Dask LocalCluster
         if not args.skip_dask:
             from distributed import Client, LocalCluster
-            from m3c2.tiling import run_tiled
+            from m3c2kit.tiling import run_tiled
             out2 = work / "dask.laz"
             sampler = TreeSampler()
             sampler.start()

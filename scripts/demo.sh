@@ -6,5 +6,5 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 bash scripts/install.sh
 mkdir -p out
-python3 -m m3c2 compare data/toronto-ttp/TTP_15.laz data/toronto-ttp/TTP_23.laz -o out/toronto-m3c2.laz \
+python3 -m m3c2kit compare data/toronto-ttp/TTP_15.laz data/toronto-ttp/TTP_23.laz -o out/toronto-m3c2.laz \
   --core-spacing 5 --normal-scale 8:40:8 --projection-scale 10 --max-depth 30 "$@"

@@ -10,7 +10,7 @@ from pathlib import Path
 
 import numpy as np
 
-import m3c2
+import m3c2kit
 
 REPO = Path(__file__).resolve().parents[1]
 SHARED = REPO.parent / "shared" / "data" / "pairs"
@@ -29,9 +29,9 @@ AUTZEN_D, AUTZEN_d, AUTZEN_L = 2.780864, 5.780864, 5.5
 # ----------------------------------------------------------------------------------------------
 # Data
 def load_autzen():
-    ref = m3c2.read(AUTZEN / "autzen-bmx-2010.las").xyz
-    cmp = m3c2.read(AUTZEN / "autzen-bmx-2023.las").xyz
-    core = m3c2.read(AUTZEN / "autzen-bmx-largersample.txt").xyz
+    ref = m3c2kit.read(AUTZEN / "autzen-bmx-2010.las").xyz
+    cmp = m3c2kit.read(AUTZEN / "autzen-bmx-2023.las").xyz
+    core = m3c2kit.read(AUTZEN / "autzen-bmx-largersample.txt").xyz
     cc = np.genfromtxt(AUTZEN / "autzen-bmx-cc.txt", delimiter=",", names=True)
     pdal = np.genfromtxt(AUTZEN / "autzen-bmx-m3c2.txt", delimiter=",", names=True)
     return ref, cmp, core, cc, pdal
@@ -137,7 +137,7 @@ def run_py4dgeo(ref, cmp, core, D, d, L, threads=2, normals=None):
 
 def run_m3c2_like_py4dgeo(ref, cmp, core, D, d, L, threads=0):
     """m3c2 in its default mode (sample variance) with no minimum count beyond its own (min_points=1)."""
-    return m3c2.compare(ref, cmp, core, normal_scale=D, projection_scale=d, max_depth=L, min_points=1,
+    return m3c2kit.compare(ref, cmp, core, normal_scale=D, projection_scale=d, max_depth=L, min_points=1,
                         threads=threads)
 
 

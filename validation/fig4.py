@@ -23,14 +23,14 @@ from pathlib import Path
 import numpy as np
 
 try:
-    import m3c2
+    import m3c2kit
 except ImportError:  # run from a source checkout
     sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "python"))
-    import m3c2
+    import m3c2kit
 
-from m3c2.analysis import c2c
-from m3c2.analysis.common import pyplot, write_csv
-from m3c2.analysis.synthetic import noisy_plane
+from m3c2kit.analysis import c2c
+from m3c2kit.analysis.common import pyplot, write_csv
+from m3c2kit.analysis.synthetic import noisy_plane
 
 SHIFTS = [0, 1, 2, 3, 4, 5, 6, 8, 10, 15, 20, 30, 50, 75, 100]
 NX, NY, NOISE = 400, 250, 1.0
@@ -40,12 +40,12 @@ PAPER = {"m3c2_mean_error": 0.003, "m3c2_std": 0.15, "c2c_4mm_dx1": 2.56, "c2c_4
 
 def run_case(dx: float, x_shift: float, shifts, threads: int) -> dict[str, list]:
     ref = noisy_plane(NX, NY, dx, NOISE, seed=1)
-    normals = m3c2.normals(ref, ref, normal_scale=50 * dx, threads=threads)["normal"]
+    normals = m3c2kit.normals(ref, ref, normal_scale=50 * dx, threads=threads)["normal"]
     rows = {k: [] for k in ("dx", "x_shift", "shift", "m3c2_mean", "m3c2_std", "m3c2_n", "c2c_mean", "c2c_std",
                             "c2c_hf_mean", "c2c_hf_std", "c2c_hf_model_mean", "c2c_hf_model_std")}
     for shift in shifts:
         cmp_ = noisy_plane(NX, NY, dx, NOISE, z=float(shift), x_shift=x_shift, seed=2)
-        r = m3c2.compare(ref, cmp_, ref, normal_source="core", core_normals=normals, projection_scale=10 * dx,
+        r = m3c2kit.compare(ref, cmp_, ref, normal_source="core", core_normals=normals, projection_scale=10 * dx,
                          max_depth=float(shift) + 10.0, threads=threads)
         dist = r.distance[np.isfinite(r.distance)]
         closer = c2c(ref, cmp_, model="plane", model_neighbours=6, rule="closer", threads=threads)

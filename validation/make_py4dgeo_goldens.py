@@ -20,7 +20,7 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 import common as C  # noqa: E402
 
-import m3c2  # noqa: E402
+import m3c2kit  # noqa: E402
 
 OUT = C.REPO / "tests" / "data" / "py4dgeo"
 
@@ -36,11 +36,11 @@ def cases():
                          core="pairs/autzen-bmx/autzen-bmx-largersample.txt"), ref, cmp, core, \
         C.AUTZEN_D, C.AUTZEN_d, C.AUTZEN_L
     t15, t23 = C.load_toronto()
-    tcore = t15[m3c2.subsample(t15, 5.0)][::2]
+    tcore = t15[m3c2kit.subsample(t15, 5.0)][::2]
     for L in (10.0, 7.5):
         yield f"toronto_L{L:g}", dict(source="files", reference="pairs/toronto-ttp/TTP_15.xyz",
                                       compared="pairs/toronto-ttp/TTP_23.xyz",
-                                      core="TTP_15[m3c2.subsample(TTP_15, 5.0)][::2] (stored as core)"), \
+                                      core="TTP_15[m3c2kit.subsample(TTP_15, 5.0)][::2] (stored as core)"), \
             t15, t23, tcore, 10.0, 5.0, L
     a, b, c = C.rough_pair(**SMALL_ROUGH)
     yield "rough_small", dict(source="rough_pair", kwargs=SMALL_ROUGH), a, b, c, 1.0, 0.2, 0.5

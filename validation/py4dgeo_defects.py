@@ -14,7 +14,7 @@ import logging
 
 import numpy as np
 
-import m3c2
+import m3c2kit
 
 import py4dgeo  # noqa: E402
 
@@ -65,7 +65,7 @@ def segment_boundaries():
         N = int(np.ceil(L / 0.25))
         b = -L + 2 * L / N * np.arange(N + 1)
         d, u, _ = p4(ref, cmp, core, [0.5], 0.25, L, normals=[[0.0, 0.0, 1.0]])
-        r = m3c2.compare(ref, cmp, core, projection_scale=0.5, max_depth=L, normal_source="core",
+        r = m3c2kit.compare(ref, cmp, core, projection_scale=0.5, max_depth=L, normal_source="core",
                          core_normals=[[0.0, 0.0, 1.0]], min_points=1)
         print(f"| {L} | {N} | {', '.join(f'{x:g}' for x in b)} | {d[0]} | {u['num_samples1'][0]}, {u['num_samples2'][0]} "
               f"| 0.25 | 13, 13 | {r.distance[0]} | {r.n1[0]}, {r.n2[0]} |")
@@ -84,12 +84,12 @@ def fewer_than_three():
     print("segment boundary at t = 0).")
     print("Exact answer: no plane through 2 points, so no normal, no distance (undefined).\n")
     d, u, n = p4(ref, cmp, core, [0.5], 0.5, 1.5)
-    r = m3c2.compare(ref, cmp, core, normal_scale=1.0, projection_scale=1.0, max_depth=1.5, min_points=1)
+    r = m3c2kit.compare(ref, cmp, core, normal_scale=1.0, projection_scale=1.0, max_depth=1.5, min_points=1)
     print(f"- py4dgeo: normal {fmt(n[0])} (never computed), distance {d[0]}, LOD {u['lodetection'][0]}, "
           f"n1 {u['num_samples1'][0]}, n2 {u['num_samples2'][0]}")
     print("- exact: normal undefined, distance undefined")
     print(f"- m3c2: normal {fmt(r.normal[0])}, distance {r.distance[0]}, LOD {r.lod[0]}, "
-          f"status {m3c2.STATUS_NAMES[r.status[0]]}\n")
+          f"status {m3c2kit.STATUS_NAMES[r.status[0]]}\n")
 
 
 def multiscale_recount():
@@ -111,7 +111,7 @@ def multiscale_recount():
     exact = pca_normal(ref)
     first = ref[np.sqrt((ref ** 2).sum(1)) < 0.3]  # py4dgeo's strict ball at the first radius
     twice = pca_normal(np.vstack([first, ref]))
-    r = m3c2.normals(ref, core, normal_scale=2.0)
+    r = m3c2kit.normals(ref, core, normal_scale=2.0)
 
     def deg(a, b):
         return np.degrees(np.arccos(min(1.0, abs(float(np.dot(a, b))))))
@@ -128,7 +128,7 @@ def multiscale_recount():
 
 
 def main():
-    print(f"py4dgeo {py4dgeo.__version__}, m3c2 {m3c2.__version__}, numpy {np.__version__}\n")
+    print(f"py4dgeo {py4dgeo.__version__}, m3c2 {m3c2kit.__version__}, numpy {np.__version__}\n")
     segment_boundaries()
     fewer_than_three()
     multiscale_recount()

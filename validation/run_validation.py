@@ -23,7 +23,7 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 import common as C  # noqa: E402
 
-import m3c2  # noqa: E402
+import m3c2kit  # noqa: E402
 
 DOC = C.REPO / "docs" / "validation.md"
 IMG = C.REPO / "docs" / "validation"
@@ -110,7 +110,7 @@ def angle_deg(a, b):
 # ----------------------------------------------------------------------------------------------
 def cloudcompare_section(ref, cmp, core, cc):
     D, d, L = C.AUTZEN_D, C.AUTZEN_d, C.AUTZEN_L
-    r = m3c2.compare(ref, cmp, core, compat="cloudcompare", depth_search="single", normal_scale=D,
+    r = m3c2kit.compare(ref, cmp, core, compat="cloudcompare", depth_search="single", normal_scale=D,
                      projection_scale=d, max_depth=L)
     ccn = np.column_stack([cc["NormalX"], cc["NormalY"], cc["NormalZ"]])
     zero = np.all(ccn == 0, axis=1)
@@ -123,7 +123,7 @@ def cloudcompare_section(ref, cmp, core, cc):
     agree = keep & same_nan & close(r.distance, cc["M3C2_distance"]) & close(r.lod, cc["distance_uncertainty"])
     differ = np.flatnonzero(keep & ~agree)
     unit = np.where(zero[:, None], 0.0, ccn / np.where(zero, 1.0, np.linalg.norm(ccn, axis=1))[:, None])
-    rc = m3c2.compare(ref, cmp, core, compat="cloudcompare", depth_search="single", normal_scale=D, projection_scale=d,
+    rc = m3c2kit.compare(ref, cmp, core, compat="cloudcompare", depth_search="single", normal_scale=D, projection_scale=d,
                       max_depth=L, normal_source="core", core_normals=np.where(zero[:, None], [0.0, 0.0, 1.0], unit))
     ang = np.array([angle_deg(r.normal[i], ccn[i]) if keep[i] and np.all(np.isfinite(r.normal[i])) else np.nan
                     for i in range(len(core))])
@@ -134,14 +134,14 @@ def cloudcompare_section(ref, cmp, core, cc):
     emit(f"with NormalScale {D}, SearchScale {d}, SearchDepth {L} (half-length), single pass, reference normals")
     emit("oriented +Z, its default minimum of 5 points for statistics; it prints 3 decimals. m3c2:\n")
     emit("```")
-    emit(f"m3c2.compare(ref, cmp, core, compat=\"cloudcompare\", depth_search=\"single\", normal_scale={D},")
+    emit(f"m3c2kit.compare(ref, cmp, core, compat=\"cloudcompare\", depth_search=\"single\", normal_scale={D},")
     emit(f"             projection_scale={d}, max_depth={L})")
     emit("```\n")
     emit("| quantity | value |")
     emit("|---|---|")
     emit(f"| core points | {len(core)} |")
     emit(f"| CloudCompare zero normals (distance written as 0; excluded) | {int(zero.sum())} |")
-    emit(f"| m3c2 status at those | {', '.join(sorted({m3c2.STATUS_NAMES[s] for s in r.status[zero]}))} (distance NaN) |")
+    emit(f"| m3c2 status at those | {', '.join(sorted({m3c2kit.STATUS_NAMES[s] for s in r.status[zero]}))} (distance NaN) |")
     emit(f"| compared core points | {int(keep.sum())} |")
     emit(f"| same NaN-ness of the distance | {int((keep & same_nan).sum())} |")
     emit(f"| distance and LOD within 2 mm (or NaN in both), same NaN-ness | **{int(agree.sum())}** |")
@@ -197,7 +197,7 @@ def cloudcompare_section(ref, cmp, core, cc):
 
 def pdal_section(ref, cmp, core, cc, pdal, r_cc):
     D, d, L = C.AUTZEN_D, C.AUTZEN_d, C.AUTZEN_L
-    r = m3c2.compare(ref, cmp, core, normal_scale=D, projection_scale=d, max_depth=L, variance="population",
+    r = m3c2kit.compare(ref, cmp, core, normal_scale=D, projection_scale=d, max_depth=L, variance="population",
                      min_points=1)
     pd_d, pd_l = pdal["m3c2_distance"], pdal["m3c2_uncertainty"]
     ours_d0 = np.nan_to_num(r.distance, nan=0.0)  # PDAL writes 0 where nothing was computed
@@ -211,7 +211,7 @@ def pdal_section(ref, cmp, core, cc, pdal, r_cc):
     emit(f"normal_radius = {D / 2}, cyl_radius = {d / 2}, cyl_halflen = {L}; it uses the population variance,")
     emit("no minimum count (min_points 1) and writes 0 for uncomputed values. m3c2:\n")
     emit("```")
-    emit(f"m3c2.compare(ref, cmp, core, normal_scale={D}, projection_scale={d}, max_depth={L},")
+    emit(f"m3c2kit.compare(ref, cmp, core, normal_scale={D}, projection_scale={d}, max_depth={L},")
     emit("             variance=\"population\", min_points=1)   # NaN compared as PDAL's 0")
     emit("```\n")
     emit("| quantity | value |")
@@ -222,7 +222,7 @@ def pdal_section(ref, cmp, core, cc, pdal, r_cc):
     emit(f"| m3c2 vs PDAL: n1 and n2 equal | {int(same_n.sum())} |")
     emit(f"| PDAL vs CloudCompare: distance differs by > 2 mm (NaN as 0) | {int(vs_cc.sum())}, max {g(np.max(np.abs(np.nan_to_num(cc_d, nan=0.0) - pd_d)), 3)} |")
     emit("")
-    emit("Core points where PDAL differs from CloudCompare (> 2 mm) or from m3c2 (distance/uncertainty > 2 mm")
+    emit("Core points where PDAL differs from CloudCompare (> 2 mm) or from m3c2kit (distance/uncertainty > 2 mm")
     emit("or counts), with m3c2's compat-cloudcompare value and the edge counts with our normal:\n")
     emit("| core | PDAL: distance, unc., n1, n2 | CloudCompare: distance, LOD, n1, n2 | m3c2 (PDAL-like): distance, unc., n1, n2 | m3c2 (CC compat) distance | edge ref/cmp |")
     emit("|---|---|---|---|---|---|")
@@ -306,7 +306,7 @@ def py4dgeo_section(autzen, toronto):
     cases = [("autzen", "autzen-bmx", ref, cmp, core, C.AUTZEN_D, C.AUTZEN_d, C.AUTZEN_L),
              ("autzen-odd", "autzen-bmx, depth 8 (odd N)", ref, cmp, core, C.AUTZEN_D, C.AUTZEN_d, 8.0)]
     t15, t23 = toronto
-    tcore = t15[m3c2.subsample(t15, 5.0)]
+    tcore = t15[m3c2kit.subsample(t15, 5.0)]
     cases += [("toronto", "Toronto TTP 2015/2023", t15, t23, tcore, 10.0, 5.0, 10.0),
               ("toronto-odd", "Toronto, depth 7.5 (odd N)", t15, t23, tcore, 10.0, 5.0, 7.5)]
     w2 = C.rough_pair(**W2)
@@ -359,14 +359,14 @@ def main():
     emit("```")
     emit("python3 -m venv /tmp/valenv")
     emit("/tmp/valenv/bin/pip install py4dgeo matplotlib laspy[lazrs] pye57 numpy")
-    emit("cd /work/main   # the repository; the compiled engine python/m3c2/_core*.so must be built")
+    emit("cd /work/main   # the repository; the compiled engine python/m3c2kit/_core*.so must be built")
     emit("PYTHONPATH=python /tmp/valenv/bin/python validation/run_validation.py > docs/validation.md")
     emit("```\n")
     emit("(the script also writes docs/validation.md itself). py4dgeo is installed only in that separate")
     emit("environment; m3c2 never depends on it. The CI keeps py4dgeo's outputs as goldens")
     emit("(`tests/data/py4dgeo/`, `tests/python/test_agreement_py4dgeo.py`, no py4dgeo needed).\n")
     emit("## Versions and machine\n")
-    emit(f"- m3c2 {m3c2.__version__}, git commit {git_commit()}")
+    emit(f"- m3c2 {m3c2kit.__version__}, git commit {git_commit()}")
     emit(f"- py4dgeo {py4dgeo.__version__}, numpy {np.__version__}, matplotlib {matplotlib.__version__}, Python {platform.python_version()}")
     emit(f"- machine: {platform.machine()}, {os.cpu_count()} CPUs, {platform.system()} {platform.release()}; shared with other")
     emit("  jobs while this ran, so the times below are indicative only")
@@ -408,7 +408,7 @@ def main():
     emit(f"W2: `rough_pair({', '.join(f'{k}={v!r}' for k, v in W2.items())})`, 1M points on 10 m × 10 m.")
     emit(f"Quantised scan: `rough_pair({', '.join(f'{k}={v!r}' for k, v in QUANT.items())})`: 1M points on")
     emit("100 m × 100 m, every coordinate rounded to 0.125 m (a TLS-like quantised scan).")
-    emit("Toronto core points: `TTP_15[m3c2.subsample(TTP_15, 5.0)]`.\n")
+    emit("Toronto core points: `TTP_15[m3c2kit.subsample(TTP_15, 5.0)]`.\n")
     py4dgeo_section((ref, cmp, core), C.load_toronto())
 
     emit("## 4. py4dgeo's defects on minimal inputs\n")

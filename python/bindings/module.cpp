@@ -118,7 +118,7 @@ nb::dict result_dict(m3c2::Result&& r) {
 }  // namespace
 
 NB_MODULE(_core, m) {
-  m.doc() = "m3c2 engine (C++): see python/m3c2/__init__.py for the documented API";
+  m.doc() = "m3c2 engine (C++): see python/m3c2kit/__init__.py for the documented API";
 
   nb::enum_<m3c2::NormalSource>(m, "NormalSource")
       .value("reference", m3c2::NormalSource::kReference)

@@ -16,7 +16,7 @@ import atheris
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
-with atheris.instrument_imports(include=["m3c2"]):
+with atheris.instrument_imports(include=["m3c2kit"]):
     import targets  # noqa: E402  (imports m3c2, instrumented for coverage)
 
 

@@ -5,11 +5,11 @@ exceptions that may escape are the documented ones, and what is returned is well
 Anything else (TypeError, IndexError, an unexpected ValueError, ...) is a bug: the target
 re-raises it and the fuzzer reports the input.
 
-    ascii_reader   m3c2.io.read_cloud on a .xyz/.csv/.txt/.pts file  -> CloudReadError only
-    ply_reader     m3c2.io.read_cloud on a .ply file                  -> CloudReadError only
-    cc_params      m3c2.cloudcompare_params.read_cloudcompare_params  -> UsageError only
+    ascii_reader   m3c2kit.io.read_cloud on a .xyz/.csv/.txt/.pts file  -> CloudReadError only
+    ply_reader     m3c2kit.io.read_cloud on a .ply file                  -> CloudReadError only
+    cc_params      m3c2kit.cloudcompare_params.read_cloudcompare_params  -> UsageError only
     cli_args       cli.make_parser().parse_args + cli.compare_settings + api.build_params and the
-                   option parsers of m3c2.options                      -> M3C2Error (UsageError:
+                   option parsers of m3c2kit.options                      -> M3C2Error (UsageError:
                    exit 2), or SystemExit(0) for --help
 
 Drivers: tests/fuzz/fuzz.py (atheris / libFuzzer) and tests/fuzz/random_fuzz.py (a seeded,
@@ -27,16 +27,16 @@ from pathlib import Path
 
 _REPO = Path(__file__).resolve().parents[2]
 try:  # an installed m3c2 wins; fall back to the source tree
-    import m3c2  # noqa: F401
+    import m3c2kit  # noqa: F401
 except ImportError:  # pragma: no cover
     sys.path.insert(0, str(_REPO / "python"))
 
 import numpy as np  # noqa: E402
 
-from m3c2 import api, cli, options  # noqa: E402
-from m3c2.cloudcompare_params import read_cloudcompare_params  # noqa: E402
-from m3c2.errors import CloudReadError, M3C2Error, UsageError  # noqa: E402
-from m3c2.io import read_cloud  # noqa: E402
+from m3c2kit import api, cli, options  # noqa: E402
+from m3c2kit.cloudcompare_params import read_cloudcompare_params  # noqa: E402
+from m3c2kit.errors import CloudReadError, M3C2Error, UsageError  # noqa: E402
+from m3c2kit.io import read_cloud  # noqa: E402
 
 _WORK = Path(tempfile.mkdtemp(prefix="m3c2-fuzz-"))
 _TEXT_EXTENSIONS = (".xyz", ".csv", ".txt", ".pts", ".asc", ".neu")

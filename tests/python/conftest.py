@@ -10,7 +10,7 @@ import pytest
 REPO = Path(__file__).resolve().parents[2]
 
 # Prefer an installed m3c2 (e.g. `pip install .`); fall back to the source tree.
-if importlib.util.find_spec("m3c2") is None:
+if importlib.util.find_spec("m3c2kit") is None:
     sys.path.insert(0, str(REPO / "python"))
 
 

@@ -7,23 +7,23 @@ minimum of 5 points for statistics. It prints 3 decimals, so agreement is judged
 import numpy as np
 import pytest
 
-import m3c2
-from m3c2.result import STATUS_NAMES
+import m3c2kit
+from m3c2kit.result import STATUS_NAMES
 
 
 @pytest.fixture(scope="module")
 def autzen(shared_data):
     d = shared_data / "pairs" / "autzen-bmx"
-    ref = m3c2.read(d / "autzen-bmx-2010.las")
-    cmp = m3c2.read(d / "autzen-bmx-2023.las")
-    core = m3c2.read(d / "autzen-bmx-largersample.txt").xyz
+    ref = m3c2kit.read(d / "autzen-bmx-2010.las")
+    cmp = m3c2kit.read(d / "autzen-bmx-2023.las")
+    core = m3c2kit.read(d / "autzen-bmx-largersample.txt").xyz
     cc = np.genfromtxt(d / "autzen-bmx-cc.txt", delimiter=",", names=True)
     return ref, cmp, core, cc
 
 
 def test_compat_mode_reproduces_cloudcompare(autzen):
     ref, cmp, core, cc = autzen
-    r = m3c2.compare(ref, cmp, core, compat="cloudcompare", depth_search="single", normal_scale=2.780864,
+    r = m3c2kit.compare(ref, cmp, core, compat="cloudcompare", depth_search="single", normal_scale=2.780864,
                      projection_scale=5.780864, max_depth=5.5)
     np.testing.assert_array_equal(r.core, core)
     cc_normal = np.column_stack([cc["NormalX"], cc["NormalY"], cc["NormalZ"]])

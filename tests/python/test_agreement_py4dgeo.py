@@ -20,7 +20,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-import m3c2
+import m3c2kit
 
 REPO = Path(__file__).resolve().parents[2]
 GOLDENS = REPO / "tests" / "data" / "py4dgeo"
@@ -42,7 +42,7 @@ def inputs_for(meta, golden, shared_data):
     else:
         if not shared_data.is_dir():
             pytest.skip("shared data not found")
-        ref, cmp = [np.ascontiguousarray(m3c2.read(shared_data / spec[k]).xyz) if spec[k].endswith(".las")
+        ref, cmp = [np.ascontiguousarray(m3c2kit.read(shared_data / spec[k]).xyz) if spec[k].endswith(".las")
                     else np.ascontiguousarray(np.loadtxt(shared_data / spec[k], comments="//", usecols=(0, 1, 2)))
                     for k in ("reference", "compared")]
         core = golden["core"]
@@ -61,7 +61,7 @@ def test_agrees_with_py4dgeo_outside_its_defects(name, pairs_dir):
     golden, meta = load_golden(name)
     ref, cmp, core = inputs_for(meta, golden, pairs_dir)
     p = meta["params"]
-    r = m3c2.compare(ref, cmp, core, normal_scale=p["D"], projection_scale=p["d"], max_depth=p["L"], min_points=1)
+    r = m3c2kit.compare(ref, cmp, core, normal_scale=p["D"], projection_scale=p["d"], max_depth=p["L"], min_points=1)
     lod = r.lod * C.PY4DGEO_Z / C.Z95
     ok = C.agreement(r.distance, lod, golden["distance"], golden["lod"], meta["tolerance"])
     clean = golden["flags"] == C.FLAG_NONE
@@ -93,7 +93,7 @@ def test_flags_concern_the_boundary_at_t0_for_even_segment_counts():
 def test_pdal_autzen(pairs_dir):
     d = pairs_dir / "pairs" / "autzen-bmx"
     ref, cmp, core, cc, pdal = C.load_autzen() if d.is_dir() else pytest.skip("no autzen-bmx")
-    r = m3c2.compare(ref, cmp, core, normal_scale=C.AUTZEN_D, projection_scale=C.AUTZEN_d, max_depth=C.AUTZEN_L,
+    r = m3c2kit.compare(ref, cmp, core, normal_scale=C.AUTZEN_D, projection_scale=C.AUTZEN_d, max_depth=C.AUTZEN_L,
                      variance="population", min_points=1)
     dist0, lod0 = np.nan_to_num(r.distance, nan=0.0), np.nan_to_num(r.lod, nan=0.0)  # PDAL writes 0
     ok = (np.abs(dist0 - pdal["m3c2_distance"]) <= 0.002) & (np.abs(lod0 - pdal["m3c2_uncertainty"]) <= 0.002)

@@ -7,10 +7,10 @@ import csv
 import numpy as np
 import pytest
 
-from m3c2.analysis import c2c
-from m3c2.analysis.synthetic import noisy_plane
-from m3c2.cli import main
-from m3c2.errors import UsageError
+from m3c2kit.analysis import c2c
+from m3c2kit.analysis.synthetic import noisy_plane
+from m3c2kit.cli import main
+from m3c2kit.errors import UsageError
 
 
 def brute(ref, q):
@@ -102,7 +102,7 @@ def test_real_pair(shared_data, tmp_path):
     out = tmp_path / "autzen.laz"
     assert main(["c2c", str(pair / "autzen-bmx-2010.las"), str(pair / "autzen-bmx-2023.las"), "-o", str(out),
                  "--model", "plane", "--quiet"]) == 0
-    import m3c2
-    cloud = m3c2.read(out)
-    assert len(cloud) == len(m3c2.read(pair / "autzen-bmx-2023.las"))
+    import m3c2kit
+    cloud = m3c2kit.read(out)
+    assert len(cloud) == len(m3c2kit.read(pair / "autzen-bmx-2023.las"))
     assert np.all(cloud.fields["c2c_hf"] <= cloud.fields["c2c"] + 1e-6)

@@ -7,11 +7,11 @@ import csv
 import numpy as np
 import pytest
 
-from m3c2.analysis import calibrate
-from m3c2.analysis.calibrate import resolve_spacing
-from m3c2.analysis.synthetic import noisy_plane
-from m3c2.cli import main
-from m3c2.errors import UsageError
+from m3c2kit.analysis import calibrate
+from m3c2kit.analysis.calibrate import resolve_spacing
+from m3c2kit.analysis.synthetic import noisy_plane
+from m3c2kit.cli import main
+from m3c2kit.errors import UsageError
 
 D_LIST = [0.8, 1.2, 1.6, 2.4]  # n2 >= 4 needs d >~ 0.7 on the 0.3-spaced copy
 

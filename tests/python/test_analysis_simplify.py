@@ -7,9 +7,9 @@ import math
 import numpy as np
 import pytest
 
-from m3c2.analysis import simplify
-from m3c2.analysis.synthetic import noisy_plane
-from m3c2.cli import main
+from m3c2kit.analysis import simplify
+from m3c2kit.analysis.synthetic import noisy_plane
+from m3c2kit.cli import main
 
 
 @pytest.fixture(scope="module")
@@ -62,6 +62,6 @@ def test_real_cloud(shared_data, tmp_path):
     out = tmp_path / "autzen.laz"
     assert main(["simplify", str(cloud), "--core-spacing", "3", "--projection-scale", "4", "-o", str(out),
                  "--quiet"]) == 0
-    import m3c2
-    c = m3c2.read(out)
+    import m3c2kit
+    c = m3c2kit.read(out)
     assert len(c) > 10 and "density_per_area" in c.fields

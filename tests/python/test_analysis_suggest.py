@@ -4,9 +4,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from m3c2.analysis import suggest
-from m3c2.analysis.synthetic import noisy_plane
-from m3c2.cli import main
+from m3c2kit.analysis import suggest
+from m3c2kit.analysis.synthetic import noisy_plane
+from m3c2kit.cli import main
 
 
 @pytest.fixture(scope="module")

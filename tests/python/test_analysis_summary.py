@@ -5,8 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from m3c2.result import Result
-from m3c2.summary import normal_accuracy, summary_lines
+from m3c2kit.result import Result
+from m3c2kit.summary import normal_accuracy, summary_lines
 
 
 def make_result(normal_scale, roughness) -> Result:

@@ -2,9 +2,9 @@
 import numpy as np
 import pytest
 
-import m3c2
-from m3c2 import _core
-from m3c2.api import build_params
+import m3c2kit
+from m3c2kit import _core
+from m3c2kit.api import build_params
 
 from synthetic import noisy_plane_pair
 
@@ -14,7 +14,7 @@ PARAMS = dict(normal_scale=0.5, projection_scale=0.3, max_depth=0.5)
 def test_compare_recovers_a_known_offset():
     ref, cmp = noisy_plane_pair(offset=0.1)
     core = ref[(ref[:, 0] > 1) & (ref[:, 0] < 5) & (ref[:, 1] > 1) & (ref[:, 1] < 5)][::7]
-    r = m3c2.compare(ref, cmp, core, **PARAMS)
+    r = m3c2kit.compare(ref, cmp, core, **PARAMS)
     assert (r.status == 0).all()
     # 2 mm noise averaged over ~28 points per cylinder: the mean is within 1 mm of 0.1.
     assert abs(np.mean(r.distance) - 0.1) < 1e-3
@@ -24,14 +24,14 @@ def test_compare_recovers_a_known_offset():
 
 def test_inputs_are_viewed_not_copied():
     ref, cmp = noisy_plane_pair(n=40)
-    r = m3c2.compare(ref, cmp, ref, **PARAMS)
+    r = m3c2kit.compare(ref, cmp, ref, **PARAMS)
     assert np.shares_memory(r.core, ref)
 
 
 def test_api_matches_the_engine_field_by_field():
     ref, cmp = noisy_plane_pair(n=60)
     core = ref[::11].copy()
-    r = m3c2.compare(ref, cmp, core, median=True, **PARAMS)
+    r = m3c2kit.compare(ref, cmp, core, median=True, **PARAMS)
     p = build_params(median=True, **PARAMS)
     raw = _core.compute(ref, cmp, core, p)
     for name in ("distance", "lod", "n1", "n2", "sigma1", "sigma2", "i1", "i2", "normal", "normal_scale",
@@ -42,7 +42,7 @@ def test_api_matches_the_engine_field_by_field():
 
 def test_core_spacing_subsamples_the_reference():
     ref, cmp = noisy_plane_pair(n=60)
-    r = m3c2.compare(ref, cmp, core_spacing=0.3, **PARAMS)
+    r = m3c2kit.compare(ref, cmp, core_spacing=0.3, **PARAMS)
     d = np.linalg.norm(r.core[:, None, :] - r.core[None, :, :], axis=-1)
     np.fill_diagonal(d, np.inf)
     assert d.min() >= 0.3 and 20 < len(r) < len(ref)
@@ -74,23 +74,23 @@ def test_normal_scale_syntax(spec, expected):
 ])
 def test_bad_parameters_name_the_option(bad, option):
     ref, cmp = noisy_plane_pair(n=20)
-    with pytest.raises(m3c2.UsageError, match=option):
-        m3c2.compare(ref, cmp, **{**PARAMS, **bad})
+    with pytest.raises(m3c2kit.UsageError, match=option):
+        m3c2kit.compare(ref, cmp, **{**PARAMS, **bad})
 
 
 def test_missing_normal_scale_is_a_usage_error_unless_normals_are_imposed():
     ref, cmp = noisy_plane_pair(n=20)
-    with pytest.raises(m3c2.UsageError, match="--normal-scale"):
-        m3c2.compare(ref, cmp, projection_scale=0.3, max_depth=0.5)
-    r = m3c2.compare(ref, cmp, projection_scale=0.3, max_depth=0.5, normal_source="vertical")
+    with pytest.raises(m3c2kit.UsageError, match="--normal-scale"):
+        m3c2kit.compare(ref, cmp, projection_scale=0.3, max_depth=0.5)
+    r = m3c2kit.compare(ref, cmp, projection_scale=0.3, max_depth=0.5, normal_source="vertical")
     np.testing.assert_array_equal(r.normal[:, 2], 1.0)
 
 
 def test_compat_cloudcompare_switches_to_population_variance():
     ref, cmp = noisy_plane_pair(n=60)
     core = ref[::13].copy()
-    ours = m3c2.compare(ref, cmp, core, depth_search="single", min_points=4, **PARAMS)
-    cc = m3c2.compare(ref, cmp, core, compat="cloudcompare", depth_search="single", min_points=4, **PARAMS)
+    ours = m3c2kit.compare(ref, cmp, core, depth_search="single", min_points=4, **PARAMS)
+    cc = m3c2kit.compare(ref, cmp, core, compat="cloudcompare", depth_search="single", min_points=4, **PARAMS)
     n = ours.n1.astype(float)
     np.testing.assert_allclose(cc.sigma1, ours.sigma1 * np.sqrt((n - 1) / n), rtol=1e-12)
 
@@ -99,16 +99,16 @@ def test_core_normals_are_used_as_given():
     ref, cmp = noisy_plane_pair(n=40)
     core = ref[::9].copy()
     tilted = np.tile([0.0, 0.6, 0.8], (len(core), 1))
-    r = m3c2.compare(ref, cmp, core, normal_source="core", core_normals=tilted, projection_scale=0.3, max_depth=0.5)
+    r = m3c2kit.compare(ref, cmp, core, normal_source="core", core_normals=tilted, projection_scale=0.3, max_depth=0.5)
     np.testing.assert_allclose(r.normal, tilted)
-    with pytest.raises(m3c2.UsageError, match="core_normals"):
-        m3c2.compare(ref, cmp, core, normal_source="core", projection_scale=0.3, max_depth=0.5)
+    with pytest.raises(m3c2kit.UsageError, match="core_normals"):
+        m3c2kit.compare(ref, cmp, core, normal_source="core", projection_scale=0.3, max_depth=0.5)
 
 
 def test_progress_callback_can_cancel():
     ref, cmp = noisy_plane_pair(n=60)
     with pytest.raises(RuntimeError, match="cancel"):
-        m3c2.compare(ref, cmp, progress=lambda done, total: False, **PARAMS)
+        m3c2kit.compare(ref, cmp, progress=lambda done, total: False, **PARAMS)
 
 
 def test_exception_in_progress_callback_propagates():
@@ -118,11 +118,11 @@ def test_exception_in_progress_callback_propagates():
         raise ZeroDivisionError("from the callback")
 
     with pytest.raises(ZeroDivisionError, match="from the callback"):
-        m3c2.compare(ref, cmp, progress=boom, **PARAMS)
+        m3c2kit.compare(ref, cmp, progress=boom, **PARAMS)
 
 
 def test_output_columns_are_the_contract():
     ref, cmp = noisy_plane_pair(n=30)
-    r = m3c2.compare(ref, cmp, **PARAMS)
-    assert tuple(r.columns()) == m3c2.COLUMNS
+    r = m3c2kit.compare(ref, cmp, **PARAMS)
+    assert tuple(r.columns()) == m3c2kit.COLUMNS
     assert tuple(r.columns(projected=True))[-6:] == ("x1", "y1", "z1", "x2", "y2", "z2")

@@ -7,9 +7,9 @@ import laspy
 import numpy as np
 import pytest
 
-import m3c2
-from m3c2.cli import main
-from m3c2.result import COLUMNS
+import m3c2kit
+from m3c2kit.cli import main
+from m3c2kit.result import COLUMNS
 
 from synthetic import noisy_plane_pair, write_xyz
 
@@ -51,7 +51,7 @@ def test_csv_output_equals_the_api(xyz_pair):
     out = d / "out.csv"
     assert main(["compare", str(d / "ref.xyz"), str(d / "cmp.xyz"), "--core", str(d / "core.xyz"), "-o", str(out)] + BASE) == 0
     _, cols = read_csv(out)
-    api = m3c2.compare(ref, cmp, core, normal_scale=0.5, projection_scale=0.3, max_depth=0.5).columns()
+    api = m3c2kit.compare(ref, cmp, core, normal_scale=0.5, projection_scale=0.3, max_depth=0.5).columns()
     for name in COLUMNS:
         np.testing.assert_array_equal(cols[name], np.asarray(api[name], dtype=float), err_msg=name)
 
@@ -61,8 +61,8 @@ def test_every_output_format_reads_back_field_by_field(xyz_pair, ext):
     d, ref, cmp, core = xyz_pair
     out = d / f"out{ext}"
     assert main(["compare", str(d / "ref.xyz"), str(d / "cmp.xyz"), "--core", str(d / "core.xyz"), "-o", str(out)] + BASE) == 0
-    back = m3c2.read(out)
-    api = m3c2.compare(ref, cmp, core, normal_scale=0.5, projection_scale=0.3, max_depth=0.5).columns()
+    back = m3c2kit.read(out)
+    api = m3c2kit.compare(ref, cmp, core, normal_scale=0.5, projection_scale=0.3, max_depth=0.5).columns()
     atol = 0.0005 if ext in (".las", ".laz") else 0.0  # LAS stores coordinates at the 1 mm scale
     np.testing.assert_allclose(back.xyz, core, atol=atol, rtol=0)
     for name in COLUMNS[3:]:
@@ -82,8 +82,8 @@ def test_real_las_pair_with_cloudcompare_params(tmp_path, shared_data):
                  str(pair / "autzen-bmx-largersample.txt"), "-o", str(out), "--params", str(params), "--quiet"])
     assert code == 0
     las = laspy.read(out)
-    src_crs = m3c2.read(pair / "autzen-bmx-2010.las").crs
-    assert src_crs is not None and m3c2.read(out).crs == src_crs  # the reference's CRS is kept
+    src_crs = m3c2kit.read(pair / "autzen-bmx-2010.las").crs
+    assert src_crs is not None and m3c2kit.read(out).crs == src_crs  # the reference's CRS is kept
     assert len(las.points) == 103
     assert np.isnan(np.asarray(las["distance"])).sum() >= 6  # CloudCompare's 6 zero normals are NaN here
 
@@ -115,7 +115,7 @@ def test_unwritable_output_leaves_nothing(xyz_pair, capsys):
 
 def test_summary_is_printed(xyz_pair):
     d = xyz_pair[0]
-    proc = subprocess.run([sys.executable, "-m", "m3c2", "compare", str(d / "ref.xyz"), str(d / "cmp.xyz"), "--core",
+    proc = subprocess.run([sys.executable, "-m", "m3c2kit", "compare", str(d / "ref.xyz"), str(d / "cmp.xyz"), "--core",
                            str(d / "core.xyz"), "-o", str(d / "o.csv")] + BASE[:-1], capture_output=True, text=True)
     assert proc.returncode == 0, proc.stderr
     assert "core points" in proc.stdout and "status: ok" in proc.stdout and "xi > 20" in proc.stdout
@@ -124,7 +124,7 @@ def test_summary_is_printed(xyz_pair):
 def test_subsample_normals_and_info_commands(xyz_pair, capsys):
     d, ref, _, _ = xyz_pair
     assert main(["subsample", str(d / "ref.xyz"), "-o", str(d / "sub.csv"), "--spacing", "0.2"]) == 0
-    sub = m3c2.read(d / "sub.csv").xyz
+    sub = m3c2kit.read(d / "sub.csv").xyz
     dist = np.linalg.norm(sub[:, None] - sub[None], axis=-1)
     np.fill_diagonal(dist, np.inf)
     assert dist.min() >= 0.2

@@ -1,12 +1,12 @@
-"""Tests for m3c2.cloudcompare_params: reading CloudCompare qM3C2 parameter files."""
+"""Tests for m3c2kit.cloudcompare_params: reading CloudCompare qM3C2 parameter files."""
 
 import os
 import re
 
 import pytest
 
-from m3c2.cloudcompare_params import read_cloudcompare_params
-from m3c2.errors import UsageError
+from m3c2kit.cloudcompare_params import read_cloudcompare_params
+from m3c2kit.errors import UsageError
 
 # The parameter file behind /work/shared/data/pairs/autzen-bmx/autzen-bmx-cc.txt, in the key
 # order qM3C2 writes.  The multi-scale keys are unused (NormalMode=0) and hold the values qM3C2's

@@ -1,4 +1,4 @@
-"""Tiles as tasks on a Dask distributed cluster (python/m3c2/tiling.py, docs/scaling.md): the
+"""Tiles as tasks on a Dask distributed cluster (python/m3c2kit/tiling.py, docs/scaling.md): the
 result equals the single in-memory run, also when a worker dies in the middle of a task."""
 from __future__ import annotations
 
@@ -15,10 +15,10 @@ import pytest
 distributed = pytest.importorskip("distributed")
 cloudpickle = pytest.importorskip("cloudpickle")
 
-from m3c2 import api  # noqa: E402
-from m3c2.io import read_cloud  # noqa: E402
-from m3c2.tiling import compute_tile, run_tiled  # noqa: E402
-from m3c2.writing import write  # noqa: E402
+from m3c2kit import api  # noqa: E402
+from m3c2kit.io import read_cloud  # noqa: E402
+from m3c2kit.tiling import compute_tile, run_tiled  # noqa: E402
+from m3c2kit.writing import write  # noqa: E402
 
 REPO = Path(__file__).resolve().parents[2]
 REF, CMP = REPO / "data" / "toronto-ttp" / "TTP_15.laz", REPO / "data" / "toronto-ttp" / "TTP_23.laz"
@@ -68,7 +68,7 @@ def test_cli_dask_scheduler(cluster, untiled, tmp_path):
     # As a user runs it: its own process, its own client of the running scheduler.
     c, _ = cluster
     out = tmp_path / "cli.csv"
-    proc = subprocess.run([sys.executable, "-m", "m3c2", "compare", str(REF), str(CMP), "-o", str(out),
+    proc = subprocess.run([sys.executable, "-m", "m3c2kit", "compare", str(REF), str(CMP), "-o", str(out),
                            "--normal-scale", "3,6", "--projection-scale", "4", "--max-depth", "6", "--core-spacing",
                            "4", "--tile-size", "120", "--dask-scheduler", c.scheduler_address, "--quiet"],
                           capture_output=True, text=True, timeout=300)

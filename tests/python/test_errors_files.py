@@ -12,7 +12,7 @@ import pye57
 import pytest
 
 from child_env import child_env
-from m3c2.io import write_cloud_table
+from m3c2kit.io import write_cloud_table
 
 BASE = ["--normal-scale", "0.5", "--projection-scale", "0.3", "--max-depth", "0.5", "--quiet"]
 TIMEOUT = 120  # seconds; a correct rejection takes well under one
@@ -38,7 +38,7 @@ SHARED_BROKEN = {
 
 
 def cli(*args, cwd=None):
-    return subprocess.run([sys.executable, "-m", "m3c2", *map(str, args)], capture_output=True, text=True,
+    return subprocess.run([sys.executable, "-m", "m3c2kit", *map(str, args)], capture_output=True, text=True,
                           timeout=TIMEOUT, env=child_env(), cwd=cwd)
 
 

@@ -16,10 +16,10 @@ sys.path.insert(0, str(FUZZ))
 import random_fuzz  # noqa: E402
 import targets  # noqa: E402
 
-from m3c2 import api  # noqa: E402
-from m3c2.cli import main  # noqa: E402
-from m3c2.errors import CloudReadError, UsageError  # noqa: E402
-from m3c2.io import read_cloud, write_cloud_table  # noqa: E402
+from m3c2kit import api  # noqa: E402
+from m3c2kit.cli import main  # noqa: E402
+from m3c2kit.errors import CloudReadError, UsageError  # noqa: E402
+from m3c2kit.io import read_cloud, write_cloud_table  # noqa: E402
 
 
 @pytest.fixture(autouse=True)
@@ -93,7 +93,7 @@ def test_regression_ply_short_write_names_the_cause(tmp_path, monkeypatch):
     # writer now uses file.write, whose OSError carries ENOSPC/EFBIG.
     import errno
 
-    from m3c2.io import ply
+    from m3c2kit.io import ply
 
     real_open = open
 

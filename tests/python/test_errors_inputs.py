@@ -16,11 +16,11 @@ import numpy as np
 import pytest
 from child_env import child_env
 
-import m3c2
-from m3c2.cli import main
-from m3c2.errors import CloudReadError, UsageError
-from m3c2.io import files as io_files
-from m3c2.result import STATUS_NAMES
+import m3c2kit
+from m3c2kit.cli import main
+from m3c2kit.errors import CloudReadError, UsageError
+from m3c2kit.io import files as io_files
+from m3c2kit.result import STATUS_NAMES
 
 BASE = ["--normal-scale", "0.5", "--projection-scale", "0.3", "--max-depth", "0.5"]
 STATUS = {name: code for code, name in enumerate(STATUS_NAMES)}
@@ -107,7 +107,7 @@ def test_fifo_is_refused_without_blocking(pair):
     # Opening a FIFO without a writer blocks forever: it must be refused before it is opened.
     fifo = pair / "pipe.xyz"
     os.mkfifo(fifo)
-    proc = subprocess.run([sys.executable, "-m", "m3c2", "compare", str(fifo), str(pair / "cmp.xyz"), "-o",
+    proc = subprocess.run([sys.executable, "-m", "m3c2kit", "compare", str(fifo), str(pair / "cmp.xyz"), "-o",
                            str(pair / "out.csv"), *BASE], capture_output=True, text=True, timeout=60,
                           env=child_env())
     assert proc.returncode == 1
@@ -177,7 +177,7 @@ def test_api_zero_points_is_a_usage_error(which):
     clouds = {"reference": grid(), "compared": grid(z=0.1), "core_points": grid()}
     clouds[which] = np.empty((0, 3))
     with pytest.raises(UsageError, match=r"(reference cloud|compared cloud|core_points) is empty"):
-        m3c2.compare(clouds["reference"], clouds["compared"], clouds["core_points"], normal_scale=0.5,
+        m3c2kit.compare(clouds["reference"], clouds["compared"], clouds["core_points"], normal_scale=0.5,
                      projection_scale=0.3, max_depth=0.5)
 
 
@@ -260,15 +260,15 @@ def test_far_outlier_in_a_file_is_refused_naming_it(pair, capsys):
 
 
 def test_far_outlier_in_an_array_is_a_usage_error():
-    from m3c2 import _core
-    from m3c2.api import build_params
+    from m3c2kit import _core
+    from m3c2kit.api import build_params
     assert _core.max_abs_coordinate(build_params(normal_scale=0.5, projection_scale=0.3, max_depth=0.5)) == 2.0**36
     far = np.vstack([grid(), [[0.0, -2.0**36, 0.0]]])  # exactly at the limit: outside
     with pytest.raises(UsageError, match=r"^the reference cloud: a coordinate \(6\.87195e\+10\) lies beyond"):
-        m3c2.compare(far, grid(z=0.1), grid(), normal_scale=0.5, projection_scale=0.3, max_depth=0.5)
+        m3c2kit.compare(far, grid(z=0.1), grid(), normal_scale=0.5, projection_scale=0.3, max_depth=0.5)
     # Geocentric-sized coordinates are well inside.
     shifted = grid() + 6.4e6
-    r = m3c2.compare(shifted, shifted + [0, 0, 0.1], shifted, normal_scale=0.5, projection_scale=0.3, max_depth=0.5)
+    r = m3c2kit.compare(shifted, shifted + [0, 0, 0.1], shifted, normal_scale=0.5, projection_scale=0.3, max_depth=0.5)
     assert np.isfinite(r.distance).any()
 
 
@@ -323,7 +323,7 @@ def test_api_nonfinite_arrays_are_usage_errors(which, name):
     arrays[which] = arrays[which].copy()
     arrays[which][7, 1] = np.inf
     with pytest.raises(UsageError, match=rf"^{name} has 1 non-finite coordinates \(NaN or Inf\)$"):
-        m3c2.compare(*arrays, normal_scale=0.5, projection_scale=0.3, max_depth=0.5)
+        m3c2kit.compare(*arrays, normal_scale=0.5, projection_scale=0.3, max_depth=0.5)
 
 
 # ------------------------------------------------------------------------ duplicates, geometry
@@ -340,8 +340,8 @@ def test_duplicated_points_count_twice_and_keep_the_distance():
     ref, cmp = _noisy(), _noisy(z=0.1, seed=1)
     core = ref[::37]
     kw = dict(normal_scale=0.5, projection_scale=0.3, max_depth=0.5)
-    once = m3c2.compare(ref, cmp, core, **kw)
-    twice = m3c2.compare(np.repeat(ref, 2, axis=0), np.repeat(cmp, 2, axis=0), core, **kw)
+    once = m3c2kit.compare(ref, cmp, core, **kw)
+    twice = m3c2kit.compare(np.repeat(ref, 2, axis=0), np.repeat(cmp, 2, axis=0), core, **kw)
     np.testing.assert_array_equal(twice.n1, 2 * once.n1)
     np.testing.assert_array_equal(twice.n2, 2 * once.n2)
     np.testing.assert_allclose(twice.distance, once.distance, rtol=0, atol=1e-12)
@@ -351,13 +351,13 @@ def test_duplicated_points_count_twice_and_keep_the_distance():
 
 def test_compared_identical_to_reference_gives_zero_and_nothing_significant():
     ref = _noisy()
-    r = m3c2.compare(ref, ref.copy(), ref[::41], normal_scale=0.5, projection_scale=0.3, max_depth=0.5)
+    r = m3c2kit.compare(ref, ref.copy(), ref[::41], normal_scale=0.5, projection_scale=0.3, max_depth=0.5)
     assert np.all(r.distance == 0.0) and not r.significant.any() and np.all(r.lod > 0)
 
 
 def test_coincident_points_give_degenerate_normal():
     ref = np.repeat([[1.0, 1.0, 0.0]], 50, axis=0)
-    r = m3c2.compare(ref, ref + [0, 0, 0.1], ref[:1], normal_scale=0.5, projection_scale=0.3, max_depth=0.5)
+    r = m3c2kit.compare(ref, ref + [0, 0, 0.1], ref[:1], normal_scale=0.5, projection_scale=0.3, max_depth=0.5)
     assert r.status.tolist() == [STATUS["degenerate_normal"]]
     assert np.isnan(r.distance).all() and np.isnan(r.normal).all()
 
@@ -366,7 +366,7 @@ def test_coincident_points_give_degenerate_normal():
 def test_collinear_neighbourhood_gives_degenerate_normal(direction):
     t = np.linspace(-1, 1, 81)[:, None]
     line = t * np.asarray(direction, dtype=float)
-    r = m3c2.compare(line, line + [0, 0, 0.1], line[40:41], normal_scale=0.5, projection_scale=0.3, max_depth=0.5)
+    r = m3c2kit.compare(line, line + [0, 0, 0.1], line[40:41], normal_scale=0.5, projection_scale=0.3, max_depth=0.5)
     assert r.status.tolist() == [STATUS["degenerate_normal"]]
     assert np.isnan(r.distance).all()
 
@@ -374,7 +374,7 @@ def test_collinear_neighbourhood_gives_degenerate_normal(direction):
 def test_coplanar_neighbourhood_is_a_valid_normal():
     # Coplanar (not collinear) points are the ideal plane fit: a normal, roughness 0, status ok.
     ref, cmp = grid(), grid(z=0.1)
-    r = m3c2.compare(ref, cmp, ref[[210]], normal_scale=0.5, projection_scale=0.3, max_depth=0.5)
+    r = m3c2kit.compare(ref, cmp, ref[[210]], normal_scale=0.5, projection_scale=0.3, max_depth=0.5)
     assert r.status.tolist() == [STATUS["ok"]]
     np.testing.assert_allclose(np.abs(r.normal[0]), [0.0, 0.0, 1.0], rtol=0, atol=1e-15)
     assert r.roughness[0] < 1e-15  # 0 up to rounding
@@ -414,7 +414,7 @@ def test_core_points_far_outside_get_statuses_not_a_crash(pair, capsys, far):
 
 def test_read_cloud_error_types_are_documented(tmp_path):
     with pytest.raises(CloudReadError):
-        m3c2.read(tmp_path / "nothing.las")
+        m3c2kit.read(tmp_path / "nothing.las")
 
 
 @pytest.mark.parametrize("option", ["--core-spacing", "--normal-subsample"])

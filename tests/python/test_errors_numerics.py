@@ -10,9 +10,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-import m3c2
-from m3c2.cli import main
-from m3c2.result import STATUS_NAMES
+import m3c2kit
+from m3c2kit.cli import main
+from m3c2kit.result import STATUS_NAMES
 
 Z95 = 1.959963984540054  # two-tailed z at 95 % (docs/algorithm.md, 6.1)
 STATUS = {name: code for code, name in enumerate(STATUS_NAMES)}
@@ -35,9 +35,9 @@ def cli(*argv):
 
 def test_utm_sized_coordinates_give_the_same_distances(shared_data, tmp_path):
     pair = shared_data / "pairs/autzen-bmx"
-    ref = m3c2.read(pair / "autzen-bmx-2010.las").xyz
-    cmp = m3c2.read(pair / "autzen-bmx-2023.las").xyz
-    core = m3c2.read(pair / "autzen-bmx-largersample.txt").xyz
+    ref = m3c2kit.read(pair / "autzen-bmx-2010.las").xyz
+    cmp = m3c2kit.read(pair / "autzen-bmx-2023.las").xyz
+    core = m3c2kit.read(pair / "autzen-bmx-largersample.txt").xyz
     shift = np.array([500000.0, 5000000.0, 0.0])
     for name, xyz in (("ref", ref), ("cmp", cmp), ("core", core)):
         np.save(tmp_path / f"{name}.npy", xyz)
@@ -75,7 +75,7 @@ def test_more_than_65535_points_in_one_cylinder_are_counted_exactly(tmp_path):
         out = tmp_path / f"out{ext}"
         cli("compare", tmp_path / "ref.npy", tmp_path / "cmp.npy", "--core", tmp_path / "core.npy", "-o", out,
             "--normal-scale", "1", "--projection-scale", "1", "--max-depth", "0.5", "--quiet")
-        cols = read_csv(out) if ext == ".csv" else {k: np.asarray(v, float) for k, v in m3c2.read(out).fields.items()}
+        cols = read_csv(out) if ext == ".csv" else {k: np.asarray(v, float) for k, v in m3c2kit.read(out).fields.items()}
         assert cols["n1"].tolist() == [n] and cols["n2"].tolist() == [n + 1234], ext
         assert cols["status"].tolist() == [STATUS["ok"]]
         assert abs(cols["distance"][0] - 0.1) < 1e-4
@@ -129,9 +129,9 @@ def test_identical_planar_clouds_zero_distance_is_not_significant(tmp_path):
 def test_planar_clouds_with_t_statistic_and_bootstrap():
     ref, cmp = grid(), grid(z=0.125)
     kw = dict(normal_source="vertical", projection_scale=0.5, max_depth=0.5, registration_error=0.01)
-    boot = m3c2.compare(ref, cmp, ref[::50], bootstrap=20, **kw)
+    boot = m3c2kit.compare(ref, cmp, ref[::50], bootstrap=20, **kw)
     np.testing.assert_array_equal(boot.lod, Z95 * 0.01)  # every resample is identical: SD* = 0
-    welch = m3c2.compare(ref, cmp, ref[::50], t_statistic=True, **kw)
+    welch = m3c2kit.compare(ref, cmp, ref[::50], t_statistic=True, **kw)
     assert np.all(welch.lod > Z95 * 0.01) and np.all(np.isfinite(welch.lod))  # t_{min(n1,n2)-1} * reg
 
 
@@ -165,5 +165,5 @@ def test_identical_output_bytes_for_any_thread_count_and_run(noisy, tmp_path, ex
         cli("compare", noisy / "ref.npy", noisy / "cmp.npy", "-o", out, "--threads", threads, *opts)
         digests[label] = _digest(out)
     assert len(set(digests.values())) == 1, digests
-    cols = m3c2.read(out).fields
+    cols = m3c2kit.read(out).fields
     assert np.isfinite(np.asarray(cols["distance"], float)).mean() > 0.9

@@ -16,10 +16,10 @@ import numpy as np
 import pytest
 from child_env import child_env
 
-from m3c2 import cli
-from m3c2.cli import main
-from m3c2.io import ascii as io_ascii
-from m3c2.io import atomic, las as io_las
+from m3c2kit import cli
+from m3c2kit.cli import main
+from m3c2kit.io import ascii as io_ascii
+from m3c2kit.io import atomic, las as io_las
 
 BASE = ["--normal-scale", "0.5", "--projection-scale", "0.3", "--max-depth", "0.5", "--quiet"]
 
@@ -148,7 +148,7 @@ _FSIZE_CHILD = textwrap.dedent("""
     import resource, signal, sys
     signal.signal(signal.SIGXFSZ, signal.SIG_IGN)  # a write past the limit then fails with EFBIG
     resource.setrlimit(resource.RLIMIT_FSIZE, (4096, 4096))
-    from m3c2.cli import main
+    from m3c2kit.cli import main
     sys.exit(main(sys.argv[1:]))
 """)
 
@@ -181,7 +181,7 @@ def test_failed_write_keeps_the_previous_output(pair, capsys, monkeypatch):
 # fires (so the signal is sent while the engine runs, not while Python starts up).
 _HOOK = textwrap.dedent("""
     import sys
-    import m3c2.progress as progress
+    import m3c2kit.progress as progress
     original = progress.ProgressBar.update
     def update(self, done, total):
         if not getattr(update, "seen", False):
@@ -189,7 +189,7 @@ _HOOK = textwrap.dedent("""
             print("ENGINE-RUNNING", file=sys.stderr, flush=True)
         return original(self, done, total)
     progress.ProgressBar.update = update
-    from m3c2.cli import main
+    from m3c2kit.cli import main
     sys.exit(main(sys.argv[1:]))
 """)
 

@@ -10,12 +10,12 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-import m3c2
-from m3c2 import api, cli
-from m3c2.cli import main, result_warnings
-from m3c2.errors import CloudReadError
-from m3c2.io import Cloud, files as io_files, guard, write_cloud_table
-from m3c2.io.crs import crs_label, same_crs
+import m3c2kit
+from m3c2kit import api, cli
+from m3c2kit.cli import main, result_warnings
+from m3c2kit.errors import CloudReadError
+from m3c2kit.io import Cloud, files as io_files, guard, write_cloud_table
+from m3c2kit.io.crs import crs_label, same_crs
 
 BASE = {"--normal-scale": "0.5", "--projection-scale": "0.3", "--max-depth": "0.5"}
 
@@ -237,10 +237,10 @@ def test_different_crs_is_an_error_naming_both(tmp_path, capsys):
 def test_different_units_is_an_error(tmp_path, capsys, shared_data):
     ref = _las(tmp_path / "ref.las", grid(), _wkt("site grid", 0, ("US survey foot", 0.304800609601219)))
     # The compared file has GeoTIFF keys only (EPSG:26916, metre): not comparable as CRSs, but the units differ.
-    utm = m3c2.read(shared_data / "readers/pdal/las/test_utm16.las")
+    utm = m3c2kit.read(shared_data / "readers/pdal/las/test_utm16.las")
     cmp = tmp_path / "cmp.las"
     write_cloud_table(cmp, grid(z=0.1) + utm.offset, {}, like=utm)
-    assert m3c2.read(cmp).units_hint == "metre" and m3c2.read(ref).units_hint == "US survey foot"
+    assert m3c2kit.read(cmp).units_hint == "metre" and m3c2kit.read(ref).units_hint == "US survey foot"
     code, _, err = run(capsys, "compare", ref, cmp, "-o", tmp_path / "out.csv", "--quiet",
                        *[x for kv in BASE.items() for x in kv])
     assert code == 1
@@ -259,7 +259,7 @@ def test_core_points_crs_is_checked_too(tmp_path, capsys):
 
 def test_same_crs_spelled_differently_and_unknown_crs_pass(shared_data, tmp_path, capsys):
     pair = shared_data / "pairs/autzen-bmx"
-    a, b = m3c2.read(pair / "autzen-bmx-2010.las"), m3c2.read(pair / "autzen-bmx-2023.las")
+    a, b = m3c2kit.read(pair / "autzen-bmx-2010.las"), m3c2kit.read(pair / "autzen-bmx-2023.las")
     assert a.crs != b.crs and same_crs(a.crs, b.crs) is True  # two WKT spellings of one compound CRS
     cli.check_same_crs(a, b)
     # A cloud without CRS (text) against one with a CRS: nothing to compare, the run goes on.
@@ -305,7 +305,7 @@ def test_check_memory_with_injected_available_memory():
 def test_compare_checks_memory_before_computing(monkeypatch):
     monkeypatch.setenv(guard.MEMORY_ENV, "1000")
     with pytest.raises(api.InsufficientMemory):
-        m3c2.compare(grid(), grid(z=0.1), normal_scale=0.5, projection_scale=0.3, max_depth=0.5)
+        m3c2kit.compare(grid(), grid(z=0.1), normal_scale=0.5, projection_scale=0.3, max_depth=0.5)
 
 
 def test_cli_exits_1_when_the_run_needs_more_memory(pair, capsys, monkeypatch):

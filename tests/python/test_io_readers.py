@@ -1,4 +1,4 @@
-"""m3c2.io readers: every shared reader file, text layouts, PLY encodings, E57 poses, bad input."""
+"""m3c2kit.io readers: every shared reader file, text layouts, PLY encodings, E57 poses, bad input."""
 from __future__ import annotations
 
 import re
@@ -13,8 +13,8 @@ import pye57
 import pytest
 from child_env import child_env
 
-from m3c2.errors import CloudReadError, UsageError
-from m3c2.io import SUPPORTED_READ, info, read_cloud
+from m3c2kit.errors import CloudReadError, UsageError
+from m3c2kit.io import SUPPORTED_READ, info, read_cloud
 
 DATA = Path(__file__).resolve().parents[3] / "shared" / "data"
 READERS = DATA / "readers"
@@ -155,8 +155,8 @@ def test_rejection_list_names_existing_files():
 
 _CHILD = """
 import sys
-from m3c2.errors import CloudReadError
-from m3c2.io import read_cloud
+from m3c2kit.errors import CloudReadError
+from m3c2kit.io import read_cloud
 try:
     read_cloud(sys.argv[1])
 except CloudReadError as e:

@@ -1,4 +1,4 @@
-"""m3c2.io writers: LAS/LAZ/PLY/text round trips, CRS copying, atomic all-or-nothing output."""
+"""m3c2kit.io writers: LAS/LAZ/PLY/text round trips, CRS copying, atomic all-or-nothing output."""
 from __future__ import annotations
 
 import os
@@ -8,10 +8,10 @@ import laspy
 import numpy as np
 import pytest
 
-import m3c2.io.ascii
-import m3c2.io.ply
-from m3c2.errors import CloudWriteError
-from m3c2.io import SUPPORTED_WRITE, Cloud, atomic_output, read_cloud, write_cloud_table
+import m3c2kit.io.ascii
+import m3c2kit.io.ply
+from m3c2kit.errors import CloudWriteError
+from m3c2kit.io import SUPPORTED_WRITE, Cloud, atomic_output, read_cloud, write_cloud_table
 
 
 def _table(n: int = 500, seed: int = 0):
@@ -160,7 +160,7 @@ def test_text_round_trip_is_exact(tmp_path, ext):
 
 
 def test_text_writer_is_chunked_and_compact(tmp_path, monkeypatch):
-    monkeypatch.setattr(m3c2.io.ascii, "_CHUNK", 7)
+    monkeypatch.setattr(m3c2kit.io.ascii, "_CHUNK", 7)
     xyz = np.array([[0.5, 1.0, 2.25]] * 20)
     path = tmp_path / "c.csv"
     write_cloud_table(path, xyz, {"w": np.arange(20, dtype=np.uint16)})
@@ -201,11 +201,11 @@ def test_no_partial_file_when_the_writer_fails_midway(tmp_path, monkeypatch, ext
     if ext in (".las", ".laz"):
         monkeypatch.setattr(laspy.LasData, "write", lambda self, dest, **kw: half_then_fail(dest))
     elif ext == ".ply":
-        monkeypatch.setattr(m3c2.io.ply, "atomic_output", _failing_atomic(half_then_fail))
+        monkeypatch.setattr(m3c2kit.io.ply, "atomic_output", _failing_atomic(half_then_fail))
     else:
-        monkeypatch.setattr(m3c2.io.ascii, "_CHUNK", 10)
+        monkeypatch.setattr(m3c2kit.io.ascii, "_CHUNK", 10)
         calls = {"n": 0}
-        real_column = m3c2.io.ascii._text_column
+        real_column = m3c2kit.io.ascii._text_column
 
         def fail_on_third_chunk(values):
             calls["n"] += 1
@@ -213,7 +213,7 @@ def test_no_partial_file_when_the_writer_fails_midway(tmp_path, monkeypatch, ext
                 raise RuntimeError("disk on fire")
             return real_column(values)
 
-        monkeypatch.setattr(m3c2.io.ascii, "_text_column", fail_on_third_chunk)
+        monkeypatch.setattr(m3c2kit.io.ascii, "_text_column", fail_on_third_chunk)
     path = tmp_path / f"out{ext}"
     with pytest.raises(CloudWriteError, match="disk on fire"):
         write_cloud_table(path, xyz, fields)

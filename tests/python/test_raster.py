@@ -8,11 +8,11 @@ rasterio = pytest.importorskip("rasterio")
 from rasterio.crs import CRS  # noqa: E402
 from rasterio.transform import rowcol, xy  # noqa: E402
 
-import m3c2  # noqa: E402
-from m3c2 import raster  # noqa: E402
-from m3c2.cli import main  # noqa: E402
-from m3c2.errors import CloudWriteError  # noqa: E402
-from m3c2.io import Cloud, read_cloud, write_cloud_table  # noqa: E402
+import m3c2kit  # noqa: E402
+from m3c2kit import raster  # noqa: E402
+from m3c2kit.cli import main  # noqa: E402
+from m3c2kit.errors import CloudWriteError  # noqa: E402
+from m3c2kit.io import Cloud, read_cloud, write_cloud_table  # noqa: E402
 
 from synthetic import write_xyz  # noqa: E402
 
@@ -190,11 +190,11 @@ def test_projection_scale_defaults_to_1_1_cell(grid_run):
     d, out, table, ref, cmp = grid_run
     g = raster.grid_core_points(ref, CELL)
     np.testing.assert_array_equal(np.column_stack([table["x"], table["y"], table["z"]]), g.core_points)
-    want = m3c2.compare(ref, cmp, g.core_points, normal_source="vertical", projection_scale=1.1 * CELL,
+    want = m3c2kit.compare(ref, cmp, g.core_points, normal_source="vertical", projection_scale=1.1 * CELL,
                         max_depth=2).columns()
     for name in ("distance", "lod", "n1", "n2", "status"):
         np.testing.assert_array_equal(table[name], np.asarray(want[name], float), err_msg=name)
-    other = m3c2.compare(ref, cmp, g.core_points, normal_source="vertical", projection_scale=CELL, max_depth=2)
+    other = m3c2kit.compare(ref, cmp, g.core_points, normal_source="vertical", projection_scale=CELL, max_depth=2)
     assert not np.array_equal(other.n1, want["n1"])
 
 
@@ -204,7 +204,7 @@ def test_explicit_projection_scale_wins(las_pair, tmp_path):
     assert main(["compare", str(d / "ref.las"), str(d / "cmp.las"), "-o", str(out), "--grid", str(CELL),
                  "--projection-scale", "3", "--max-depth", "2", "--quiet"]) == 0
     g = raster.grid_core_points(ref, CELL)
-    want = m3c2.compare(ref, cmp, g.core_points, normal_source="vertical", projection_scale=3, max_depth=2)
+    want = m3c2kit.compare(ref, cmp, g.core_points, normal_source="vertical", projection_scale=3, max_depth=2)
     np.testing.assert_array_equal(read_csv(out)["n1"], want.n1.astype(float))
 
 

@@ -1,4 +1,4 @@
-"""Out-of-core tiling (python/m3c2/tiling.py, docs/scaling.md): a tiled run equals the single
+"""Out-of-core tiling (python/m3c2kit/tiling.py, docs/scaling.md): a tiled run equals the single
 in-memory run bit for bit, in core-point order, and writes the same file bytes."""
 from __future__ import annotations
 
@@ -9,13 +9,13 @@ import laspy
 import numpy as np
 import pytest
 
-from m3c2 import _core, api, tiling
-from m3c2.cli import main
-from m3c2.errors import UsageError
-from m3c2.io import read_cloud
-from m3c2.io.streaming import PointSource
-from m3c2.tiling import choose_tile_size, halo, parse_memory, run_tiled, streaming_subsample
-from m3c2.writing import write
+from m3c2kit import _core, api, tiling
+from m3c2kit.cli import main
+from m3c2kit.errors import UsageError
+from m3c2kit.io import read_cloud
+from m3c2kit.io.streaming import PointSource
+from m3c2kit.tiling import choose_tile_size, halo, parse_memory, run_tiled, streaming_subsample
+from m3c2kit.writing import write
 
 REPO = Path(__file__).resolve().parents[2]
 TORONTO = REPO / "data" / "toronto-ttp"

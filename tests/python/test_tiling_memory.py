@@ -1,4 +1,4 @@
-"""The memory plan of a tiled run (python/m3c2/tiling.py, docs/scaling.md "Memory"): the fixed
+"""The memory plan of a tiled run (python/m3c2kit/tiling.py, docs/scaling.md "Memory"): the fixed
 costs (this process, the streaming and merge chunks) and the tiles share --memory-limit, chunks
 sized from the plan leave the output bytes unchanged, and a small run's peak stays under its limit."""
 from __future__ import annotations
@@ -14,10 +14,10 @@ import numpy as np
 import pytest
 
 from child_env import child_env
-from m3c2 import tiling
-from m3c2.errors import UsageError
-from m3c2.io.streaming import DEFAULT_CHUNK
-from m3c2.tiling import MemoryPlan, choose_tile_size, plan_memory, run_tiled
+from m3c2kit import tiling
+from m3c2kit.errors import UsageError
+from m3c2kit.io.streaming import DEFAULT_CHUNK
+from m3c2kit.tiling import MemoryPlan, choose_tile_size, plan_memory, run_tiled
 
 MiB = 2**20
 PARAMS = dict(normal_scale=1.0, projection_scale=0.5, max_depth=1.0)
@@ -96,7 +96,7 @@ def test_chunks_from_the_plan_keep_the_bytes(pair, tmp_path, monkeypatch):
 
 CHILD = r"""
 import json, sys
-from m3c2 import tiling
+from m3c2kit import tiling
 def hwm():
     with open("/proc/self/status") as f:
         return next(int(l.split()[1]) * 1024 for l in f if l.startswith("VmHWM:"))

@@ -1,9 +1,9 @@
 """m3c2: M3C2 point-cloud change detection (Lague, Brodu & Leroux 2013), fast and exact.
 
-    >>> import m3c2
-    >>> ref, cmp = m3c2.read("2015.laz"), m3c2.read("2023.laz")
-    >>> r = m3c2.compare(ref, cmp, normal_scale=2.0, projection_scale=1.0, max_depth=5.0)
-    >>> m3c2.write("change.laz", r, like=ref)
+    >>> import m3c2kit
+    >>> ref, cmp = m3c2kit.read("2015.laz"), m3c2kit.read("2023.laz")
+    >>> r = m3c2kit.compare(ref, cmp, normal_scale=2.0, projection_scale=1.0, max_depth=5.0)
+    >>> m3c2kit.write("change.laz", r, like=ref)
 
 D (normal_scale) and d (projection_scale) are diameters; max_depth is a half-length.
 """

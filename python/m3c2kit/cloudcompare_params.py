@@ -11,7 +11,7 @@ CloudCompare, which are also m3c2's:
 
 No value is halved or doubled.  Every key is either mapped, accepted as having no effect on the
 numbers (``UseOriginalCloud``, ``ExportStdDevInfo``, ``ExportDensityAtProjScale``: m3c2 always
-writes the spread and count columns), or rejected with :class:`~m3c2.errors.UsageError` naming the
+writes the spread and count columns), or rejected with :class:`~m3c2kit.errors.UsageError` naming the
 file, the key and the reason.  ``variance="population"`` and ``scale_selection="cloudcompare"`` are
 implied by ``compat="cloudcompare"``, which the caller sets; they are not returned.
 """
@@ -25,8 +25,8 @@ import os
 import re
 import stat
 
-from m3c2.errors import UsageError
-from m3c2.options import scale_range
+from m3c2kit.errors import UsageError
+from m3c2kit.options import scale_range
 
 __all__ = ["read_cloudcompare_params"]
 
@@ -88,7 +88,7 @@ _NORMAL_SOURCE = {0: "reference", 2: "reference", 3: "vertical", 4: "horizontal"
 def read_cloudcompare_params(path: str | os.PathLike) -> dict[str, object]:
     """Return m3c2 options (Python names) for the qM3C2 parameter file at ``path``.
 
-    Raises :class:`~m3c2.errors.UsageError` when the file cannot be read, is not a qM3C2
+    Raises :class:`~m3c2kit.errors.UsageError` when the file cannot be read, is not a qM3C2
     parameter file, holds an unknown or misspelt key or a malformed value, or asks for something
     m3c2 does not support.  An optional key that is absent (CloudCompare would take it from its
     last GUI state, which a file cannot reproduce) defaults to NormalMode 0, NormalPreferedOri 4,

@@ -1,7 +1,7 @@
 """Out-of-core access to point clouds, for tiled runs (docs/scaling.md).
 
 Reading: :class:`PointSource` gives a cloud's coordinates chunk by chunk **in file order** (the
-order :func:`m3c2.io.read_cloud` returns them in), or only the points inside an axis-aligned box,
+order :func:`m3c2kit.io.read_cloud` returns them in), or only the points inside an axis-aligned box,
 still in file order:
 
 * LAS/LAZ: ``laspy.open(path).chunk_iterator(n)``; coordinates are the same scaled doubles as
@@ -16,7 +16,7 @@ still in file order:
 
 Writing: :class:`TableWriter` writes the output table in row chunks to a temporary file renamed
 when complete (:func:`atomic_output`), producing the same bytes as
-:func:`m3c2.io.write_cloud_table` for CSV/text and LAS/LAZ. Other formats (PLY) are gathered in
+:func:`m3c2kit.io.write_cloud_table` for CSV/text and LAS/LAZ. Other formats (PLY) are gathered in
 memory and written with :func:`write_cloud_table` at the end.
 """
 from __future__ import annotations

@@ -204,7 +204,7 @@ class CrsMismatch(M3C2Error):
 
 def check_same_crs(reference, compared, core=None, *, ignore: bool = False) -> None:
     """Raises CrsMismatch when the compared cloud (or the core points) and the reference have
-    CRSs known to differ (m3c2.io.crs.same_crs) or different units hints; unknown ones pass."""
+    CRSs known to differ (m3c2kit.io.crs.same_crs) or different units hints; unknown ones pass."""
     if ignore:
         return
     for role, other in (("compared", compared), ("core points", core)):

@@ -172,7 +172,7 @@ def compare(reference, compared, core_points=None, *, normal_scale=None, project
     """M3C2 distance, level of detection and significance at each core point.
 
     reference, compared, core_points: (N, 3) float64 arrays (viewed without a copy when
-    C-contiguous float64) or objects with an ``xyz`` attribute such as m3c2.io.Cloud.
+    C-contiguous float64) or objects with an ``xyz`` attribute such as m3c2kit.io.Cloud.
     core_points defaults to the reference itself, or to it subsampled with ``core_spacing``.
     Other keyword parameters: see build_params and docs/python.md.
     """
@@ -247,7 +247,7 @@ def estimate_memory(n_reference: int, n_compared: int, n_core: int) -> int:
 
 def check_memory(n_reference: int, n_compared: int, n_core: int, available: int | None = None) -> int:
     """Raises InsufficientMemory when estimate_memory(...) exceeds `available` bytes (default:
-    m3c2.io.guard.available_memory(), which honours $M3C2_AVAILABLE_MEMORY); returns the estimate."""
+    m3c2kit.io.guard.available_memory(), which honours $M3C2_AVAILABLE_MEMORY); returns the estimate."""
     needed = estimate_memory(n_reference, n_compared, n_core)
     available = available_memory() if available is None else available
     if available is not None and needed > available:

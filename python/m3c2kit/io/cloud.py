@@ -17,7 +17,7 @@ class Cloud:
 
     * ``xyz``: (N, 3) float64, C-contiguous, in the file's own units and CRS (LAS: scaled
       coordinates; E57: metres, scan poses applied). N may be 0 only for clouds built by
-      :func:`m3c2.io.info`; :func:`m3c2.io.read_cloud` never returns an empty cloud.
+      :func:`m3c2kit.io.info`; :func:`m3c2kit.io.read_cloud` never returns an empty cloud.
     * ``fields``: other per-point attributes, name -> 1-D array of length N (any numeric dtype);
       may be empty.
     * ``crs``: WKT text when the file carries one; for a LAS file with GeoTIFF keys only, an

@@ -17,7 +17,7 @@ Steps (:func:`run_tiled`):
 4. Compute: tile by tile (bounded memory), or as Dask tasks (``retries``), each task reading its
    inputs from paths; per-tile results are spilled to disk by the caller.
 5. Merge: ``tile_of`` is streamed and each row taken from its tile's result spill in order, then
-   written with :class:`m3c2.io.streaming.TableWriter` (temporary file, renamed when complete).
+   written with :class:`m3c2kit.io.streaming.TableWriter` (temporary file, renamed when complete).
 """
 from __future__ import annotations
 
@@ -430,7 +430,7 @@ def run_tiled(reference, compared, *, output=None, core=None, core_spacing=None,
     chosen so a tile's estimated resident memory fits). `dask_scheduler` (an address) or `client`
     (a distributed.Client) runs tiles as Dask tasks with `retries`. `output`: a file written
     atomically (same bytes as the untiled run); `return_result` also gathers the Result in
-    memory. Other keywords are :func:`m3c2.api.compare`'s engine parameters.
+    memory. Other keywords are :func:`m3c2kit.api.compare`'s engine parameters.
     """
     t_start = time.perf_counter()
     log = log or (lambda s: None)

@@ -98,7 +98,7 @@ def _summary(result: Result, linthresh: float) -> list:
 def build_report(result: Result, *, grid=None, images=None, inputs: dict | None = None,
                  max_points: int = MAX_PLOT_POINTS, seed: int = SEED, title: str = "M3C2 change report") -> Report:
     """Draws the figures and tables of `result`. With `grid` and `images` (2D mode, see
-    m3c2.raster) the top views are the rasters themselves."""
+    m3c2kit.raster) the top views are the rasters themselves."""
     from . import figures as F
 
     n = len(result)
@@ -194,7 +194,7 @@ def render_html(rep: Report) -> str:
 def write_report(result: Result, html_path=None, png_prefix=None, *, staged: dict | None = None, **kwargs) -> list:
     """Builds the report and writes the HTML to `html_path` and/or the PNGs to
     `<png_prefix>_<figure>.png`. `staged` maps each final path to the (temporary) path to write
-    (m3c2.raster.staged_outputs); without it, files are written in place. Returns the final paths."""
+    (m3c2kit.raster.staged_outputs); without it, files are written in place. Returns the final paths."""
     rep = build_report(result, **kwargs)
     staged = staged or {}
     written = []

@@ -1,5 +1,5 @@
 """Command-line subcommands of the analysis toolkit: roughness, calibrate, c2c, simplify, suggest
-(docs/analysis.md). Registered by m3c2.cli.make_parser through `analysis_parsers`."""
+(docs/analysis.md). Registered by m3c2kit.cli.make_parser through `analysis_parsers`."""
 from __future__ import annotations
 
 from pathlib import Path
