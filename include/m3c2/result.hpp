@@ -35,6 +35,27 @@ struct Result {
   void resize(std::size_t n);
 };
 
+/// Every per-core-point column of Result once, with its name and values per core point:
+/// `visit(name, column, width)`. The binding builds its result dictionary from it and the Python
+/// front end takes the schema from the binding (m3c2kit.engine.RESULT_FIELDS), so a new column is
+/// added to the struct and here only.
+template <class R, class Visitor>
+void visit_result_fields(R& r, Visitor&& visit) {
+  visit("status", r.status, 1);
+  visit("distance", r.distance, 1);
+  visit("lod", r.lod, 1);
+  visit("significant", r.significant, 1);
+  visit("n1", r.n1, 1);
+  visit("n2", r.n2, 1);
+  visit("sigma1", r.sigma1, 1);
+  visit("sigma2", r.sigma2, 1);
+  visit("i1", r.i1, 1);
+  visit("i2", r.i2, 1);
+  visit("normal", r.normal, 3);
+  visit("normal_scale", r.normal_scale, 1);
+  visit("roughness", r.roughness, 1);
+}
+
 /// Normals of one cloud at core points (section 3.1.2, 6.3).
 struct NormalsResult {
   std::vector<double> normal;        ///< 3 per core point; NaN if not computed

@@ -30,7 +30,7 @@ from typing import Iterator
 
 import numpy as np
 
-from . import _core
+from . import engine
 from .errors import CloudWriteError, UsageError
 from .io.crs import looks_like_wkt
 
@@ -87,10 +87,7 @@ class Grid:
 def grid_core_points(points, cell: float) -> Grid:
     """One core point per non-empty `cell`-sized cell over the XY extent of `points`."""
     xyz = np.ascontiguousarray(getattr(points, "xyz", points), dtype=np.float64)
-    try:
-        g = _core.grid_core_points(xyz, float(cell))
-    except ValueError as e:
-        raise UsageError(f"--grid: {e}") from None
+    g = engine.grid_core_points(xyz, float(cell), "--grid")
     return Grid(float(g["x0"]), float(g["y0"]), float(g["cell"]), int(g["rows"]), int(g["cols"]),
                 np.asarray(g["core_points"]).reshape(-1, 3), np.asarray(g["row"]), np.asarray(g["col"]))
 
@@ -125,7 +122,7 @@ def grid_mode(args) -> float | None:
 def _params_set(args, name: str) -> bool:
     if getattr(args, "params", None) is None:
         return False
-    from .cloudcompare_params import read_cloudcompare_params
+    from .settings.cloudcompare_params import read_cloudcompare_params
     return name in read_cloudcompare_params(args.params)
 
 

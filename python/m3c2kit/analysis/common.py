@@ -6,10 +6,10 @@ from pathlib import Path
 
 import numpy as np
 
-from .. import _core
+from .. import engine
 from ..errors import UsageError
 from ..io.atomic import atomic_output
-from ..options import normal_scales, positive
+from ..settings.parsers import normal_scales, positive
 
 
 def scales(name: str, spec) -> np.ndarray:
@@ -112,7 +112,7 @@ def median_spacing(points: np.ndarray, sample: int = 2000, seed: int = 0) -> flo
     others = points[keep]
     if len(others) == 0:
         return math.nan
-    d = _core.c2c(others, np.ascontiguousarray(points[idx]))["distance"]
+    d = engine.c2c(others, np.ascontiguousarray(points[idx]))["distance"]
     d = d[d > 0]
     return float(np.median(d)) if d.size else math.nan
 
