@@ -13,9 +13,8 @@
 #include "projection.hpp"
 #include "spatial_order.hpp"
 #include "statistics.hpp"
+#include "threads.hpp"
 #include "validation.hpp"
-
-#include <omp.h>
 
 #include <algorithm>
 #include <cmath>
@@ -49,7 +48,7 @@ bool moments_needed(const Params& params, bool reference) {
                    : src == NormalSource::kCompared;
 }
 
-int thread_count(const RunOptions& run) { return run.threads > 0 ? run.threads : omp_get_max_threads(); }
+int thread_count(const RunOptions& run) { return run.threads > 0 ? run.threads : detail::max_threads(); }
 
 /// The index of a cloud named `name` ("reference cloud"). Its one pass over the coordinates
 /// refuses those beyond the grid's range (NaN and Inf among them); only then is the cloud
@@ -87,10 +86,12 @@ std::pair<Octree, Octree> build_indexes(PointsView reference, PointsView compare
   const double work0 = double(reference.size()) * (ref_moments ? 3 : 2),
                work1 = double(compared.size()) * (cmp_moments ? 3 : 2) + double(core_points.size());
   const int lighter = work1 < work0 ? 1 : 0;
+#if defined(_OPENMP)
 #pragma omp parallel num_threads(2)
+#endif
   {
-    const int part = omp_get_thread_num();
-    const bool alone = omp_get_num_threads() < 2;
+    const int part = detail::thread_num();
+    const bool alone = detail::team_size() < 2;
     try {
       if (part == 0) first.emplace(index_of(reference, "reference cloud", grid, ref_moments));
       if (part == 1 || alone) {
