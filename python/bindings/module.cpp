@@ -286,4 +286,27 @@ NB_MODULE(_core, m) {
       },
       "reference"_a, "compared"_a, "model"_a = "none", "model_radius"_a = 0.0, "model_neighbours"_a = 6,
       "rule"_a = "closer", "threads"_a = 0, "progress"_a = nb::none());
+
+  // Multi-scale dimensionality of Brodu & Lague 2012 (CANUPO; include/m3c2/dimensionality.hpp).
+  m.def(
+      "dimensionality",
+      [](const Points& cloud, const Points& core, const std::vector<double>& diameters, std::uint32_t min_points,
+         int threads, nb::object progress) {
+        m3c2::DimensionalityResult r = run_engine(std::move(progress), threads, [&](const m3c2::RunOptions& run) {
+          return m3c2::dimensionality(view(cloud), view(core), diameters, min_points, run);
+        });
+        const std::size_t n = r.size(), s = r.scales;
+        nb::dict d;
+        d["status"] = status_array(r.status);
+        auto per_scale3 = [&](std::vector<double>&& v) {
+          auto* owned = new std::vector<double>(std::move(v));
+          nb::capsule owner(owned, [](void* p) noexcept { delete static_cast<std::vector<double>*>(p); });
+          return nb::ndarray<nb::numpy, double>(owned->data(), {n, s, 3}, owner);
+        };
+        d["proportions"] = per_scale3(std::move(r.proportions));
+        d["barycentric"] = per_scale3(std::move(r.barycentric));
+        d["count"] = to_numpy(std::move(r.count), s);
+        return d;
+      },
+      "cloud"_a, "core_points"_a, "diameters"_a, "min_points"_a = 3, "threads"_a = 0, "progress"_a = nb::none());
 }
