@@ -162,7 +162,8 @@ void UncertaintyModel::measure(const Vec3& core, const Vec3& normal, std::span<c
     r.status[i] = PointStatus::kOk;
     return;
   }
-  const CentreOfGravity a = centre_of_gravity(0, core, points1), b = centre_of_gravity(1, core, points2);
+  const CentreOfGravity a = centre_of_gravity(0, core, normal, points1),
+                        b = centre_of_gravity(1, core, normal, points2);
   if (a.defined && b.defined) {
     r.i1[i] = normal.dot(a.offset), r.i2[i] = normal.dot(b.offset);
     r.distance[i] = r.i2[i] - r.i1[i];  // our sign: compared - reference along the normal

@@ -43,10 +43,17 @@ class UncertaintyModel {
                std::span<const std::uint32_t> points2, std::size_t i, Result& r) const;
 
   /// EP: the weighted centre of gravity of `points` of cloud k (0 reference, 1 compared).
-  CentreOfGravity centre_of_gravity(int k, const Vec3& core, std::span<const std::uint32_t> points) const;
+  CentreOfGravity centre_of_gravity(int k, const Vec3& core, const Vec3& normal,
+                                    std::span<const std::uint32_t> points) const;
 
  private:
   Vec3 original_compared(std::uint32_t j) const;
+  CentreOfGravity normal_weighted_centre(int k, const Vec3& core, const Vec3& normal,
+                                         std::span<const std::uint32_t> points) const;
+  /// J(d) C J(d)^T: the alignment covariance of a point at d = p - reduction point.
+  Eigen::Matrix3d alignment_at(const Vec3& d) const;
+  /// The mean of J_i C J_i^T over points whose d has mean m and second moment mm.
+  Eigen::Matrix3d mean_alignment(const Vec3& m, const Eigen::Matrix3d& mm) const;
 
   const Params& params_;
   const UncertaintyInputs& inputs_;

@@ -32,14 +32,83 @@ Mat3 polar_covariance(const Vec3& d, const ScanPosition& sp) {
 
 }  // namespace
 
+/// The centre with scalar weights w_i = 1 / (n^T S_i n): the minimum-variance estimate of the
+/// offset along n from points that each measure the surface along n (a cylinder's points lie at
+/// different tangential positions, which matrix weights would mix into the offset). Its
+/// covariance: sum w_i^2 S_i / (sum w_i)^2 (independent points) or the mean S_i; the alignment
+/// part is J at the weighted mean of the original points (J is linear in the point).
+CentreOfGravity UncertaintyModel::normal_weighted_centre(int k, const Vec3& core, const Vec3& normal,
+                                                         std::span<const std::uint32_t> points) const {
+  const bool moved = k == 1;
+  const PointsView indexed = moved ? compared_indexed() : reference_;
+  const auto& table = moved ? inputs_.compared.scan_positions : inputs_.reference.scan_positions;
+  const auto& ids = moved ? inputs_.compared.scan_position : inputs_.reference.scan_position;
+  const auto& rows = row_of_id_[k];
+  const bool independent = params_.ep_covariance == EpCovariance::kIndependent;
+  double weight_sum = 0.0;
+  Vec3 weighted = Vec3::Zero(), d_weighted = Vec3::Zero(), d_sum = Vec3::Zero();
+  Mat3 cov_w2 = Mat3::Zero(), mean_cov = Mat3::Zero(), dd_sum = Mat3::Zero();
+  CentreOfGravity out;
+  for (const std::uint32_t j : points) {
+    const Vec3 original = moved ? original_compared(j) : reference_[j];
+    const ScanPosition& sp = table[static_cast<std::size_t>(rows[ids[j]])];
+    Mat3 cov = polar_covariance(original - Vec3(sp.origin[0], sp.origin[1], sp.origin[2]), sp);
+    if (moved) cov = rotation_ * cov * rotation_.transpose();
+    const double along = normal.dot(cov * normal);
+    if (!(along > 0.0) || !std::isfinite(along)) return out;
+    const double w = 1.0 / along;
+    weight_sum += w;
+    weighted += w * (indexed[j] - core);
+    cov_w2 += (w * w) * cov;
+    mean_cov += cov;
+    const Vec3 d = original - reduction_;
+    d_weighted += w * d;
+    d_sum += d;
+    dd_sum += d * d.transpose();
+  }
+  if (!(weight_sum > 0.0)) return out;
+  const double n = double(points.size());
+  out.offset = weighted / weight_sum;
+  out.covariance = independent ? Mat3(cov_w2 / (weight_sum * weight_sum)) : Mat3(mean_cov / n);
+  if (moved && has_alignment_) out.covariance += independent ? alignment_at(d_weighted / weight_sum)
+                                                             : mean_alignment(d_sum / n, dd_sum / n);
+  out.defined = out.covariance.allFinite();
+  return out;
+}
+
+Mat3 UncertaintyModel::alignment_at(const Vec3& d) const {
+  Eigen::Matrix<double, 3, 12> g = Eigen::Matrix<double, 3, 12>::Zero();
+  for (int a = 0; a < 3; ++a) {
+    g.block<1, 3>(a, 3 * a) = d.transpose();
+    g(a, 9 + a) = 1.0;
+  }
+  return g * alignment_ * g.transpose();
+}
+
+Mat3 UncertaintyModel::mean_alignment(const Vec3& m, const Mat3& mm) const {
+  // The mean of J_i C J_i^T over the points, from the moments of d (J is linear in d).
+  Mat3 a = Mat3::Zero();
+  for (int r = 0; r < 3; ++r)
+    for (int s = 0; s < 3; ++s) {
+      double v = alignment_(9 + r, 9 + s);
+      for (int c = 0; c < 3; ++c) {
+        v += alignment_(3 * r + c, 9 + s) * m(c) + alignment_(9 + r, 3 * s + c) * m(c);
+        for (int e = 0; e < 3; ++e) v += alignment_(3 * r + c, 3 * s + e) * mm(c, e);
+      }
+      a(r, s) = v;
+    }
+  return a;
+}
+
 Vec3 UncertaintyModel::original_compared(std::uint32_t j) const {
   const Vec3 p = compared_[j];
   if (!inputs_.transform_applied) return p;
   return reduction_ + inverse_rotation_ * (p - reduction_ - translation_);
 }
 
-CentreOfGravity UncertaintyModel::centre_of_gravity(int k, const Vec3& core,
+CentreOfGravity UncertaintyModel::centre_of_gravity(int k, const Vec3& core, const Vec3& normal,
                                                     std::span<const std::uint32_t> points) const {
+  if (params_.ep_weights == EpWeights::kNormal) return normal_weighted_centre(k, core, normal, points);
   const bool moved = k == 1;
   const PointsView indexed = moved ? compared_indexed() : reference_;
   const auto& table = moved ? inputs_.compared.scan_positions : inputs_.reference.scan_positions;
@@ -99,20 +168,7 @@ CentreOfGravity UncertaintyModel::centre_of_gravity(int k, const Vec3& core,
       g.rightCols<3>() = Mat3::Identity();
       out.covariance += g * alignment_ * g.transpose();
     } else {
-      // The mean of J_i C J_i^T over the points, from the moments of d (J is linear in d).
-      const Vec3 m = d_sum / n;
-      const Mat3 mm = dd_sum / n;
-      Mat3 a = Mat3::Zero();
-      for (int r = 0; r < 3; ++r)
-        for (int s = 0; s < 3; ++s) {
-          double v = alignment_(9 + r, 9 + s);
-          for (int c = 0; c < 3; ++c) {
-            v += alignment_(3 * r + c, 9 + s) * m(c) + alignment_(9 + r, 3 * s + c) * m(c);
-            for (int e = 0; e < 3; ++e) v += alignment_(3 * r + c, 3 * s + e) * mm(c, e);
-          }
-          a(r, s) = v;
-        }
-      out.covariance += a;
+      out.covariance += mean_alignment(d_sum / n, dd_sum / n);
     }
   }
   out.defined = out.covariance.allFinite();

@@ -84,6 +84,7 @@ struct Params {
   double precision_scale1 = 1.0, precision_scale2 = 1.0;  ///< PM: scale of each cloud's sigmas
   EpCovariance ep_covariance = EpCovariance::kIndependent;  ///< EP: the centres' covariance
   EpLod ep_lod = EpLod::kProjected;  ///< EP: the level of detection
+  EpWeights ep_weights = EpWeights::kNormal;  ///< EP: the weights of the centres of gravity
 };
 
 }  // namespace m3c2

@@ -28,6 +28,12 @@ enum class EpCovariance : std::uint8_t {
   kMeanOfPoints,  ///< the mean of the points' covariances (py4dgeo's code: errors fully correlated)
 };
 
+/// How M3C2-EP weighs a cylinder's points in its centre of gravity.
+enum class EpWeights : std::uint8_t {
+  kNormal,  ///< scalar weights 1 / n^T S_i n: the best estimate of the offset along the normal
+  kMatrix,  ///< matrix weights S_i^-1 (Winiwarter et al. 2021, py4dgeo): mixes tangential positions in
+};
+
 /// M3C2-EP's level of detection.
 enum class EpLod : std::uint8_t {
   kProjected,  ///< z sqrt(n^T (S1 + S2) n): the distance's own variance (nominal rate)

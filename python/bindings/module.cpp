@@ -199,6 +199,9 @@ NB_MODULE(_core, m) {
   nb::enum_<m3c2::EpCovariance>(m, "EpCovariance")
       .value("independent", m3c2::EpCovariance::kIndependent)
       .value("mean_of_points", m3c2::EpCovariance::kMeanOfPoints);
+  nb::enum_<m3c2::EpWeights>(m, "EpWeights")
+      .value("normal", m3c2::EpWeights::kNormal)
+      .value("matrix", m3c2::EpWeights::kMatrix);
   nb::enum_<m3c2::EpLod>(m, "EpLod")
       .value("projected", m3c2::EpLod::kProjected)
       .value("published", m3c2::EpLod::kPublished);
@@ -242,7 +245,8 @@ NB_MODULE(_core, m) {
       .def_rw("precision_scale1", &m3c2::Params::precision_scale1)
       .def_rw("precision_scale2", &m3c2::Params::precision_scale2)
       .def_rw("ep_covariance", &m3c2::Params::ep_covariance)
-      .def_rw("ep_lod", &m3c2::Params::ep_lod);
+      .def_rw("ep_lod", &m3c2::Params::ep_lod)
+      .def_rw("ep_weights", &m3c2::Params::ep_weights);
 
   nb::exception<m3c2::Cancelled>(m, "Cancelled", PyExc_RuntimeError);
 

@@ -88,7 +88,7 @@ def polar_cov(p, origin, s_range, ppm, s_scan, s_yaw):
     return J @ D @ J.T
 
 
-def ep_oracle(ref, cmp_raw, ids1, ids2, table, tfm, cxx, red, core, n, covariance):
+def ep_oracle(ref, cmp_raw, ids1, ids2, table, tfm, cxx, red, core, n, covariance, weights):
     R, t = tfm[:, :3], tfm[:, 3]
     cmp_t = (cmp_raw - red) @ R.T + t + red
     rows = {int(row[0]): row for row in table}
@@ -102,11 +102,16 @@ def ep_oracle(ref, cmp_raw, ids1, ids2, table, tfm, cxx, red, core, n, covarianc
             if k == 1:
                 c = R @ c @ R.T
             covs.append(c)
-            ws.append(np.linalg.inv(c))
+            ws.append(np.linalg.inv(c) if weights == "matrix" else np.eye(3) / (n @ c @ n))
         W = np.sum(ws, 0)
         Q = np.linalg.inv(W)
         m = Q @ np.sum([w @ (cloud[j] - core) for w, j in zip(ws, idx)], 0)
-        S = Q if covariance == "independent" else np.mean(covs, 0)
+        if covariance == "mean_of_points":
+            S = np.mean(covs, 0)
+        elif weights == "matrix":
+            S = Q
+        else:  # scalar weights: sum w^2 S_i / (sum w)^2
+            S = np.sum([w[0, 0] ** 2 * c for w, c in zip(ws, covs)], 0) / W[0, 0] ** 2
         if k == 1:
             Js = []
             for j in idx:
@@ -140,17 +145,19 @@ def ep_case(seed=5):
     return ref, cmp_, ids1, ids2, table, tfm, cxx, red
 
 
+@pytest.mark.parametrize("weights", ["normal", "matrix"])
 @pytest.mark.parametrize("covariance", ["independent", "mean_of_points"])
 @pytest.mark.parametrize("lod", ["projected", "published"])
-def test_ep_matches_oracle(covariance, lod):
+def test_ep_matches_oracle(weights, covariance, lod):
     ref, cmp_, ids1, ids2, table, tfm, cxx, red = ep_case()
     p = params("ep")
     p.ep_covariance = getattr(_core.EpCovariance, covariance)
     p.ep_lod = getattr(_core.EpLod, lod)
+    p.ep_weights = getattr(_core.EpWeights, weights)
     ep = ui.EpInputs(table, table, ids1, ids2, tfm, cxx, red)
     out = ui.compute(ref, cmp_, CORES, p, ep=ep, covariances=True)
     for k, core in enumerate(CORES):
-        d, s1, s2, S = ep_oracle(ref, cmp_, ids1, ids2, table, tfm, cxx, red, core, N, covariance)
+        d, s1, s2, S = ep_oracle(ref, cmp_, ids1, ids2, table, tfm, cxx, red, core, N, covariance, weights)
         assert out["distance"][k] == pytest.approx(d, abs=1e-12)
         assert out["spread1"][k] == pytest.approx(s1, rel=1e-9)
         assert out["spread2"][k] == pytest.approx(s2, rel=1e-9)
