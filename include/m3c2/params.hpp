@@ -2,6 +2,8 @@
 // Parameters of an M3C2 run (Lague et al. 2013). Lengths are in the clouds' unit.
 // D and d are DIAMETERS, as in the paper and CloudCompare; max_depth is a half-length.
 
+#include <m3c2/uncertainty.hpp>
+
 #include <cstdint>
 #include <vector>
 
@@ -75,6 +77,14 @@ struct Params {
   bool t_statistic = false;          ///< Welch t with eq. (2)'s DF when n1 or n2 < 30
   std::uint32_t bootstrap_samples = 0;  ///< > 0: LOD = z (sd of resampled distances + reg), App. B
   std::uint64_t bootstrap_seed = 0;
+
+  // Per-point uncertainty (6.2; include/m3c2/uncertainty.hpp, docs/algorithm.md#per-point-uncertainty)
+  Uncertainty uncertainty = Uncertainty::kEq1;  ///< eq. (1), M3C2-PM or M3C2-EP
+  PrecisionRule precision_rule = PrecisionRule::kNearest;  ///< PM: which points give sigma
+  double precision_scale1 = 1.0, precision_scale2 = 1.0;  ///< PM: scale of each cloud's sigmas
+  EpCovariance ep_covariance = EpCovariance::kIndependent;  ///< EP: the centres' covariance
+  EpLod ep_lod = EpLod::kProjected;  ///< EP: the level of detection
+  EpWeights ep_weights = EpWeights::kNormal;  ///< EP: the weights of the centres of gravity
 };
 
 }  // namespace m3c2
