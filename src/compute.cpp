@@ -150,6 +150,7 @@ struct Scratch {
   detail::NormalScratch normal;
   detail::ProjectionScratch projection;
   std::vector<double> t1, t2, work;
+  detail::MedianWeightCache median_weights;
 };
 
 class Pipeline {
@@ -231,8 +232,8 @@ class Pipeline {
       r.status[i] = n1 == 0 ? PointStatus::kEmptyCylinder1 : PointStatus::kEmptyCylinder2;
       return;
     }
-    const detail::Spread a = detail::central_spread(s.t1, params_, s.work);
-    const detail::Spread b = detail::central_spread(s.t2, params_, s.work);
+    const detail::Spread a = detail::central_spread(s.t1, params_, s.work, &s.median_weights);
+    const detail::Spread b = detail::central_spread(s.t2, params_, s.work, &s.median_weights);
     r.i1[i] = a.centre, r.i2[i] = b.centre, r.sigma1[i] = a.sigma, r.sigma2[i] = b.sigma;
     r.distance[i] = b.centre - a.centre;
     // Eq. (1) is not defined below two points per cloud whatever min_points says (5.2.1).
@@ -241,11 +242,11 @@ class Pipeline {
       r.status[i] = PointStatus::kTooFewPointsForLod;
       return;
     }
-    if (params_.bootstrap_samples > 0) {
+    if (params_.lod == Lod::kBootstrap) {
       r.lod[i] = z_ * (detail::bootstrap_sigma(s.t1, s.t2, params_, i, s.work) + params_.registration_error);
     } else {
-      const double critical = detail::critical_value(params_, z_, a.sigma, n1, b.sigma, n2);
-      r.lod[i] = detail::lod_parametric(critical, a.sigma, n1, b.sigma, n2, params_.registration_error);
+      const double critical = detail::critical_value(params_, z_, a.se, n1, b.se, n2);
+      r.lod[i] = detail::lod_parametric(critical, a.se, b.se, params_.registration_error);
     }
     r.significant[i] = std::abs(r.distance[i]) > r.lod[i];
     r.status[i] = PointStatus::kOk;
