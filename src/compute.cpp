@@ -153,6 +153,7 @@ struct Scratch {
   detail::ProjectionScratch projection;
   std::vector<double> t1, t2, work;
   std::vector<std::uint32_t> index1, index2;  // per-point uncertainty: the cylinders' points
+  detail::MedianWeightCache median_weights;
 };
 
 class Pipeline {
@@ -238,8 +239,8 @@ class Pipeline {
       r.status[i] = n1 == 0 ? PointStatus::kEmptyCylinder1 : PointStatus::kEmptyCylinder2;
       return;
     }
-    const detail::Spread a = detail::central_spread(s.t1, params_, s.work);
-    const detail::Spread b = detail::central_spread(s.t2, params_, s.work);
+    const detail::Spread a = detail::central_spread(s.t1, params_, s.work, &s.median_weights);
+    const detail::Spread b = detail::central_spread(s.t2, params_, s.work, &s.median_weights);
     r.i1[i] = a.centre, r.i2[i] = b.centre, r.sigma1[i] = a.sigma, r.sigma2[i] = b.sigma;
     r.distance[i] = b.centre - a.centre;
     if (uncertainty_) return;  // PM / EP give the LOD (uncertainty_->measure)
@@ -249,11 +250,11 @@ class Pipeline {
       r.status[i] = PointStatus::kTooFewPointsForLod;
       return;
     }
-    if (params_.bootstrap_samples > 0) {
+    if (params_.lod == Lod::kBootstrap) {
       r.lod[i] = z_ * (detail::bootstrap_sigma(s.t1, s.t2, params_, i, s.work) + params_.registration_error);
     } else {
-      const double critical = detail::critical_value(params_, z_, a.sigma, n1, b.sigma, n2);
-      r.lod[i] = detail::lod_parametric(critical, a.sigma, n1, b.sigma, n2, params_.registration_error);
+      const double critical = detail::critical_value(params_, z_, a.se, n1, b.se, n2);
+      r.lod[i] = detail::lod_parametric(critical, a.se, b.se, params_.registration_error);
     }
     r.significant[i] = std::abs(r.distance[i]) > r.lod[i];
     r.status[i] = PointStatus::kOk;

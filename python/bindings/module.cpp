@@ -188,6 +188,14 @@ NB_MODULE(_core, m) {
   nb::enum_<m3c2::ScaleSelection>(m, "ScaleSelection")
       .value("most_planar", m3c2::ScaleSelection::kMostPlanar)
       .value("cloudcompare", m3c2::ScaleSelection::kCloudCompare);
+  nb::enum_<m3c2::Lod>(m, "Lod")
+      .value("z", m3c2::Lod::kZ)
+      .value("t", m3c2::Lod::kT)
+      .value("auto", m3c2::Lod::kAuto)
+      .value("bootstrap", m3c2::Lod::kBootstrap);
+  nb::enum_<m3c2::MedianLod>(m, "MedianLod")
+      .value("maritz_jarrett", m3c2::MedianLod::kMaritzJarrett)
+      .value("cloudcompare", m3c2::MedianLod::kCloudCompare);
 
   nb::enum_<m3c2::Uncertainty>(m, "Uncertainty")
       .value("eq1", m3c2::Uncertainty::kEq1)
@@ -237,8 +245,22 @@ NB_MODULE(_core, m) {
       .def_rw("registration_error", &m3c2::Params::registration_error)
       .def_rw("confidence", &m3c2::Params::confidence)
       .def_rw("min_points", &m3c2::Params::min_points)
-      .def_rw("t_statistic", &m3c2::Params::t_statistic)
-      .def_rw("bootstrap_samples", &m3c2::Params::bootstrap_samples)
+      .def_rw("lod", &m3c2::Params::lod)
+      .def_rw("median_lod", &m3c2::Params::median_lod)
+      // The legacy switches of --t-statistic and --bootstrap N, mapped onto `lod`: t_statistic
+      // True is the paper's rule (Lod.auto), False leaves `lod` alone; bootstrap_samples > 0 also
+      // selects Lod.bootstrap (0 leaves `lod` alone).
+      .def_prop_rw(
+          "t_statistic", [](const m3c2::Params& p) { return p.lod == m3c2::Lod::kAuto; },
+          [](m3c2::Params& p, bool on) {
+            if (on) p.lod = m3c2::Lod::kAuto;
+          })
+      .def_prop_rw(
+          "bootstrap_samples", [](const m3c2::Params& p) { return p.bootstrap_samples; },
+          [](m3c2::Params& p, std::uint32_t n) {
+            p.bootstrap_samples = n;
+            if (n > 0) p.lod = m3c2::Lod::kBootstrap;
+          })
       .def_rw("bootstrap_seed", &m3c2::Params::bootstrap_seed)
       .def_rw("uncertainty", &m3c2::Params::uncertainty)
       .def_rw("precision_rule", &m3c2::Params::precision_rule)
