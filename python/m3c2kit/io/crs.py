@@ -271,6 +271,15 @@ def _role(cloud, role: str) -> str:
     return f"{role} {path}" if path is not None else f"the {role} cloud"
 
 
+def _extent_corners(cloud):
+    import numpy as np
+    xyz = getattr(cloud, "xyz", None)
+    if xyz is None or len(xyz) == 0:
+        return None
+    lo, hi = np.nanmin(xyz[:, :2], axis=0), np.nanmax(xyz[:, :2], axis=0)
+    return np.array([[lo[0], lo[1]], [hi[0], lo[1]], [lo[0], hi[1]], [hi[0], hi[1]]])
+
+
 def check_crs(reference, compared, core=None, *, ignore: bool = False, allow_angular: bool = False) -> None:
     """Refuses (CrsMismatch) clouds that cannot be compared as they are (docs/errors.md):
 
@@ -297,7 +306,7 @@ def check_crs(reference, compared, core=None, *, ignore: bool = False, allow_ang
                 f"only one cloud has a CRS: {_role(has, has_role)} is in {crs_label(has.crs)}, "
                 f"{_role(lacks, lacks_role)} has none; give it one with --crs (e.g. --crs EPSG:<code>), "
                 f"or pass --ignore-crs if the coordinates are comparable")
-        if same_crs(ref_crs, other_crs) is False:
+        if same_crs(ref_crs, other_crs, _extent_corners(reference)) is False:
             raise CrsMismatch(f"the clouds have different CRSs: {_role(reference, 'reference')} is in "
                               f"{crs_label(ref_crs)}, {_role(other, role)} in {crs_label(other_crs)}; "
                               f"reproject one of them, or pass --ignore-crs if the coordinates are comparable")
