@@ -21,7 +21,7 @@ import numpy as np
 from . import _core
 from .errors import Cancelled, UsageError
 
-__all__ = ["PARAM_FIELDS", "RESULT_FIELDS", "STATUS_NAMES", "MAX_CELLS_PER_AXIS", "INDEX_MEMORY", "Params",
+__all__ = ["PARAM_FIELDS", "RESULT_FIELDS", "OPTIONAL_RESULT_FIELDS", "STATUS_NAMES", "MAX_CELLS_PER_AXIS", "INDEX_MEMORY", "Params",
            "translated", "make_params", "default_fields", "params_fields", "compute", "compute_normals",
            "subsample_min_spacing", "grid_core_points", "roughness_by_scale", "c2c", "max_abs_coordinate",
            "neighbourhood_reach", "tile_halo"]
@@ -29,8 +29,10 @@ __all__ = ["PARAM_FIELDS", "RESULT_FIELDS", "STATUS_NAMES", "MAX_CELLS_PER_AXIS"
 Params = _core.Params
 #: Fields of the engine's Params, in the struct's order (include/m3c2/params.hpp visit_param_fields).
 PARAM_FIELDS: tuple[str, ...] = tuple(_core.PARAM_FIELDS)
-#: Per-core-point arrays of the engine's Result (include/m3c2/result.hpp visit_result_fields).
+#: Per-core-point arrays of the engine's Result (include/m3c2/result.hpp visit_result_fields),
+#: always present, and those present only when a parameter asks for them (uncertainty models).
 RESULT_FIELDS: tuple[str, ...] = tuple(_core.RESULT_FIELDS)
+OPTIONAL_RESULT_FIELDS: tuple[str, ...] = tuple(_core.OPTIONAL_RESULT_FIELDS)
 #: Reason codes of the `status` column, by code.
 STATUS_NAMES: tuple[str, ...] = tuple(_core.status_names())
 #: Most cells along an axis of the subsampling and 2D grids (extent / cell).
@@ -86,10 +88,12 @@ def default_fields() -> dict:
 
 def compute(reference: np.ndarray, compared: np.ndarray, core: np.ndarray, params: _core.Params,
             core_normals: np.ndarray | None = None, *, threads: int = 0,
-            progress: Callable[[int, int], object] | None = None) -> dict:
-    """M3C2 at each core point: a dict of RESULT_FIELDS arrays."""
+            progress: Callable[[int, int], object] | None = None, **uncertainty_inputs) -> dict:
+    """M3C2 at each core point: a dict of RESULT_FIELDS arrays (and OPTIONAL_RESULT_FIELDS ones).
+    `uncertainty_inputs`: the per-point inputs of params.uncertainty (m3c2kit.uncertainty_inputs)."""
     with translated():
-        return _core.compute(reference, compared, core, params, core_normals, threads=threads, progress=progress)
+        return _core.compute(reference, compared, core, params, core_normals, threads=threads, progress=progress,
+                             **uncertainty_inputs)
 
 
 def compute_normals(cloud: np.ndarray, core: np.ndarray, params: _core.Params, *, threads: int = 0,

@@ -414,7 +414,7 @@ def run_tiled(reference, compared, *, output=None, core=None, core_spacing=None,
         raise UsageError("--normal-subsample cannot be combined with tiling (--tile-size, --memory-limit, "
                          "--dask-scheduler): the subsampled normal cloud depends on the whole cloud's order, "
                          "so tiles would not reproduce the untiled result")
-    if engine_p.bootstrap_samples > 0:
+    if values["lod"] == "bootstrap":
         raise UsageError("--bootstrap cannot be combined with tiling: the bootstrap stream is seeded by the "
                          "core point's index in the run, which a tile does not know")
     if tile_size is None and memory_limit is None:

@@ -59,12 +59,15 @@ def test_params_pickle_with_every_field():
     p = build_params(normal_scale="1,2", projection_scale=2.5, max_depth=3, orient="1,2,3", median=True,
                      variance="population", scale_selection="cloudcompare", min_points_normal=5,
                      min_points_multiscale=12, first_pass_depth=1.5, positive_search_only=True,
-                     registration_error=0.1, confidence=0.9, min_points=6, t_statistic=True, bootstrap=10,
-                     seed=2**64 - 1, normal_subsample=0.5)
+                     registration_error=0.1, confidence=0.9, min_points=6, bootstrap=10,
+                     seed=2**64 - 1, normal_subsample=0.5, median_lod="cloudcompare", uncertainty="ep",
+                     precision_rule="all", precision_scales="2,0.5", ep_covariance="mean-of-points",
+                     ep_lod="published", ep_weights="matrix")
     q = pickle.loads(pickle.dumps(p))
     assert engine.params_fields(q) == engine.params_fields(p)
     assert engine.params_fields(q) != engine.default_fields()  # the values travelled, not defaults
     assert q.depth_search == _core.DepthSearch.two_pass and q.bootstrap_seed == 2**64 - 1
+    assert q.lod == _core.Lod.bootstrap and q.precision_scale2 == 0.5
 
 
 def test_defaults_come_from_the_engine_struct():
@@ -117,7 +120,10 @@ def test_every_engine_parameter_is_reachable_from_the_command_line(param):
               "min_points_normal": "7", "min_points_multiscale": "11", "normal_subsample": "0.25",
               "orient": "1,2,3", "projection_scale": "2.5", "max_depth": "4", "depth_search": "progressive",
               "first_pass_depth": "1.5", "variance": "population", "registration_error": "0.125",
-              "confidence": "0.9", "min_points": "6", "bootstrap": "9", "seed": "17"}
+              "confidence": "0.9", "min_points": "6", "bootstrap": "9", "seed": "17", "lod": "t",
+              "median_lod": "cloudcompare", "uncertainty": "pm", "precision_rule": "all",
+              "precision_scales": "2,3", "ep_covariance": "mean-of-points", "ep_lod": "published",
+              "ep_weights": "matrix"}
     argv = ["compare", "r.xyz", "c.xyz", "-o", "o.csv", "--projection-scale", "2", "--max-depth", "3",
             "--normal-scale", "1"]
     argv += [param.flag] if param.cli_type is None else [param.flag, values[param.name]]
@@ -128,6 +134,16 @@ def test_every_engine_parameter_is_reachable_from_the_command_line(param):
         {param.name: REQUIRED[param.name]} if param.name in REQUIRED else {}))
     changed = [f for f in param.engine.fields if getattr(p, f) != getattr(default, f)]
     assert changed, f"{param.flag} did not reach the engine"
+
+
+def test_lod_switches_agree_with_lod():
+    assert build_params(t_statistic=True, **REQUIRED).lod == _core.Lod.auto
+    assert build_params(bootstrap=5, **REQUIRED).lod == _core.Lod.bootstrap
+    assert build_params(lod="t", **REQUIRED).lod == _core.Lod.t
+    with pytest.raises(UsageError, match="--lod z contradicts --bootstrap"):
+        build_params(lod="z", bootstrap=5, **REQUIRED)
+    with pytest.raises(UsageError, match="--lod bootstrap needs --bootstrap N"):
+        build_params(lod="bootstrap", **REQUIRED)
 
 
 def test_normals_takes_the_shared_options():

@@ -23,7 +23,7 @@ def _cell(text) -> str:
 
 def _row(p: Parameter) -> str:
     cc = "" if p.cloudcompare is SAME else _cell(p.cloudcompare)
-    engine = ", ".join(p.engine.fields) if p.engine is not None else "(run)"
+    engine = ", ".join(p.engine.fields) if p.engine is not None else f"({p.scope})"
     cells = (f"`{p.flag}`", f"`{p.name}`", _cell(p.kind.describe()), _cell(_shown(p.default_for())), cc, engine,
              p.section, ", ".join(p.cloudcompare_keys), _cell(p.py4dgeo), ", ".join(p.commands))
     return "| " + " | ".join(cells) + " |"

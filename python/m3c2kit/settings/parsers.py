@@ -192,6 +192,22 @@ class Choice:
         return " | ".join(self.values)
 
 
+class Positives:
+    """`count` finite numbers > 0, as a sequence or 'A,B'."""
+
+    def __init__(self, count: int):
+        self.count = count
+
+    def __call__(self, name: str, value) -> list[float]:
+        parts = value.split(",") if isinstance(value, str) else list(np.atleast_1d(value))
+        if len(parts) != self.count:
+            raise UsageError(f"{name} needs {self.count} comma-separated values, got {value!r}")
+        return [positive(name, v) for v in parts]
+
+    def describe(self) -> str:
+        return f"{self.count} values > 0, comma-separated"
+
+
 class Flag:
     """On or off."""
 

@@ -72,6 +72,18 @@ def _depth_search(values: dict, given: Mapping) -> None:
                              f"({given.get('max_depth')})")
 
 
+def _lod(values: dict, given: Mapping) -> None:
+    # --bootstrap N and --t-statistic name a LOD statistic too; they must agree with --lod.
+    implied, switch = (("bootstrap", "--bootstrap") if values["bootstrap"]
+                       else ("auto", "--t-statistic") if values["t_statistic"] else (None, None))
+    if given.get("lod") is None:
+        values["lod"] = implied or values["lod"]
+    elif implied is not None and values["lod"] != implied:
+        raise UsageError(f"--lod {values['lod']} contradicts {switch} (which means --lod {implied})")
+    if values["lod"] == "bootstrap" and values["bootstrap"] < 2:
+        raise UsageError("--lod bootstrap needs --bootstrap N (N >= 2 resamples)")
+
+
 def _normal_scale_needed(values: dict, given: Mapping) -> None:
     if values["normal_scale"] is None and values.get("normal_source", "reference") not in ("vertical", "core"):
         raise UsageError("--normal-scale (D, a diameter) is required unless --normal-source is vertical or core")
@@ -88,6 +100,6 @@ def _required(*names: str, hint: str = ""):
 #: Rules that tie several parameters, checked after each value is (in the table's order).
 RULES = {
     "compare": (_normal_scale_needed, _required("projection_scale", "max_depth",
-                                                hint=" (or a --params file that sets it)"), _depth_search),
+                                                hint=" (or a --params file that sets it)"), _depth_search, _lod),
     "normals": (_required("normal_scale"),),
 }

@@ -16,7 +16,7 @@ from typing import Any, Callable
 
 from .. import engine
 from . import parsers
-from .parsers import UINT32_MAX, UINT64_MAX, Choice, Flag, Integer, Real, Scales
+from .parsers import UINT32_MAX, UINT64_MAX, Choice, Flag, Integer, Positives, Real, Scales
 
 __all__ = ["Parameter", "EngineField", "PARAMETERS", "FROM_ENGINE", "SAME", "by_name", "parameters_of"]
 
@@ -61,6 +61,9 @@ def _orientation_name(f: dict) -> str:
 
 
 ORIENTATION = EngineField(("orientation_direction", "orientation_points"), _orientation_fields, _orientation_name)
+PRECISION_SCALES = EngineField(("precision_scale1", "precision_scale2"),
+                               lambda v, **_: {"precision_scale1": v[0], "precision_scale2": v[1]},
+                               lambda f: [f["precision_scale1"], f["precision_scale2"]])
 STATISTIC = EngineField(("statistic",), lambda v, **_: {"statistic": "median" if v else "mean"},
                         lambda f: f["statistic"] == "median")
 
@@ -181,13 +184,37 @@ PARAMETERS: tuple[Parameter, ...] = (
     Parameter("min_points", "--min-points", COUNT, section="5.2.1", engine=same("min_points"), cloudcompare=5,
               cli_type=int, cloudcompare_keys=("MinPoints4Stat", "UseMinPoints4Stat"),
               help="points needed in each cylinder for a LOD"),
-    Parameter("t_statistic", "--t-statistic", Flag(), section="3.3 eq. (2)", engine=same("t_statistic"),
-              cli_type=None, help="Welch t instead of z when n1 or n2 < 30 (eq. 2)"),
+    Parameter("lod", "--lod", Choice("z", "t", "auto", "bootstrap"), section="3.3, Appendix B",
+              engine=enum("lod"), cli_type=str,
+              help="the LOD's statistic: eq. (1) with z, with Welch's t (eq. 2), the paper's rule auto (t when "
+                   "n1 or n2 < 30), or the bootstrap of Appendix B (--bootstrap N resamples)"),
+    Parameter("median_lod", "--median-lod", Choice("maritz-jarrett", "cloudcompare"), section="3.3, Appendix B",
+              engine=enum("median_lod"), cloudcompare="cloudcompare", cli_type=str,
+              help="with --median: the median's standard error in eq. (1), exact (Maritz-Jarrett) or "
+                   "CloudCompare's IQR / 1.349 as if it were a mean's spread"),
+    Parameter("t_statistic", "--t-statistic", Flag(), section="3.3 eq. (2)", default=False, cli_type=None,
+              scope="alias", help="the same as --lod auto: Welch t instead of z when n1 or n2 < 30 (eq. 2)"),
     Parameter("bootstrap", "--bootstrap", Integer(0, UINT32_MAX, "0 (off) or >= 2 resamples", excluded=(1,)),
               section="Appendix B", engine=same("bootstrap_samples"), cli_type=int,
-              help="LOD from N bootstrap resamples"),
+              help="LOD from N bootstrap resamples (implies --lod bootstrap)"),
     Parameter("seed", "--seed", Integer(0, UINT64_MAX, "a non-negative integer"), section="Appendix B",
               engine=same("bootstrap_seed"), cli_type=int, help="bootstrap seed"),
+    # Per-point uncertainty (section 6.2; include/m3c2/uncertainty.hpp)
+    Parameter("uncertainty", "--uncertainty", Choice("eq1", "pm", "ep"), section="6.2", engine=enum("uncertainty"),
+              cli_type=str, help="the LOD's uncertainty model: eq. (1), M3C2-PM (precision maps) or M3C2-EP "
+                                 "(error propagation); pm and ep need their per-point inputs"),
+    Parameter("precision_rule", "--precision-rule", Choice("nearest", "all"), section="6.2",
+              engine=enum("precision_rule"), cli_type=str,
+              help="M3C2-PM: the precision of the point nearest the cylinder's centre (CloudCompare's) or of "
+                   "every point in it"),
+    Parameter("precision_scales", "--precision-scales", Positives(2), section="6.2", engine=PRECISION_SCALES,
+              cli_type=str, metavar="S1,S2", help="M3C2-PM: scale of each cloud's precisions"),
+    Parameter("ep_covariance", "--ep-covariance", Choice("independent", "mean-of-points"), section="6.2",
+              engine=enum("ep_covariance"), cli_type=str, help="M3C2-EP: the covariance of a centre of gravity"),
+    Parameter("ep_lod", "--ep-lod", Choice("projected", "published"), section="6.2", engine=enum("ep_lod"),
+              cli_type=str, help="M3C2-EP: the level of detection, projected on the normal or as published"),
+    Parameter("ep_weights", "--ep-weights", Choice("normal", "matrix"), section="6.2", engine=enum("ep_weights"),
+              cli_type=str, help="M3C2-EP: the weights of the centres of gravity"),
     # How the run is made (not what the engine computes)
     Parameter("core_spacing", "--core-spacing", Real(), section="3.1.1", default=None,
               cloudcompare_keys=("SubsampleRadius", "SubsampleEnabled"), scope="run",
