@@ -10,7 +10,7 @@ from typing import Callable
 
 import numpy as np
 
-from . import engine
+from . import diagnostics, engine
 from .errors import CloudReadError, M3C2Error, UsageError
 from .io.guard import available_memory, format_bytes
 from .result import Result
@@ -119,7 +119,9 @@ def compare(reference, compared, core_points=None, *, core=None, core_normals=No
         if len(normals) != len(core_xyz):
             raise UsageError(f"core_normals has {len(normals)} rows for {len(core_xyz)} core points")
     raw = engine.compute(ref, cmp_, core_xyz, engine_p, normals, threads=values["threads"], progress=progress)
-    return Result.from_engine(core_xyz, raw, run_record(params, engine_p))
+    result = Result.from_engine(core_xyz, raw, run_record(params, engine_p))
+    diagnostics.warn(result, values)
+    return result
 
 
 def run_record(given: dict, engine_p) -> dict:

@@ -5,18 +5,19 @@ from __future__ import annotations
 import argparse
 import signal
 import sys
+import warnings
 from pathlib import Path
 
 import numpy as np
 
 from . import api, raster
 from .analysis.cli import analysis_parsers
-from .errors import M3C2Error, UsageError
+from .errors import M3C2Error, M3C2Warning, UsageError
 from .io import info as file_info
 from .io import read_cloud, write_cloud_table
 from .io.crs import crs_label, same_crs
 from .progress import ProgressBar
-from .report.outputs import write_compare_outputs
+from .report.outputs import CompareOutputs, write_compare_outputs
 from .settings import by_name, parameters_of
 from .settings.cloudcompare_params import read_cloudcompare_params
 from .summary import summary_lines
@@ -65,8 +66,15 @@ def _compare_parser(sub) -> None:
     p.add_argument("--dask-scheduler", metavar="ADDRESS",
                    help="run the tiles as tasks on this Dask distributed scheduler; every worker must be able to "
                         "read the inputs and the work folder beside the output (docs/scaling.md)")
-    p.add_argument("--quiet", action="store_true", help="no progress bar or summary")
+    _verbosity_options(p)
     p.set_defaults(run=run_compare)
+
+
+def _verbosity_options(parser) -> None:
+    talk = parser.add_mutually_exclusive_group()
+    talk.add_argument("-q", "--quiet", action="store_true",
+                      help="no progress bar or summary (warnings and errors still go to stderr)")
+    talk.add_argument("--verbose", action="store_true", help="also print the parameters the run used")
 
 
 def add_table_options(parser, command: str, groups: dict | None = None) -> None:
@@ -89,7 +97,7 @@ def _normals_parser(sub) -> None:
     p.add_argument("-o", "--output", type=Path, required=True)
     p.add_argument("--core", type=Path, help="core points (default: every point)")
     add_table_options(p, "normals")
-    p.add_argument("--quiet", action="store_true")
+    _verbosity_options(p)
     p.set_defaults(run=run_normals)
 
 
@@ -127,9 +135,9 @@ def compare_settings(args) -> dict:
             settings[param.name] = value
     if args.core is not None:
         settings.pop("core_spacing", None)  # as CloudCompare: given core points win over subsampling
-    for required, flag in (("projection_scale", "--projection-scale"), ("max_depth", "--max-depth")):
-        if required not in settings:
-            raise UsageError(f"{flag} is required (or a --params file that sets it)")
+    if getattr(args, "grid", None) is not None:
+        explicit = {p.name: getattr(args, p.name, None) for p in parameters_of("compare")}
+        settings = raster.grid_settings(args.grid, settings, dict(explicit, core_normals=args.core_normals))
     return settings
 
 
@@ -144,18 +152,54 @@ def _orient_spec(args, settings: dict, reference):
     return positions if positions is not None and len(positions) else "+z"
 
 
+def run_compare_tiled(args, settings: dict, grid=None) -> int:
+    """`m3c2 compare ... --tile-size S | --memory-limit M [--dask-scheduler ADDRESS]` (m3c2kit.tiling)."""
+    from .io.streaming import PointSource
+    from .tiling import run_tiled
+
+    for flag, value in (("--grid", grid), ("--report", getattr(args, "report", None)),
+                        ("--report-png", getattr(args, "report_png", None))):
+        if value is not None:
+            raise UsageError(f"{flag} cannot be combined with tiling (--tile-size, --memory-limit, --dask-scheduler)")
+    if args.tile_size is None and args.memory_limit is None:
+        raise UsageError("--dask-scheduler needs --tile-size S or --memory-limit SIZE to cut the work into tiles")
+
+    settings = dict(settings)
+    position = settings.pop("position", "core")
+    threads = settings.pop("threads", 0)
+    core_spacing = settings.pop("core_spacing", None)
+    drop = bool(getattr(args, "drop_nonfinite", False))
+    ref_src = PointSource(args.reference, drop_nonfinite=drop)
+    cmp_src = PointSource(args.compared, drop_nonfinite=drop)
+    if "orient" not in settings:
+        positions = ref_src.cloud.scan_positions if ref_src.cloud is not None else None
+        settings["orient"] = positions if positions is not None and len(positions) else "+z"
+    core_cloud = read_cloud(args.core, drop_nonfinite=drop) if args.core is not None else None
+    check_same_crs(ref_src.like(), cmp_src.like(), core_cloud, ignore=getattr(args, "ignore_crs", False))
+    core_normals = _core_normals(args, core_cloud) if settings.get("normal_source") == "core" else None
+    say = (lambda s: None) if args.quiet else (lambda s: print(f"m3c2: {s}", flush=True))
+    report = run_tiled(ref_src, cmp_src, output=args.output,
+                       core=core_cloud.xyz if core_cloud is not None else None, core_spacing=core_spacing,
+                       core_normals=core_normals, tile_size=args.tile_size, memory_limit=args.memory_limit,
+                       dask_scheduler=args.dask_scheduler, threads=threads or 0, projected=args.projected,
+                       position=position, drop_nonfinite=drop, log=say,
+                       read_points=lambda p: read_cloud(p, drop_nonfinite=drop).xyz, **settings)
+    if not args.quiet:
+        for line in report.lines(args.output):
+            print(line)
+    return 0
+
+
 def run_compare(args) -> int:
-    cell = raster.grid_mode(args)  # --grid: checks its options, d = 1.1 CELL by default
-    settings = compare_settings(args)
+    cell = args.grid
+    settings = compare_settings(args)  # with --grid: 2D mode's settings (raster.grid_settings)
     if args.tile_size is not None or args.memory_limit is not None or args.dask_scheduler is not None:
-        from .tiling import run_compare_tiled  # out-of-core / Dask (docs/scaling.md)
-        return run_compare_tiled(args, settings, grid=cell)
+        return run_compare_tiled(args, settings, grid=cell)  # out-of-core / Dask (docs/scaling.md)
     reference, compared = _read(args.reference, args), _read(args.compared, args)
     core_cloud = _read(args.core, args) if args.core is not None else None
     check_same_crs(reference, compared, core_cloud, ignore=getattr(args, "ignore_crs", False))  # docs/errors.md
     grid = None
     if cell is not None:
-        settings = raster.grid_settings(settings)
         grid = raster.grid_core_points(reference, cell)
         core_cloud = grid.core_points
     settings["orient"] = _orient_spec(args, settings, reference)
@@ -168,13 +212,19 @@ def run_compare(args) -> int:
     result = api.compare(reference, compared, core_cloud, core_normals=core_normals, threads=threads,
                          progress=bar.update, read_points=lambda p: _read(p, args).xyz, **settings)
     bar.close()
-    extra = write_compare_outputs(args, result, reference, grid=grid, position=position)
+    outputs = CompareOutputs(table=args.output, report=args.report, report_png=args.report_png,
+                             projected=args.projected, position=position,
+                             inputs={"reference": args.reference, "compared": args.compared})
+    extra = write_compare_outputs(outputs, result, reference, grid=grid)
     if not args.quiet:
         for line in summary_lines(result, args.output):
             print(line)
         for path in extra:
             print(f"wrote {path}")
-    _print_warnings(args, settings, result, reference, compared, core_cloud)  # docs/errors.md
+    if args.verbose:
+        for name, value in sorted(result.params.items()):
+            print(f"parameter {name}: {value}")
+    _print_notes((reference, compared, core_cloud), args.quiet)  # the warnings: m3c2kit.diagnostics, through main()
     return 0
 
 
@@ -201,46 +251,17 @@ def check_same_crs(reference, compared, core=None, *, ignore: bool = False) -> N
                               f"if the coordinates are comparable")
 
 
-#: Share of computed core points with an empty cylinder in one cloud only above which
-#: `compare` warns that --max-depth may be shorter than the change.
-EMPTY_ONE_SIDE_WARNING = 0.10
+def _print_notes(clouds, quiet: bool) -> None:
+    """What reading changed in the inputs (docs/errors.md): with the summary, or on stderr with -q."""
+    for c in clouds:
+        if getattr(c, "dropped_nonfinite", 0):
+            note = f"note: dropped {c.dropped_nonfinite} points with non-finite coordinates from {c.path}"
+            print(f"m3c2: {note}", file=sys.stderr) if quiet else print(note)
 
 
-def result_warnings(result, min_points: int, max_depth=None, projection_scale=None) -> list[str]:
-    """Warnings for runs that are legitimate but likely mis-parameterised (docs/errors.md):
-    the median n1 or n2 below `min_points` (cylinder too thin for the point spacing), and more
-    than 10 % of core points with a searched cylinder having it empty in one cloud only (the
-    change reaches beyond --max-depth)."""
-    searched = np.isin(result.status, (0, 3, 4, 5))  # a normal was found: cylinders were searched
-    if not searched.any():
-        return []
-    lines = []
-    n1, n2 = np.asarray(result.n1)[searched], np.asarray(result.n2)[searched]
-    m1, m2 = float(np.median(n1)), float(np.median(n2))
-    if min(m1, m2) < min_points:
-        lines.append(f"warning: the median cylinder holds n1 = {m1:g}, n2 = {m2:g} points, fewer than "
-                     f"--min-points {min_points}: the projection scale d = {projection_scale} is small for "
-                     f"the point spacing and most LODs are NaN; consider a larger --projection-scale")
-    one_side = np.count_nonzero((n1 == 0) != (n2 == 0)) / len(n1)
-    if one_side > EMPTY_ONE_SIDE_WARNING:
-        lines.append(f"warning: {100 * one_side:.1f}% of the core points with a normal have an empty cylinder "
-                     f"in one cloud only: the change may reach beyond --max-depth {max_depth}; consider a "
-                     f"larger --max-depth")
-    return lines
-
-
-def _print_warnings(args, settings: dict, result, *clouds) -> None:
-    min_points = settings.get("min_points")
-    lines = [f"note: dropped {c.dropped_nonfinite} points with non-finite coordinates from {c.path}"
-             for c in clouds if getattr(c, "dropped_nonfinite", 0)]
-    lines += result_warnings(result, by_name()["min_points"].default_for(settings.get("compat")) if min_points is None
-                             else int(min_points),
-                             settings.get("max_depth"), settings.get("projection_scale"))
-    for line in lines:
-        if args.quiet:
-            print(f"m3c2: {line}", file=sys.stderr)
-        else:
-            print(line)
+def _show_warning(message, category, filename, lineno, file=None, line=None) -> None:
+    """The run's warnings (m3c2kit.diagnostics' M3C2Warning and any other) as one line on stderr."""
+    print(f"m3c2: warning: {message}", file=sys.stderr)
 
 
 def _core_normals(args, core_cloud) -> np.ndarray:
@@ -290,6 +311,16 @@ def _raise_interrupted(signum, frame):
 
 def main(argv=None) -> int:
     previous = signal.signal(signal.SIGTERM, _raise_interrupted)
+    with warnings.catch_warnings():
+        warnings.simplefilter("always", M3C2Warning)
+        warnings.showwarning = _show_warning
+        try:
+            return _main(argv)
+        finally:
+            signal.signal(signal.SIGTERM, previous)
+
+
+def _main(argv) -> int:
     try:
         args = make_parser().parse_args(argv)
         return args.run(args)
@@ -305,8 +336,6 @@ def main(argv=None) -> int:
     except MemoryError:
         print("m3c2: error: out of memory; use fewer or subsampled core points", file=sys.stderr)
         return 1
-    finally:
-        signal.signal(signal.SIGTERM, previous)
 
 
 if __name__ == "__main__":

@@ -34,7 +34,7 @@ from . import engine
 from .errors import CloudWriteError, UsageError
 from .io.crs import looks_like_wkt
 
-__all__ = ["Grid", "RASTERS", "PROJECTION_FACTOR", "grid_core_points", "grid_mode", "grid_settings",
+__all__ = ["Grid", "RASTERS", "PROJECTION_FACTOR", "grid_core_points", "grid_settings",
            "raster_paths", "rasters", "write_rasters", "staged_outputs"]
 
 #: d = PROJECTION_FACTOR x cell when --projection-scale is not given (section 6.1.2).
@@ -92,49 +92,30 @@ def grid_core_points(points, cell: float) -> Grid:
                 np.asarray(g["core_points"]).reshape(-1, 3), np.asarray(g["row"]), np.asarray(g["col"]))
 
 
-def grid_mode(args) -> float | None:
-    """Checks the command-line options of 2D mode and fills in its defaults on `args`.
-
-    Returns the cell size, or None without --grid. Normals are vertical in this mode, so
-    --normal-scale (which would only choose the normal) and any --normal-source but vertical
-    are usage errors, as are --position reference/compared (the rasters are at cell centres)
-    and --core-normals. d defaults to 1.1 x CELL.
-    """
-    cell = getattr(args, "grid", None)
-    if cell is None:
-        return None
+def grid_settings(cell, settings: dict, explicit: dict) -> dict:
+    """The compare settings of 2D mode (section 6.1.2) for a --grid `cell`: vertical normals, and
+    d = 1.1 x CELL unless a projection scale is set. `explicit` holds what the user gave on the
+    command line: there a --normal-scale (which would only choose the normal), a --normal-source
+    but vertical, --core-normals and --position reference/compared are usage errors; from a params
+    file the normal scale and core point options are dropped (the grid is the core points)."""
     if not (np.isfinite(cell) and cell > 0):
         raise UsageError(f"--grid must be a positive cell size, got {cell!r}")
-    if getattr(args, "normal_scale", None) is not None:
+    if explicit.get("normal_scale") is not None:
         raise UsageError("--grid imposes vertical normals (section 6.1.2): --normal-scale has no effect; "
                          "leave it out")
-    if getattr(args, "normal_source", None) not in (None, "vertical"):
-        raise UsageError(f"--grid imposes vertical normals: --normal-source {args.normal_source} is not allowed")
-    if getattr(args, "core_normals", None) is not None:
+    if explicit.get("normal_source") not in (None, "vertical"):
+        raise UsageError(f"--grid imposes vertical normals: --normal-source {explicit['normal_source']} is not allowed")
+    if explicit.get("core_normals") is not None:
         raise UsageError("--grid imposes vertical normals: --core-normals is not allowed")
-    if getattr(args, "position", None) not in (None, "core"):
+    if explicit.get("position") not in (None, "core"):
         raise UsageError("--grid writes values at the cell centres: --position must be core")
-    if getattr(args, "projection_scale", None) is None and not _params_set(args, "projection_scale"):
-        args.projection_scale = PROJECTION_FACTOR * cell
-    return float(cell)
-
-
-def _params_set(args, name: str) -> bool:
-    if getattr(args, "params", None) is None:
-        return False
-    from .settings.cloudcompare_params import read_cloudcompare_params
-    return name in read_cloudcompare_params(args.params)
-
-
-def grid_settings(settings: dict) -> dict:
-    """The compare settings of 2D mode: vertical normals; a --params file's normal scale and core
-    point options are dropped (the grid is the core points, normals are vertical)."""
+    if settings.get("position", "core") != "core":
+        raise UsageError("--grid writes values at the cell centres: the position must be core")
     settings = dict(settings)
     settings["normal_source"] = "vertical"
     for name in ("normal_scale", "core_spacing", "normal_subsample"):
         settings.pop(name, None)
-    if settings.get("position", "core") != "core":
-        raise UsageError("--grid writes values at the cell centres: the position must be core")
+    settings.setdefault("projection_scale", PROJECTION_FACTOR * float(cell))
     return settings
 
 

@@ -1,20 +1,11 @@
-"""The short summary `m3c2 compare` prints, with the normal-accuracy check of section 5.1."""
+"""The short summary `m3c2 compare` prints, with the normal-accuracy shares of section 5.1 (its
+warning is m3c2kit.diagnostics')."""
 from __future__ import annotations
 
 import numpy as np
 
+from .diagnostics import normal_accuracy
 from .result import Result
-
-
-def normal_accuracy(result: Result) -> dict:
-    """Shares of core points with xi = D / sigma(D) > 20 and > 25, and the median predicted
-    E_norm = 1.3e5 xi^-3.5 (%), eq. (5) of section 5.1; None where no roughness was computed."""
-    xi = result.xi
-    xi = xi[np.isfinite(xi)]
-    if xi.size == 0:
-        return {}
-    return {"xi_over_20": float(np.mean(xi > 20)), "xi_over_25": float(np.mean(xi > 25)),
-            "median_e_norm_percent": float(np.median(1.3e5 * xi ** -3.5))}
 
 
 def summary_lines(result: Result, output) -> list[str]:
@@ -34,7 +25,4 @@ def summary_lines(result: Result, output) -> list[str]:
         lines.append(f"normal accuracy: xi > 20 at {100 * acc['xi_over_20']:.1f}%, xi > 25 at "
                      f"{100 * acc['xi_over_25']:.1f}% of core points; median predicted E_norm "
                      f"{acc['median_e_norm_percent']:.2f}%")
-        if acc["xi_over_20"] < 0.5:
-            lines.append("warning: most core points have xi = D / sigma(D) < 20: the normals are affected by "
-                         "roughness (section 5.1); consider a larger --normal-scale")
     return lines

@@ -12,7 +12,8 @@ import pytest
 
 import m3c2kit
 from m3c2kit import api, cli
-from m3c2kit.cli import main, result_warnings
+from m3c2kit.cli import main
+from m3c2kit.diagnostics import cylinder_warnings as result_warnings
 from m3c2kit.errors import CloudReadError
 from m3c2kit.io import Cloud, files as io_files, guard, write_cloud_table
 from m3c2kit.io.crs import crs_label, same_crs
@@ -159,9 +160,9 @@ def test_projection_scale_below_the_point_spacing_warns(tmp_path, capsys):
     _noisy_pair(tmp_path)  # spacing 0.05; d = 0.04 holds about one point per cloud
     argv = ["compare", tmp_path / "ref.xyz", tmp_path / "cmp.xyz", "-o", tmp_path / "out.csv",
             "--normal-scale", "0.5", "--projection-scale", "0.04", "--max-depth", "0.5"]
-    code, out, _ = run(capsys, *argv)
+    code, out, err = run(capsys, *argv)
     assert code == 0
-    lines = [line for line in out.splitlines() if line.startswith("warning: the median cylinder")]
+    lines = [line for line in err.splitlines() if line.startswith("m3c2: warning: the median cylinder")]
     assert len(lines) == 1
     assert "fewer than --min-points 4" in lines[0] and "consider a larger --projection-scale" in lines[0]
     code, out, err = run(capsys, *argv, "--quiet")  # --quiet: the warning still goes to stderr
@@ -171,12 +172,12 @@ def test_projection_scale_below_the_point_spacing_warns(tmp_path, capsys):
 
 def test_max_depth_shorter_than_the_change_warns(tmp_path, capsys):
     _noisy_pair(tmp_path, change=0.5)
-    code, out, _ = run(capsys, "compare", tmp_path / "ref.xyz", tmp_path / "cmp.xyz", "-o", tmp_path / "out.csv",
+    code, out, err = run(capsys, "compare", tmp_path / "ref.xyz", tmp_path / "cmp.xyz", "-o", tmp_path / "out.csv",
                        "--normal-scale", "0.5", "--projection-scale", "0.3", "--max-depth", "0.2")
     assert code == 0
     assert "status: empty_cylinder_compared 1600" in out
-    line = [x for x in out.splitlines() if "empty cylinder in one cloud only" in x]
-    assert line == ["warning: 100.0% of the core points with a normal have an empty cylinder in one cloud only: the "
+    line = [x for x in err.splitlines() if "empty cylinder in one cloud only" in x]
+    assert line == ["m3c2: warning: 100.0% of the core points with a normal have an empty cylinder in one cloud only: the "
                     "change may reach beyond --max-depth 0.2; consider a larger --max-depth"]
 
 
@@ -196,10 +197,10 @@ def test_warning_thresholds():
     assert len(result_warnings(_fake(np.where(n2 == 0, 4, 0), n1, n2), 4)) == 1
     failed = np.concatenate([np.where(n2 == 0, 4, 0), np.full(200, 1)])
     assert result_warnings(_fake(failed, np.concatenate([n1, np.zeros(200)]), np.concatenate([n2, np.zeros(200)])),
-                           4)[0].startswith("warning: 11.0% of the core points with a normal")
+                           4)[0].startswith("11.0% of the core points with a normal")
     # Both clouds empty is not "one cloud only" (the surface is absent in both: a gap).
     assert result_warnings(_fake(np.full(n, 3), np.zeros(n), np.zeros(n)), 4)[:1] == [
-        "warning: the median cylinder holds n1 = 0, n2 = 0 points, fewer than --min-points 4: the projection scale "
+        "the median cylinder holds n1 = 0, n2 = 0 points, fewer than --min-points 4: the projection scale "
         "d = None is small for the point spacing and most LODs are NaN; consider a larger --projection-scale"]
     # Median exactly min_points: no warning.
     assert result_warnings(_fake(np.zeros(3), [4, 4, 3], [4, 5, 4]), 4) == []

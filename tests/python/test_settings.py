@@ -31,11 +31,13 @@ def _struct_fields(header: str, struct: str) -> list[str]:
     body = re.sub(r"//[^\n]*", "", body)
     while "<" in body:
         body = re.sub(r"<[^<>]*>", "", body)  # template arguments hold commas
+    body = re.sub(r"\{[^{}]*\}", "", body)  # brace initialisers hold commas
     names = []
     for statement in body.split(";"):
-        statement = statement.split("=")[0].strip()
-        if statement and "(" not in statement and "}" not in statement:
-            names += [n.strip() for n in statement.split(None, 1)[1].split(",")]
+        statement = re.sub(r"=[^,]*", "", statement).strip()  # "double a = 1.0, b = 1.0" -> "double a, b"
+        if statement and "(" not in statement:
+            first, *rest = statement.split(",")
+            names += [first.split()[-1]] + [n.strip() for n in rest]
     return names
 
 
@@ -50,7 +52,7 @@ def test_the_struct_the_binding_and_the_table_have_the_same_fields():
 
 
 def test_the_result_schema_is_the_engine_struct():
-    assert sorted(engine.RESULT_FIELDS) == sorted(_struct_fields("result.hpp", "Result"))
+    assert sorted(engine.RESULT_FIELDS + engine.OPTIONAL_RESULT_FIELDS) == sorted(_struct_fields("result.hpp", "Result"))
     fields = [f for f in m3c2kit.Result.__dataclass_fields__]
     assert fields == ["core", *engine.RESULT_FIELDS, "params"]
 
