@@ -15,6 +15,7 @@ from .analysis.cli import analysis_parsers
 from .errors import M3C2Error, M3C2Warning, UsageError
 from .io import info as file_info
 from .io import read_cloud, write_cloud_table
+from .io.collisions import check_outputs
 from .io.crs import crs_label, same_crs
 from .progress import ProgressBar
 from .report.outputs import CompareOutputs, write_compare_outputs
@@ -190,9 +191,34 @@ def run_compare_tiled(args, settings: dict, grid=None) -> int:
     return 0
 
 
+def _inputs(args, settings: dict | None = None) -> dict:
+    """Every file a command reads, by the name its messages use."""
+    files = {"reference cloud": getattr(args, "reference", None), "compared cloud": getattr(args, "compared", None),
+             "input cloud": getattr(args, "input", None), "core points file": getattr(args, "core", None),
+             "core normals file": getattr(args, "core_normals", None), "params file": getattr(args, "params", None)}
+    orient = (settings or {}).get("orient", getattr(args, "orient", None))
+    if isinstance(orient, (str, Path)) and str(orient) and Path(orient).exists():
+        files["orientation file"] = orient
+    return files
+
+
+def _compare_outputs(args) -> dict:
+    """Every file `m3c2 compare` writes, by its option."""
+    from .report import png_paths
+
+    outputs = {"-o": args.output}
+    if args.grid is not None:
+        outputs.update({f"--grid raster {name}": path for name, path in raster.raster_paths(args.output).items()})
+    outputs["--report"] = args.report
+    if args.report_png is not None:
+        outputs.update({f"--report-png {key}": path for key, path in png_paths(args.report_png).items()})
+    return outputs
+
+
 def run_compare(args) -> int:
     cell = args.grid
     settings = compare_settings(args)  # with --grid: 2D mode's settings (raster.grid_settings)
+    check_outputs(_compare_outputs(args), _inputs(args, settings))  # before any work (docs/errors.md)
     if args.tile_size is not None or args.memory_limit is not None or args.dask_scheduler is not None:
         return run_compare_tiled(args, settings, grid=cell)  # out-of-core / Dask (docs/scaling.md)
     reference, compared = _read(args.reference, args), _read(args.compared, args)
@@ -277,6 +303,7 @@ def _core_normals(args, core_cloud) -> np.ndarray:
 
 
 def run_normals(args) -> int:
+    check_outputs({"-o": args.output}, _inputs(args))
     cloud = _read(args.input, args)
     core = _read(args.core, args).xyz if args.core is not None else None
     bar = ProgressBar("normals", enabled=not args.quiet)
@@ -291,6 +318,7 @@ def run_normals(args) -> int:
 
 
 def run_subsample(args) -> int:
+    check_outputs({"-o": args.output}, _inputs(args))
     cloud = _read(args.input, args)
     kept = api.subsample(cloud.xyz, args.spacing)
     fields = {name: np.asarray(values)[kept] for name, values in cloud.fields.items()}
