@@ -333,19 +333,25 @@ def run_info(args) -> int:
     return 0
 
 
+_CLEAN_EXIT_SIGNALS = tuple(getattr(signal, name) for name in ("SIGHUP", "SIGQUIT", "SIGTERM") if hasattr(signal, name))
+
+
 def _raise_interrupted(signum, frame):
     raise Interrupted(f"interrupted by {signal.Signals(signum).name}; no output written")
 
 
 def main(argv=None) -> int:
-    previous = signal.signal(signal.SIGTERM, _raise_interrupted)
+    # SIGHUP, SIGQUIT and SIGTERM end the run as SIGINT does: an exception that unwinds through
+    # the atomic writer, which removes its private folders (no partial output, no leftover).
+    previous = {s: signal.signal(s, _raise_interrupted) for s in _CLEAN_EXIT_SIGNALS}
     with warnings.catch_warnings():
         warnings.simplefilter("always", M3C2Warning)
         warnings.showwarning = _show_warning
         try:
             return _main(argv)
         finally:
-            signal.signal(signal.SIGTERM, previous)
+            for number, handler in previous.items():
+                signal.signal(number, handler)
 
 
 def _main(argv) -> int:

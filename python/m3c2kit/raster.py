@@ -15,18 +15,15 @@ square pixel") unless --projection-scale is given, and writes, beside the point 
     <stem>_status.tif    uint8 status code (0 = ok, see README), 255 = nodata
 
 Nodata marks a cell with no reference point (no core point) or a value that was not computed.
-Every output of one run is staged in temporary files and renamed at the end
-(:func:`staged_outputs`), so a failed run leaves none of them. See docs/report.md.
+Every output of one run is staged and renamed at the end (m3c2kit.io.atomic.staged_outputs), so a
+failed run leaves none of them. See docs/report.md.
 """
 from __future__ import annotations
 
 import os
 import sys
-import tempfile
-from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Iterator
 
 import numpy as np
 
@@ -35,7 +32,7 @@ from .errors import CloudWriteError, UsageError
 from .io.crs import looks_like_wkt
 
 __all__ = ["Grid", "RASTERS", "PROJECTION_FACTOR", "grid_core_points", "grid_settings",
-           "raster_paths", "rasters", "write_rasters", "staged_outputs"]
+           "raster_paths", "rasters", "write_rasters"]
 
 #: d = PROJECTION_FACTOR x cell when --projection-scale is not given (section 6.1.2).
 PROJECTION_FACTOR = 1.1
@@ -196,61 +193,3 @@ def write_rasters(paths: dict[str, Path], images: dict[str, np.ndarray], grid: G
 
 def _warn(message: str) -> None:
     print(f"m3c2: warning: {message}", file=sys.stderr)
-
-
-def _temp_name(target: Path) -> Path:
-    # Same directory (rename stays on one filesystem); the target's extension last, so writers
-    # that dispatch on the extension (LAS, PLY, CSV) pick the right format.
-    suffix = "".join(target.suffixes[-2:]) if target.name.lower().endswith(".copc.laz") else target.suffix
-    fd, name = tempfile.mkstemp(prefix=f".{target.name}.", suffix=f".part{suffix}", dir=target.parent)
-    os.close(fd)
-    return Path(name)
-
-
-@contextmanager
-def staged_outputs(targets) -> Iterator[dict[Path, Path]]:
-    """All-or-nothing output of several files: yields {target: temporary path} (temporaries in
-    each target's directory, ending with the target's extension); when the body returns, each
-    temporary is renamed onto its target. If the body raises, every temporary is removed, no
-    target is touched, and the exception propagates (an OSError as CloudWriteError).
-
-    Every directory is checked before the body runs, so a bad output path fails before any
-    computation is wasted on writing."""
-    staged: dict[Path, Path] = {}
-    try:
-        for target in dict.fromkeys(Path(t) for t in targets):
-            if target.is_dir():
-                raise CloudWriteError(f"{target}: is a directory")
-            if not target.parent.is_dir():
-                raise CloudWriteError(f"{target}: cannot write: directory {str(target.parent)!r} does not exist")
-            try:
-                staged[target] = _temp_name(target)
-            except OSError as e:
-                raise CloudWriteError(f"{target}: cannot write in {str(target.parent)!r}: "
-                                      f"{e.strerror or e}") from None
-        yield staged
-        for target, tmp in staged.items():
-            if not tmp.exists():
-                raise CloudWriteError(f"{target}: was not written")
-            _set_mode(tmp, target)
-        for target, tmp in staged.items():
-            os.replace(tmp, target)
-    except BaseException as e:
-        for tmp in staged.values():
-            try:
-                tmp.unlink()
-            except OSError:
-                pass
-        if isinstance(e, OSError) and not isinstance(e, CloudWriteError):
-            raise CloudWriteError(f"{e.filename or 'output'}: {e.strerror or e}") from e
-        raise
-
-
-def _set_mode(tmp: Path, target: Path) -> None:
-    try:
-        mode = target.stat().st_mode & 0o7777
-    except OSError:
-        umask = os.umask(0)
-        os.umask(umask)
-        mode = 0o666 & ~umask
-    os.chmod(tmp, mode)

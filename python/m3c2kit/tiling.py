@@ -38,6 +38,7 @@ import numpy as np
 
 from . import api, diagnostics, engine
 from .errors import M3C2Error, UsageError
+from .io.atomic import private_folder
 from .io.streaming import DEFAULT_CHUNK, PointSource, TableWriter, _in_box
 from .result import Result
 from .settings import engine_params, resolve
@@ -508,7 +509,7 @@ def run_tiled(reference, compared, *, output=None, core=None, core_spacing=None,
     own_dir = work_dir is None
     if own_dir:
         parent = Path(output).resolve().parent if output is not None else None
-        work = Path(tempfile.mkdtemp(prefix=".m3c2-tiles-", dir=parent))
+        work = private_folder(parent if parent is not None else Path(tempfile.gettempdir()))
     else:
         work = Path(work_dir)
         work.mkdir(parents=True, exist_ok=True)

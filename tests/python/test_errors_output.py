@@ -43,8 +43,9 @@ def run(capsys, *argv):
 
 
 def stray(directory: Path) -> list[str]:
-    """Outputs or temporary files (.NAME.*.part) left in `directory`."""
-    return sorted(p.name for p in directory.rglob("*") if p.name.startswith(("out", ".out")) or p.suffix == ".part")
+    """Outputs, temporary files or private folders of the atomic writer left in `directory`."""
+    return sorted(p.name for p in directory.rglob("*")
+                  if p.name.startswith(("out", ".out", ".m3c2-tmp-")) or p.suffix == ".part")
 
 
 # ------------------------------------------------------------------------- unwritable paths
@@ -237,7 +238,8 @@ def test_signal_during_the_run(big_pair, tmp_path, sig, ext):
     assert stray(tmp_path) == []
 
 
-@pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM], ids=["SIGINT", "SIGTERM"])
+@pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM, signal.SIGHUP, signal.SIGQUIT],
+                         ids=["SIGINT", "SIGTERM", "SIGHUP", "SIGQUIT"])
 def test_signal_while_writing_removes_the_temporary_file(pair, capsys, monkeypatch, sig):
     real = io_ascii._text_column
     calls = []
@@ -245,7 +247,7 @@ def test_signal_while_writing_removes_the_temporary_file(pair, capsys, monkeypat
     def interrupted_column(values):
         calls.append(1)
         if len(calls) == 3:  # the temporary file exists and holds the header by now
-            assert [p.name for p in pair.iterdir() if p.suffix == ".part"]
+            assert [p.name for p in pair.iterdir() if p.name.startswith(".m3c2-tmp-")]  # the private folder
             os.kill(os.getpid(), sig)
         return real(values)
 

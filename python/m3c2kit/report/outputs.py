@@ -7,6 +7,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from .. import raster
+from ..io.atomic import staged_outputs
 from ..result import Result
 from ..writing import write
 
@@ -51,7 +52,7 @@ def write_compare_outputs(outputs: CompareOutputs, result: Result, reference, *,
     targets = [table] + extra
     if len(set(targets)) != len(targets):
         raise raster.UsageError("the output, raster, report and PNG paths must all differ")
-    with raster.staged_outputs(targets) as staged:
+    with staged_outputs(targets) as staged:
         write(staged[table], result, like=reference, projected=projected, position=position)
         images = None
         if grid is not None:
