@@ -12,13 +12,13 @@ ORDER = ("errors", "io", "engine", "settings", "run", "report", "cli")
 
 #: Layer of each module (dotted names below m3c2kit); a package stands for its modules.
 LAYERS = {
-    "errors": "errors", "io": "io",
+    "errors": "errors", "optional": "errors", "io": "io",
     "_core": "engine", "engine": "engine", "result": "engine",
     "settings": "settings",
     "api": "run", "tiling": "run", "raster": "run", "diagnostics": "run", "uncertainty_inputs": "run",
-    "analysis": "run", "compat": "run",
+    "analysis": "run", "compat": "run", "classify": "run", "lod_rates": "run", "lod_table": "run",
     "report": "report", "summary": "report", "writing": "report",
-    "cli": "cli", "analysis.cli": "cli", "progress": "cli", "__main__": "cli",
+    "cli": "cli", "analysis.cli": "cli", "classify.cli": "cli", "progress": "cli", "__main__": "cli",
 }
 
 
