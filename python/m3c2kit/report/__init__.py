@@ -89,7 +89,9 @@ def _summary(result: Result, linthresh: float) -> list:
             rows.append((name, _fmt(float(np.median(a)))))
     acc = normal_accuracy(result)
     if acc:
-        rows += [("xi = D / sigma(D) > 20", f"{100 * acc['xi_over_20']:.1f}%"),
+        rows += [("core points with a roughness sigma(D) (exactly planar: xi = inf)",
+                  f"{acc['core_points']} ({acc['planar']})"),
+                 ("xi = D / sigma(D) > 20", f"{100 * acc['xi_over_20']:.1f}%"),
                  ("xi > 25", f"{100 * acc['xi_over_25']:.1f}%"),
                  ("median predicted normal error E_norm (eq. 5)", f"{acc['median_e_norm_percent']:.3g}%")]
     return rows
