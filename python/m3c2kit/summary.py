@@ -3,6 +3,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from .lod_rates import expectation_text, run_expectation
 from .result import Result
 
 
@@ -34,6 +35,9 @@ def summary_lines(result: Result, output) -> list[str]:
     lod = result.lod[np.isfinite(result.lod)]
     if lod.size:
         lines.append(f"LOD: median {np.median(lod):.4f}, min {lod.min():.4f}, max {lod.max():.4f}")
+        expected = run_expectation(result)
+        if expected:
+            lines.append("expected false positives: " + expectation_text(expected))
     lines.append("status: " + ", ".join(f"{name} {count}" for name, count in result.status_counts().items()))
     acc = normal_accuracy(result)
     if acc:

@@ -34,3 +34,14 @@ def run(reference: np.ndarray, compared: np.ndarray, core: np.ndarray, params, t
     """The engine's raw result arrays (name -> array)."""
     return _core.compute(np.ascontiguousarray(reference, float), np.ascontiguousarray(compared, float),
                          np.ascontiguousarray(core, float), params, threads=threads)
+
+
+def with_lod(params, lod: str, *, statistic: str | None = None, bootstrap_samples: int = 0, seed: int = 0):
+    """`params` (engine Params from api.build_params) with its LOD statistic set explicitly."""
+    if statistic is not None:
+        params.statistic = getattr(_core.Statistic, statistic)
+    params.bootstrap_seed = int(seed)
+    if lod == "bootstrap":
+        params.bootstrap_samples = int(bootstrap_samples)
+    params.lod = getattr(_core.Lod, lod)
+    return params
