@@ -2,6 +2,8 @@
 // Parameters of an M3C2 run (Lague et al. 2013). Lengths are in the clouds' unit.
 // D and d are DIAMETERS, as in the paper and CloudCompare; max_depth is a half-length.
 
+#include <m3c2/uncertainty.hpp>
+
 #include <cstdint>
 #include <vector>
 
@@ -92,6 +94,14 @@ struct Params {
   MedianLod median_lod = MedianLod::kMaritzJarrett;  ///< with Statistic::kMedian and a parametric lod
   std::uint32_t bootstrap_samples = 0;  ///< resamples of Lod::kBootstrap (>= 2 there), App. B
   std::uint64_t bootstrap_seed = 0;     ///< Lod::kBootstrap: the stream of core point i is (seed, i)
+
+  // Per-point uncertainty (6.2; include/m3c2/uncertainty.hpp, docs/algorithm.md#per-point-uncertainty)
+  Uncertainty uncertainty = Uncertainty::kEq1;  ///< eq. (1), M3C2-PM or M3C2-EP
+  PrecisionRule precision_rule = PrecisionRule::kNearest;  ///< PM: which points give sigma
+  double precision_scale1 = 1.0, precision_scale2 = 1.0;  ///< PM: scale of each cloud's sigmas
+  EpCovariance ep_covariance = EpCovariance::kIndependent;  ///< EP: the centres' covariance
+  EpLod ep_lod = EpLod::kProjected;  ///< EP: the level of detection
+  EpWeights ep_weights = EpWeights::kNormal;  ///< EP: the weights of the centres of gravity
 };
 
 }  // namespace m3c2
