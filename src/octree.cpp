@@ -432,6 +432,31 @@ bool Octree::ball_holds(const Vec3& centre, double radius, std::uint32_t n, Desc
   return false;
 }
 
+void Octree::ball_offsets(const Vec3& centre, double radius, std::vector<double>& offsets,
+                          DescentCache* cache) const {
+  const std::uint32_t start = covering_node(centre, radius, cache);
+  if (start == kNoNode) return;
+  const double r2 = radius * radius, prune_r2 = r2 * (1.0 + kRelativeMargin) + 1e-300;
+  std::uint32_t stack[8 * 128];
+  int top = 0;
+  stack[top++] = start;
+  while (top > 0) {
+    const Node& node = nodes_[stack[--top]];
+    if (nearest_distance2(node.lo, node.hi, centre) > prune_r2) continue;
+    if (node.first_child != 0) {
+      for (std::uint32_t k = node.children; k-- > 0;) stack[top++] = node.first_child + k;  // key order
+      continue;
+    }
+    for (std::uint32_t slot = node.begin; slot < node.end; ++slot) {
+      const double* p = slot_xyz(slot);
+      if (squared_distance(p, centre) > r2) continue;
+      offsets.push_back(p[0] - centre.x());
+      offsets.push_back(p[1] - centre.y());
+      offsets.push_back(p[2] - centre.z());
+    }
+  }
+}
+
 template <class Level>
 Moments Octree::radix_fold(const std::uint32_t* slots, std::uint32_t n, Level&& level_between, const Vec3& origin,
                            FoldStack& stack) const {

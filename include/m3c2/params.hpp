@@ -55,6 +55,7 @@ enum class DepthSearch : std::uint8_t {
 enum class ScaleSelection : std::uint8_t {
   kMostPlanar,    ///< smallest lambda3 / (lambda1 + lambda2 + lambda3), the paper's rule
   kCloudCompare,  ///< CloudCompare's largest 2 s0 + 4 s1 - 2 with s_k = lambda_k^2 / sum lambda^2
+  kPy4dgeo,       ///< py4dgeo's largest planarity (lambda2 - lambda3) / lambda1 (lambda1 the largest)
 };
 
 /// Orientation of normals (section 3.1.2): towards the closest orientation point when any are

@@ -48,14 +48,22 @@ class _ResultMethods:
         offset = self.i1 if which == 1 else self.i2
         return self.core + offset[:, None] * self.normal
 
-    def columns(self, projected: bool = False, position: str = "core") -> dict[str, np.ndarray]:
+    def columns(self, projected: bool = False, position: str = "core",
+                fallback: str = "nan") -> dict[str, np.ndarray]:
         """The output table: name -> column. NaN wherever a value was not computed, including
-        `significant` where there is no LOD and n1/n2 where no cylinder was searched."""
+        `significant` where there is no LOD and n1/n2 where no cylinder was searched.
+
+        position "reference" / "compared" places each row at core + i_k * normal on that cloud;
+        where there is none (no normal, or an empty cylinder: the `status` column says which) the
+        row's x, y, z are NaN (fallback "nan", the default), or its core point (fallback "core",
+        the behaviour before issue 14; the status still tells these rows apart)."""
+        if fallback not in ("nan", "core"):
+            raise ValueError(f"fallback must be 'nan' or 'core', got {fallback!r}")
         xyz = self.core
         if position != "core":
-            # Where there is no projection the row stays at its core point, never at NaN.
             proj = self.projected(1 if position == "reference" else 2)
-            xyz = np.where(np.isnan(proj), self.core, proj)
+            missing = np.isnan(proj).any(axis=1, keepdims=True)
+            xyz = np.where(missing, self.core if fallback == "core" else np.nan, proj)
         searched = ~np.isin(self.status, _NORMAL_FAILURES)
         significant = np.where(np.isnan(self.lod), np.nan, self.significant.astype(float))
         table = {
