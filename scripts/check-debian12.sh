@@ -41,6 +41,13 @@ echo "== fresh copy of the root: $run"
 cp -a "$base/." "$run/"
 rm -f "$run/.complete"
 cp /etc/resolv.conf "$run/etc/resolv.conf"
+# A network behind a TLS-intercepting proxy needs its CA for PyPI: the host's bundle is handed to
+# pip (PIP_CERT), and that is all of the host that enters the root.
+pip_cert=()
+if [[ -n "${PIP_CERT:-}" && -f "$PIP_CERT" ]] || [[ -n "$(ls /usr/local/share/ca-certificates/*.crt 2>/dev/null)" ]]; then
+  cp "${PIP_CERT:-/etc/ssl/certs/ca-certificates.crt}" "$run/etc/host-network-ca.crt"
+  pip_cert=(PIP_CERT=/etc/host-network-ca.crt)
+fi
 for m in proc sys dev dev/pts dev/shm; do
   mount --bind "/$m" "$run/$m"
   mounts+=("$run/$m")
@@ -55,8 +62,8 @@ for c in "${commands[@]}"; do
   echo "== bash scripts/$c.sh"
   start=$(date +%s)
   set +e
-  chroot "$run" /usr/bin/env -i HOME=/root TERM=dumb LANG=C.UTF-8 PATH=/usr/local/sbin:/usr/local/bin:/usr/sbin:/usr/bin:/sbin:/bin \
-    bash -c "cd /root/m3c2kit && bash scripts/$c.sh" >"$log" 2>&1
+  chroot "$run" /usr/bin/env -i HOME=/root TERM=dumb LANG=C.UTF-8 "${pip_cert[@]}" \
+    PATH=/usr/local/sbin:/usr/local/bin:/usr/sbin:/usr/bin:/sbin:/bin bash -c "cd /root/m3c2kit && bash scripts/$c.sh" >"$log" 2>&1
   status=$?
   set -e
   echo "   exit status $status after $(($(date +%s) - start)) s; last lines (full log: $log):"
