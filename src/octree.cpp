@@ -599,8 +599,10 @@ void Octree::ball_moments(const Vec3& centre, std::span<const double> radii_asce
   out.assign(scratch.stack.begin(), scratch.stack.begin() + scales);
 }
 
-void Octree::cylinder(const Cylinder& cyl, std::vector<double>& t_out, DescentCache* cache) const {
+void Octree::cylinder(const Cylinder& cyl, std::vector<double>& t_out, DescentCache* cache,
+                      std::vector<std::uint32_t>* index_out) const {
   t_out.clear();
+  if (index_out) index_out->clear();
   if (nodes_.empty()) return;
   const Vec3& c = cyl.core;
   const Vec3& n = cyl.normal;
@@ -640,7 +642,10 @@ void Octree::cylinder(const Cylinder& cyl, std::vector<double>& t_out, DescentCa
         const double t = vx * n.x() + vy * n.y() + vz * n.z();
         if (t < cyl.t_min || t > cyl.t_max) continue;
         const double wx = vx - t * n.x(), wy = vy - t * n.y(), wz = vz - t * n.z();
-        if (wx * wx + wy * wy + wz * wz <= r2) t_out.push_back(t);
+        if (wx * wx + wy * wy + wz * wz <= r2) {
+          t_out.push_back(t);
+          if (index_out) index_out->push_back(index_[slot]);
+        }
       }
     } else {
       M3C2_ASSERT(top + int(node.children) <= kTraversalStack, "the traversal stack's depth bound");
