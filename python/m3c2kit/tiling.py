@@ -38,6 +38,7 @@ import numpy as np
 from . import api, engine
 from .errors import M3C2Error, UsageError
 from .io.streaming import DEFAULT_CHUNK, PointSource, TableWriter, _in_box
+from .optional import require
 from .result import Result
 from .settings import engine_params, resolve
 
@@ -699,7 +700,8 @@ def _run_in(work: Path, report: TiledReport, ref_src, cmp_src, cores: _CoreStrea
 
 
 def _run_dask(tasks, engine_p, threads, retries, task_fn, accept, address, client, report, log) -> None:
-    from distributed import Client, as_completed
+    distributed = require("distributed", extra="dask", purpose="running on a Dask cluster (--dask-scheduler)")
+    Client, as_completed = distributed.Client, distributed.as_completed
     own = client is None
     if own:
         try:

@@ -9,6 +9,7 @@ import numpy as np
 from .. import engine
 from ..errors import UsageError
 from ..io.atomic import atomic_output
+from ..optional import require
 from ..settings.parsers import normal_scales, positive
 
 
@@ -126,7 +127,7 @@ def save_figure(fig, path) -> None:
 
 def pyplot():
     """matplotlib.pyplot with the non-interactive Agg backend."""
-    import matplotlib
+    matplotlib = require("matplotlib", extra="report", purpose="plots")
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
     return plt
