@@ -11,6 +11,7 @@ import numpy as np
 
 from . import api, raster
 from .analysis.cli import analysis_parsers
+from .classify.cli import classify_parsers
 from .errors import M3C2Error, UsageError
 from .io import info as file_info
 from .io import read_cloud, write_cloud_table
@@ -110,7 +111,7 @@ def _info_parser(sub) -> None:
 def make_parser() -> argparse.ArgumentParser:
     parser = ArgumentParser(prog="m3c2", description="M3C2 point-cloud change detection (Lague et al. 2013)")
     sub = parser.add_subparsers(dest="command", required=True, parser_class=ArgumentParser)
-    for build in (_compare_parser, _normals_parser, _subsample_parser, _info_parser, analysis_parsers):
+    for build in (_compare_parser, _normals_parser, _subsample_parser, _info_parser, analysis_parsers, classify_parsers):
         build(sub)
     return parser
 
