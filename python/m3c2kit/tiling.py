@@ -38,6 +38,7 @@ import numpy as np
 from . import api, engine
 from .errors import M3C2Error, UsageError
 from .io.streaming import DEFAULT_CHUNK, PointSource, TableWriter, _in_box
+from .io.fields import typed_columns
 from .optional import require
 from .result import Result
 from .settings import engine_params, resolve
@@ -792,7 +793,7 @@ def _merge(work: Path, result_spill: _Spills, dtype: np.dtype, counts, n_core: i
         if writer is not None:
             table = chunk.columns(projected=projected, position=position)
             xyz = np.column_stack([table.pop("x"), table.pop("y"), table.pop("z")])
-            writer.write(xyz, table)
+            writer.write(xyz, typed_columns(table))  # the stored types of m3c2kit.write
             del xyz, table
         if return_result:
             gathered.append(chunk)
