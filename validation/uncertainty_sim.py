@@ -130,7 +130,7 @@ def core_points(rng, k):
     return np.column_stack([xy, height(xy[:, 0], xy[:, 1])])
 
 
-def ep_campaign(pairs, cores_per_pair, seed=2021, change=0.0):
+def ep_campaign(pairs, cores_per_pair, seed=2021, change=0.0, only=None):
     """Flags of ep (projected / published LoD, independent / mean-of-points covariance) and of
     eq. (1) with a single registration error, over `pairs` independent registration draws."""
     rng = np.random.default_rng(seed)
@@ -139,6 +139,8 @@ def ep_campaign(pairs, cores_per_pair, seed=2021, change=0.0):
                 "ep, published LoD": ("normal", "independent", "published"),
                 "ep, matrix weights": ("matrix", "independent", "projected"),
                 "ep as published (py4dgeo)": ("matrix", "mean_of_points", "published")}
+    if only is not None:
+        variants = {k: v for k, v in variants.items() if k in only}
     tallies = {k: Tally([], []) for k in [*variants, "eq1 (single reg)", "eq1 (reg 0)"]}
     for _ in range(pairs):
         ref, ids1 = scan(rng)
@@ -188,18 +190,18 @@ def precision_map(points):
     return np.column_stack([s, s, s])
 
 
-def pm_cloud(rng, n=40000):
+def pm_cloud(rng, n=40000, features=256):
     xy = rng.uniform(0, SIDE, (n, 2))
     truth = np.column_stack([xy, height(xy[:, 0], xy[:, 1])])
     s = precision_map(truth)
-    return truth + s * correlated_field(rng, truth), s
+    return truth + s * correlated_field(rng, truth, features=features), s
 
 
-def pm_campaign(pairs, cores_per_pair, seed=2017):
+def pm_campaign(pairs, cores_per_pair, seed=2017, n=40000, features=256):
     rng = np.random.default_rng(seed)
     tallies = {k: Tally([], []) for k in ("pm nearest", "pm all points", "eq1 (reg 0)")}
     for _ in range(pairs):
-        (ref, s1), (cmp_, s2) = pm_cloud(rng), pm_cloud(rng)
+        (ref, s1), (cmp_, s2) = pm_cloud(rng, n, features), pm_cloud(rng, n, features)
         core = core_points(rng, cores_per_pair)
         for name, rule in (("pm nearest", "nearest"), ("pm all points", "all")):
             p = base_params("pm")
@@ -227,9 +229,6 @@ def binomial_interval(n, p=0.05, level=0.99):
             hi = k
             break
     return lo / n, hi / n
-
-
-NEAR = staticmethod(lambda xy: np.hypot(xy[:, 0], xy[:, 1]) < 5.0)
 
 
 def main(pairs=300, cores=20):
