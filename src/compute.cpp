@@ -13,10 +13,9 @@
 #include "projection.hpp"
 #include "spatial_order.hpp"
 #include "statistics.hpp"
+#include "threads.hpp"
 #include "uncertainty.hpp"
 #include "validation.hpp"
-
-#include <omp.h>
 
 #include <algorithm>
 #include <cmath>
@@ -50,7 +49,7 @@ bool moments_needed(const Params& params, bool reference) {
                    : src == NormalSource::kCompared;
 }
 
-int thread_count(const RunOptions& run) { return run.threads > 0 ? run.threads : omp_get_max_threads(); }
+int thread_count(const RunOptions& run) { return run.threads > 0 ? run.threads : detail::max_threads(); }
 
 /// The index of a cloud named `name` ("reference cloud"). Its one pass over the coordinates
 /// refuses those beyond the grid's range (NaN and Inf among them); only then is the cloud
@@ -88,10 +87,12 @@ std::pair<Octree, Octree> build_indexes(PointsView reference, PointsView compare
   const double work0 = double(reference.size()) * (ref_moments ? 3 : 2),
                work1 = double(compared.size()) * (cmp_moments ? 3 : 2) + double(core_points.size());
   const int lighter = work1 < work0 ? 1 : 0;
+#if defined(_OPENMP)
 #pragma omp parallel num_threads(2)
+#endif
   {
-    const int part = omp_get_thread_num();
-    const bool alone = omp_get_num_threads() < 2;
+    const int part = detail::thread_num();
+    const bool alone = detail::team_size() < 2;
     try {
       if (part == 0) first.emplace(index_of(reference, "reference cloud", grid, ref_moments));
       if (part == 1 || alone) {
@@ -152,6 +153,7 @@ struct Scratch {
   detail::ProjectionScratch projection;
   std::vector<double> t1, t2, work;
   std::vector<std::uint32_t> index1, index2;  // per-point uncertainty: the cylinders' points
+  detail::MedianWeightCache median_weights;
 };
 
 class Pipeline {
@@ -237,8 +239,8 @@ class Pipeline {
       r.status[i] = n1 == 0 ? PointStatus::kEmptyCylinder1 : PointStatus::kEmptyCylinder2;
       return;
     }
-    const detail::Spread a = detail::central_spread(s.t1, params_, s.work);
-    const detail::Spread b = detail::central_spread(s.t2, params_, s.work);
+    const detail::Spread a = detail::central_spread(s.t1, params_, s.work, &s.median_weights);
+    const detail::Spread b = detail::central_spread(s.t2, params_, s.work, &s.median_weights);
     r.i1[i] = a.centre, r.i2[i] = b.centre, r.sigma1[i] = a.sigma, r.sigma2[i] = b.sigma;
     r.distance[i] = b.centre - a.centre;
     if (uncertainty_) return;  // PM / EP give the LOD (uncertainty_->measure)
@@ -248,11 +250,11 @@ class Pipeline {
       r.status[i] = PointStatus::kTooFewPointsForLod;
       return;
     }
-    if (params_.bootstrap_samples > 0) {
+    if (params_.lod == Lod::kBootstrap) {
       r.lod[i] = z_ * (detail::bootstrap_sigma(s.t1, s.t2, params_, i, s.work) + params_.registration_error);
     } else {
-      const double critical = detail::critical_value(params_, z_, a.sigma, n1, b.sigma, n2);
-      r.lod[i] = detail::lod_parametric(critical, a.sigma, n1, b.sigma, n2, params_.registration_error);
+      const double critical = detail::critical_value(params_, z_, a.se, n1, b.se, n2);
+      r.lod[i] = detail::lod_parametric(critical, a.se, b.se, params_.registration_error);
     }
     r.significant[i] = std::abs(r.distance[i]) > r.lod[i];
     r.status[i] = PointStatus::kOk;

@@ -4,6 +4,7 @@
 // See docs/algorithm.md for each equation, its paper reference and the choices made.
 
 #include <m3c2/baselines.hpp>
+#include <m3c2/dimensionality.hpp>
 #include <m3c2/errors.hpp>
 #include <m3c2/params.hpp>
 #include <m3c2/points_view.hpp>

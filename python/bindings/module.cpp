@@ -188,6 +188,14 @@ NB_MODULE(_core, m) {
   nb::enum_<m3c2::ScaleSelection>(m, "ScaleSelection")
       .value("most_planar", m3c2::ScaleSelection::kMostPlanar)
       .value("cloudcompare", m3c2::ScaleSelection::kCloudCompare);
+  nb::enum_<m3c2::Lod>(m, "Lod")
+      .value("z", m3c2::Lod::kZ)
+      .value("t", m3c2::Lod::kT)
+      .value("auto", m3c2::Lod::kAuto)
+      .value("bootstrap", m3c2::Lod::kBootstrap);
+  nb::enum_<m3c2::MedianLod>(m, "MedianLod")
+      .value("maritz_jarrett", m3c2::MedianLod::kMaritzJarrett)
+      .value("cloudcompare", m3c2::MedianLod::kCloudCompare);
 
   nb::enum_<m3c2::Uncertainty>(m, "Uncertainty")
       .value("eq1", m3c2::Uncertainty::kEq1)
@@ -237,8 +245,22 @@ NB_MODULE(_core, m) {
       .def_rw("registration_error", &m3c2::Params::registration_error)
       .def_rw("confidence", &m3c2::Params::confidence)
       .def_rw("min_points", &m3c2::Params::min_points)
-      .def_rw("t_statistic", &m3c2::Params::t_statistic)
-      .def_rw("bootstrap_samples", &m3c2::Params::bootstrap_samples)
+      .def_rw("lod", &m3c2::Params::lod)
+      .def_rw("median_lod", &m3c2::Params::median_lod)
+      // The legacy switches of --t-statistic and --bootstrap N, mapped onto `lod`: t_statistic
+      // True is the paper's rule (Lod.auto), False leaves `lod` alone; bootstrap_samples > 0 also
+      // selects Lod.bootstrap (0 leaves `lod` alone).
+      .def_prop_rw(
+          "t_statistic", [](const m3c2::Params& p) { return p.lod == m3c2::Lod::kAuto; },
+          [](m3c2::Params& p, bool on) {
+            if (on) p.lod = m3c2::Lod::kAuto;
+          })
+      .def_prop_rw(
+          "bootstrap_samples", [](const m3c2::Params& p) { return p.bootstrap_samples; },
+          [](m3c2::Params& p, std::uint32_t n) {
+            p.bootstrap_samples = n;
+            if (n > 0) p.lod = m3c2::Lod::kBootstrap;
+          })
       .def_rw("bootstrap_seed", &m3c2::Params::bootstrap_seed)
       .def_rw("uncertainty", &m3c2::Params::uncertainty)
       .def_rw("precision_rule", &m3c2::Params::precision_rule)
@@ -377,4 +399,27 @@ NB_MODULE(_core, m) {
       },
       "reference"_a, "compared"_a, "model"_a = "none", "model_radius"_a = 0.0, "model_neighbours"_a = 6,
       "rule"_a = "closer", "threads"_a = 0, "progress"_a = nb::none());
+
+  // Multi-scale dimensionality of Brodu & Lague 2012 (CANUPO; include/m3c2/dimensionality.hpp).
+  m.def(
+      "dimensionality",
+      [](const Points& cloud, const Points& core, const std::vector<double>& diameters, std::uint32_t min_points,
+         int threads, nb::object progress) {
+        m3c2::DimensionalityResult r = run_engine(std::move(progress), threads, [&](const m3c2::RunOptions& run) {
+          return m3c2::dimensionality(view(cloud), view(core), diameters, min_points, run);
+        });
+        const std::size_t n = r.size(), s = r.scales;
+        nb::dict d;
+        d["status"] = status_array(r.status);
+        auto per_scale3 = [&](std::vector<double>&& v) {
+          auto* owned = new std::vector<double>(std::move(v));
+          nb::capsule owner(owned, [](void* p) noexcept { delete static_cast<std::vector<double>*>(p); });
+          return nb::ndarray<nb::numpy, double>(owned->data(), {n, s, 3}, owner);
+        };
+        d["proportions"] = per_scale3(std::move(r.proportions));
+        d["barycentric"] = per_scale3(std::move(r.barycentric));
+        d["count"] = to_numpy(std::move(r.count), s);
+        return d;
+      },
+      "cloud"_a, "core_points"_a, "diameters"_a, "min_points"_a = 3, "threads"_a = 0, "progress"_a = nb::none());
 }
