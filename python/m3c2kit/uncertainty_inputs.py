@@ -1,5 +1,5 @@
 """Inputs of the per-point uncertainty models (``uncertainty`` = ``pm`` or ``ep``) and the one
-call into the engine that takes them (docs/algorithm.md#per-point-uncertainty).
+call into the engine that takes them (docs/algorithm.md §6.5).
 
 M3C2-PM (James et al. 2017) reads three precision fields per cloud (``--precision-fields``,
 default ``sx,sy,sz``: LAS extra bytes, PLY properties or ASCII columns, through the readers'

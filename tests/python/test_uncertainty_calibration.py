@@ -33,7 +33,7 @@ def test_eq1_with_one_registration_error_is_miscalibrated_in_space(ep_tallies):
 
 
 def test_pm_false_positive_rate_is_nominal():
-    t = sim.pm_campaign(40, 25, seed=98, n=20000, features=96)
+    t = sim.pm_campaign(40, 25, seed=98, n=20000)
     rate, n = t["pm nearest"].rate()
     lo, hi = sim.binomial_interval(n)
     assert lo <= rate <= hi, (rate, n, lo, hi)
