@@ -7,9 +7,13 @@ from __future__ import annotations
 import io
 
 import numpy as np
-from matplotlib import colors
-from matplotlib.backends.backend_agg import FigureCanvasAgg
-from matplotlib.figure import Figure
+
+from ..optional import require
+
+require("matplotlib", extra="report", purpose="drawing the report's figures")
+from matplotlib import colors  # noqa: E402
+from matplotlib.backends.backend_agg import FigureCanvasAgg  # noqa: E402
+from matplotlib.figure import Figure  # noqa: E402
 
 from ..result import STATUS_NAMES
 
