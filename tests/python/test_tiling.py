@@ -10,6 +10,7 @@ import numpy as np
 import pytest
 
 from m3c2kit import _core, api, tiling
+from m3c2kit.settings import build_params
 from m3c2kit.cli import main
 from m3c2kit.errors import UsageError
 from m3c2kit.io import read_cloud
@@ -197,7 +198,7 @@ def test_memory_limit_and_halo():
     assert parse_memory("2GB") == 2_000_000_000 and parse_memory("512MiB") == 512 * 2**20
     with pytest.raises(UsageError):
         parse_memory("lots")
-    p = api.build_params(normal_scale="1,6", projection_scale=2, max_depth=3)
+    p = build_params(normal_scale="1,6", projection_scale=2, max_depth=3)
     assert halo(p) == max(3.0, np.hypot(1.0, 3.0))
     s_small = choose_tile_size(500 * 2**20, 5.0, 20.0, 20.0, 1.0)
     s_big = choose_tile_size(4 * 2**30, 5.0, 20.0, 20.0, 1.0)
