@@ -96,7 +96,7 @@ struct Params {
   std::uint32_t bootstrap_samples = 0;  ///< resamples of Lod::kBootstrap (>= 2 there), App. B
   std::uint64_t bootstrap_seed = 0;     ///< Lod::kBootstrap: the stream of core point i is (seed, i)
 
-  // Per-point uncertainty (6.2; include/m3c2/uncertainty.hpp, docs/algorithm.md#per-point-uncertainty)
+  // Per-point uncertainty (6.2; include/m3c2/uncertainty.hpp, docs/algorithm.md §6.5)
   Uncertainty uncertainty = Uncertainty::kEq1;  ///< eq. (1), M3C2-PM or M3C2-EP
   PrecisionRule precision_rule = PrecisionRule::kNearest;  ///< PM: which points give sigma
   double precision_scale1 = 1.0, precision_scale2 = 1.0;  ///< PM: scale of each cloud's sigmas

@@ -1,5 +1,5 @@
 """Inputs of the per-point uncertainty models (``uncertainty`` = ``pm`` or ``ep``) and the one
-call into the engine that takes them (docs/algorithm.md#per-point-uncertainty).
+call into the engine that takes them (docs/algorithm.md §6.5).
 
 M3C2-PM (James et al. 2017) reads three precision fields per cloud (``--precision-fields``,
 default ``sx,sy,sz``: LAS extra bytes, PLY properties or ASCII columns, through the readers'
@@ -53,7 +53,9 @@ def scan_position_ids(fields: dict, name: str = "point_source_id", *, what: str 
     return np.ascontiguousarray(values.astype(np.uint32))
 
 
-def _row(sid, entry: dict, source: str) -> list[float]:
+def _row(sid, entry: dict, source: str, poses=None) -> list[float]:
+    if "origin" not in entry and poses is not None and 1 <= int(sid) <= len(poses):
+        entry = {**entry, "origin": list(poses[int(sid) - 1])}  # the E57 scan's pose
     for key in ("origin", *_TABLE_KEYS):
         if key not in entry:
             raise UsageError(f"{source}: scan position {sid} has no {key!r}")
@@ -67,11 +69,15 @@ def _row(sid, entry: dict, source: str) -> list[float]:
         raise UsageError(f"{source}: scan position {sid}: {e}") from None
 
 
-def load_scan_positions(path) -> np.ndarray:
+def load_scan_positions(path, poses=None) -> np.ndarray:
     """The scan-position table (K, 8): id, origin x, y, z, sigma_range, sigma_range_ppm, sigma_scan,
     sigma_yaw. JSON as py4dgeo's sps.json ``{"1": {"origin": [x, y, z], "sigma_range": ..,
     "sigma_scan": .., "sigma_yaw": ..}, ...}`` (optional "sigma_range_ppm"), or CSV with a header
-    ``id,x,y,z,sigma_range,sigma_scan,sigma_yaw[,sigma_range_ppm]``. Angles in radians."""
+    ``id,x,y,z,sigma_range,sigma_scan,sigma_yaw[,sigma_range_ppm]``. Angles in radians.
+
+    ``poses`` (an E57 cloud's ``scan_positions``, one row per scan): an entry without an origin
+    (JSON: no "origin"; CSV: x, y, z empty) takes the pose of scan `id` (E57 scans counted from 1,
+    as the reader's ``scan_index`` field), so that the file only gives the sigmas."""
     source = str(path)
     try:
         text = Path(path).read_text()
@@ -86,7 +92,7 @@ def load_scan_positions(path) -> np.ndarray:
         for sid, entry in table.items():
             if not str(sid).isdigit() or not isinstance(entry, dict):
                 raise UsageError(f"--scan-positions {source}: keys must be integer ids and values objects, got {sid!r}")
-            rows.append(_row(sid, entry, source))
+            rows.append(_row(sid, entry, source, poses))
     else:
         reader = csv.DictReader(text.splitlines())
         need = {"id", "x", "y", "z", *_TABLE_KEYS}
@@ -97,9 +103,10 @@ def load_scan_positions(path) -> np.ndarray:
             rec = {k.strip(): v for k, v in rec.items()}
             if not str(rec["id"]).strip().isdigit():
                 raise UsageError(f"--scan-positions {source}: ids must be integers, got {rec['id']!r}")
-            rows.append(_row(rec["id"].strip(), {"origin": [rec["x"], rec["y"], rec["z"]],
-                                                 **{k: rec[k] for k in _TABLE_KEYS},
-                                                 "sigma_range_ppm": rec.get("sigma_range_ppm") or 0.0}, source))
+            entry = {**{k: rec[k] for k in _TABLE_KEYS}, "sigma_range_ppm": rec.get("sigma_range_ppm") or 0.0}
+            if any(str(rec[c] or "").strip() for c in "xyz") or poses is None:
+                entry["origin"] = [rec["x"], rec["y"], rec["z"]]
+            rows.append(_row(rec["id"].strip(), entry, source, poses))
     if not rows:
         raise UsageError(f"--scan-positions {source}: no scan position")
     return np.ascontiguousarray(np.array(rows, dtype=np.float64).reshape(-1, 8))
