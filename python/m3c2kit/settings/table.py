@@ -227,6 +227,12 @@ PARAMETERS: tuple[Parameter, ...] = (
     Parameter("position", "--position", Choice("core", "reference", "compared"), section="3.1.3",
               default="core", cli_type=str, cloudcompare_keys=("ProjDestIndex",), scope="output",
               help="where output rows are placed: the core points or their projection on a cloud"),
+    Parameter("field_names", "--field-names", Choice("m3c2", "cloudcompare", "pdal"), section="-", default="m3c2",
+              cli_type=str, scope="output",
+              help="output column names: m3c2kit's, CloudCompare's scalar fields (M3C2 distance, distance "
+                   "uncertainty, ...) or PDAL's m3c2_* (table in docs/python.md)"),
+    Parameter("float64", "--float64", Flag(), section="-", default=False, cli_type=None, scope="output",
+              help="store measured values as float64 (default float32: relative error 6e-8, < 0.06 mm below 1 km)"),
 )
 
 
