@@ -418,6 +418,10 @@ def main():
     for line in out.rstrip("\n").splitlines():
         emit(line)
     emit("")
+    # Section 5 (issue 16) is the saved output of the uncertainty campaigns, which take longer
+    # than this script: validation/uncertainty_sim.py, uncertainty_ahk.py, py4dgeo_m3c2ep.py.
+    emit((Path(__file__).resolve().parents[1] / "docs" / "validation" / "uncertainty.md").read_text().rstrip("\n"))
+    emit("")
     emit("## Runtime\n")
     emit(f"This script ran in {time.perf_counter() - start:.0f} s.")
     DOC.write_text("\n".join(LINES) + "\n")
