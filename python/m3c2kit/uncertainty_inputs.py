@@ -9,8 +9,7 @@ default ``sx,sy,sz``: LAS extra bytes, PLY properties or ASCII columns, through 
 (``--transform``), its 12x12 alignment covariance (``--alignment-covariance``) and the reduction
 point (``--reduction-point``).
 
-This module is the only one here that calls ``_core`` for them, so that it moves to the engine
-facade (issue 12) in one piece.
+The engine call goes through the facade (m3c2kit.engine), which translates its errors.
 """
 from __future__ import annotations
 
@@ -21,7 +20,7 @@ from pathlib import Path
 
 import numpy as np
 
-from . import _core
+from . import engine
 from .errors import UsageError
 
 __all__ = ["UNCERTAINTIES", "EpInputs", "precision_array", "scan_position_ids", "load_scan_positions",
@@ -181,11 +180,8 @@ def compute(reference, compared, core_points, params, *, core_normals=None, thre
                   transform_applied=bool(ep.transform_applied))
         if ep.alignment_covariance is not None:
             kw["alignment_covariance"] = np.ascontiguousarray(ep.alignment_covariance, dtype=np.float64)
-    try:
-        return _core.compute(np.ascontiguousarray(reference, dtype=np.float64),
-                             np.ascontiguousarray(compared, dtype=np.float64),
-                             np.ascontiguousarray(core_points, dtype=np.float64), params,
-                             None if core_normals is None else np.ascontiguousarray(core_normals, dtype=np.float64),
-                             threads=threads, progress=progress, covariances=covariances, **kw)
-    except ValueError as e:  # the engine's InvalidArgument
-        raise UsageError(str(e)) from None
+    return engine.compute(np.ascontiguousarray(reference, dtype=np.float64),
+                          np.ascontiguousarray(compared, dtype=np.float64),
+                          np.ascontiguousarray(core_points, dtype=np.float64), params,
+                          None if core_normals is None else np.ascontiguousarray(core_normals, dtype=np.float64),
+                          threads=threads, progress=progress, covariances=covariances, **kw)

@@ -14,12 +14,14 @@ from __future__ import annotations
 from pathlib import Path
 
 import numpy as np
-import pye57
 
 from ..errors import CloudReadError
+from ..optional import lazy_module
 from .cloud import Cloud
 from .crs import looks_like_wkt
 from .guard import read_errors
+
+pye57 = lazy_module("pye57", extra="e57", purpose="reading .e57 files")
 
 __all__ = ["read"]
 

@@ -98,13 +98,14 @@ int main(int argc, char** argv) {
 
   m3c2::Params p = base;
   p.statistic = m3c2::Statistic::kMedian;
-  p.t_statistic = true;
+  p.lod = m3c2::Lod::kAuto;
   p.normal_source = m3c2::NormalSource::kMean;
   p.depth_search = m3c2::DepthSearch::kProgressive;
   dump("median-mean-progressive", m3c2::compute(reference, compared, cores, p, run));
 
   p = base;
   p.normal_diameters = {1.0};
+  p.lod = m3c2::Lod::kBootstrap;
   p.bootstrap_samples = 40;
   p.bootstrap_seed = 12345;
   p.registration_error = 0.01;
