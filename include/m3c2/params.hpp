@@ -55,6 +55,7 @@ enum class DepthSearch : std::uint8_t {
 enum class ScaleSelection : std::uint8_t {
   kMostPlanar,    ///< smallest lambda3 / (lambda1 + lambda2 + lambda3), the paper's rule
   kCloudCompare,  ///< CloudCompare's largest 2 s0 + 4 s1 - 2 with s_k = lambda_k^2 / sum lambda^2
+  kPy4dgeo,       ///< py4dgeo's largest planarity (lambda2 - lambda3) / lambda1 (lambda1 the largest)
 };
 
 /// Orientation of normals (section 3.1.2): towards the closest orientation point when any are
@@ -95,10 +96,11 @@ struct Params {
   std::uint32_t bootstrap_samples = 0;  ///< resamples of Lod::kBootstrap (>= 2 there), App. B
   std::uint64_t bootstrap_seed = 0;     ///< Lod::kBootstrap: the stream of core point i is (seed, i)
 
-  // Per-point uncertainty (6.2; include/m3c2/uncertainty.hpp, docs/algorithm.md#per-point-uncertainty)
+  // Per-point uncertainty (6.2; include/m3c2/uncertainty.hpp, docs/algorithm.md §6.5)
   Uncertainty uncertainty = Uncertainty::kEq1;  ///< eq. (1), M3C2-PM or M3C2-EP
   PrecisionRule precision_rule = PrecisionRule::kNearest;  ///< PM: which points give sigma
-  double precision_scale1 = 1.0, precision_scale2 = 1.0;  ///< PM: scale of each cloud's sigmas
+  double precision_scale1 = 1.0;  ///< PM: scale of the reference cloud's sigmas (qM3C2's PM1Scale)
+  double precision_scale2 = 1.0;  ///< PM: scale of the compared cloud's sigmas (PM2Scale)
   EpCovariance ep_covariance = EpCovariance::kIndependent;  ///< EP: the centres' covariance
   EpLod ep_lod = EpLod::kProjected;  ///< EP: the level of detection
   EpWeights ep_weights = EpWeights::kNormal;  ///< EP: the weights of the centres of gravity

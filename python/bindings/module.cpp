@@ -222,7 +222,8 @@ NB_MODULE(_core, m) {
       .value("progressive", m3c2::DepthSearch::kProgressive);
   nb::enum_<m3c2::ScaleSelection>(m, "ScaleSelection")
       .value("most_planar", m3c2::ScaleSelection::kMostPlanar)
-      .value("cloudcompare", m3c2::ScaleSelection::kCloudCompare);
+      .value("cloudcompare", m3c2::ScaleSelection::kCloudCompare)
+      .value("py4dgeo", m3c2::ScaleSelection::kPy4dgeo);
   nb::enum_<m3c2::Lod>(m, "Lod")
       .value("z", m3c2::Lod::kZ)
       .value("t", m3c2::Lod::kT)

@@ -10,7 +10,7 @@ from typing import Callable
 
 import numpy as np
 
-from . import diagnostics, engine
+from . import diagnostics, engine, uncertainty_inputs
 from .errors import CloudReadError, M3C2Error, UsageError
 from .io.guard import available_memory, format_bytes
 from .result import Result
@@ -82,6 +82,22 @@ _COMPARE_INPUTS = ("core_points", "core", "core_normals", "progress", "read_poin
 
 def compare(reference, compared, core_points=None, *, core=None, core_normals=None,
             progress: Callable[[int, int], object] | None = None, read_points=None, **params) -> Result:
+    """M3C2 distance, level of detection and significance at each core point, with the run's
+    data-quality warnings (m3c2kit.diagnostics) emitted as M3C2Warning. Arguments: compare_quietly."""
+    result, values = _compare(reference, compared, core_points, core=core, core_normals=core_normals,
+                              progress=progress, read_points=read_points, **params)
+    ref, cmp_ = as_points("reference", reference), as_points("compared", compared)
+    diagnostics.warn(result, values, ref, cmp_)
+    return result
+
+
+def compare_quietly(reference, compared, core_points=None, **kwargs) -> Result:
+    """compare() without the warnings: for runs made to diagnose another one (m3c2kit.quality)."""
+    return _compare(reference, compared, core_points, **kwargs)[0]
+
+
+def _compare(reference, compared, core_points=None, *, core=None, core_normals=None,
+             progress: Callable[[int, int], object] | None = None, read_points=None, **params):
     """M3C2 distance, level of detection and significance at each core point.
 
     reference, compared, core_points (or ``core``, the command line's name): (N, 3) float64
@@ -118,10 +134,11 @@ def compare(reference, compared, core_points=None, *, core=None, core_normals=No
         normals = as_points("core_normals", core_normals)
         if len(normals) != len(core_xyz):
             raise UsageError(f"core_normals has {len(normals)} rows for {len(core_xyz)} core points")
-    raw = engine.compute(ref, cmp_, core_xyz, engine_p, normals, threads=values["threads"], progress=progress)
-    result = Result.from_engine(core_xyz, raw, run_record(params, engine_p))
-    diagnostics.warn(result, values)
-    return result
+    # Per-point inputs of --uncertainty pm / ep from the clouds' fields (docs/algorithm.md §6.5).
+    uncertainty = uncertainty_inputs.inputs_for(values, reference, compared)
+    raw = engine.compute(ref, cmp_, core_xyz, engine_p, normals, threads=values["threads"], progress=progress,
+                         **uncertainty)
+    return Result.from_engine(core_xyz, raw, run_record(params, engine_p)), values
 
 
 def run_record(given: dict, engine_p) -> dict:

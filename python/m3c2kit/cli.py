@@ -12,11 +12,12 @@ import numpy as np
 
 from . import api, raster
 from .analysis.cli import analysis_parsers
+from .classify.cli import classify_parsers
 from .errors import M3C2Error, M3C2Warning, UsageError
-from .io import info as file_info
 from .io import read_cloud, write_cloud_table
+from .io import crs as crs_mod
 from .io.collisions import check_outputs
-from .io.crs import crs_label, same_crs
+from .io.describe import describe, describe_text
 from .progress import ProgressBar
 from .report.outputs import CompareOutputs, write_compare_outputs
 from .settings import by_name, parameters_of
@@ -55,7 +56,14 @@ def _compare_parser(sub) -> None:
     p.add_argument("--projected", action="store_true", help="also write the projected positions x1..z2")
     p.add_argument("--drop-nonfinite", action="store_true", help="drop points with NaN/Inf coordinates")
     p.add_argument("--ignore-crs", action="store_true",
-                   help="compare clouds whose CRS or units differ (default: an error naming both)")
+                   help="compare clouds whose CRS or units differ, or of which only one has a CRS, or in degrees "
+                        "(default: an error naming them)")
+    p.add_argument("--allow-angular", action="store_true",
+                   help="accept horizontal coordinates in degrees (a geographic CRS such as EPSG:4326; default: "
+                        "an error, as distances would mix degrees and heights)")
+    p.add_argument("--crs", metavar="CRS",
+                   help="CRS of inputs that have none (ASCII, PLY, .npy, LAS without one): EPSG:CODE, a WKT or a "
+                        ".prj file; written to LAS outputs and GeoTIFFs (default: none)")
     p.add_argument("--report", type=Path, metavar="HTML", help="also write a self-contained HTML report (docs/report.md)")
     p.add_argument("--report-png", type=Path, metavar="PREFIX", help="also write the report's figures as PREFIX_<figure>.png")
     p.add_argument("--tile-size", type=float, metavar="S",
@@ -112,14 +120,18 @@ def _subsample_parser(sub) -> None:
 
 def _info_parser(sub) -> None:
     p = sub.add_parser("info", help="point count, bounds, CRS and fields of a file")
-    p.add_argument("file", type=Path)
+    p.add_argument("file", type=Path, help="a point-cloud file")
+    p.add_argument("--json", action="store_true",
+                   help="machine-readable output: one JSON object, the CRS as name, EPSG code and WKT (default: text)")
     p.set_defaults(run=run_info)
 
 
 def make_parser() -> argparse.ArgumentParser:
     parser = ArgumentParser(prog="m3c2", description="M3C2 point-cloud change detection (Lague et al. 2013)")
+    from . import __version__
+    parser.add_argument("--version", action="version", version=f"m3c2 (m3c2kit) {__version__}")
     sub = parser.add_subparsers(dest="command", required=True, parser_class=ArgumentParser)
-    for build in (_compare_parser, _normals_parser, _subsample_parser, _info_parser, analysis_parsers):
+    for build in (_compare_parser, _normals_parser, _subsample_parser, _info_parser, analysis_parsers, classify_parsers):
         build(sub)
     return parser
 
@@ -220,16 +232,24 @@ def run_compare(args) -> int:
     settings = compare_settings(args)  # with --grid: 2D mode's settings (raster.grid_settings)
     check_outputs(_compare_outputs(args), _inputs(args, settings))  # before any work (docs/errors.md)
     if args.tile_size is not None or args.memory_limit is not None or args.dask_scheduler is not None:
+        if getattr(args, "crs", None):
+            raise UsageError("--crs is not available with --tile-size, --memory-limit or --dask-scheduler; "
+                             "give the inputs a CRS (e.g. convert them to LAS with one) or run in memory")
         return run_compare_tiled(args, settings, grid=cell)  # out-of-core / Dask (docs/scaling.md)
     reference, compared = _read(args.reference, args), _read(args.compared, args)
     core_cloud = _read(args.core, args) if args.core is not None else None
-    check_same_crs(reference, compared, core_cloud, ignore=getattr(args, "ignore_crs", False))  # docs/errors.md
+    if getattr(args, "crs", None):
+        assign_crs(args.crs, reference, compared, core_cloud)
+    check_same_crs(reference, compared, core_cloud, ignore=getattr(args, "ignore_crs", False),
+                   allow_angular=getattr(args, "allow_angular", False))  # docs/errors.md
     grid = None
     if cell is not None:
         grid = raster.grid_core_points(reference, cell)
         core_cloud = grid.core_points
     settings["orient"] = _orient_spec(args, settings, reference)
     position = settings.pop("position", "core")
+    field_names = settings.pop("field_names", "m3c2")
+    float64 = bool(settings.pop("float64", False))
     threads = settings.pop("threads", 0)
     core_normals = None
     if settings.get("normal_source") == "core":
@@ -239,7 +259,8 @@ def run_compare(args) -> int:
                          progress=bar.update, read_points=lambda p: _read(p, args).xyz, **settings)
     bar.close()
     outputs = CompareOutputs(table=args.output, report=args.report, report_png=args.report_png,
-                             projected=args.projected, position=position,
+                             projected=args.projected, position=position, field_names=field_names,
+                             float64=float64, core_spacing=settings.get("core_spacing"),
                              inputs={"reference": args.reference, "compared": args.compared})
     extra = write_compare_outputs(outputs, result, reference, grid=grid)
     if not args.quiet:
@@ -250,39 +271,38 @@ def run_compare(args) -> int:
     if args.verbose:
         for name, value in sorted(result.params.items()):
             print(f"parameter {name}: {value}")
-    _print_notes((reference, compared, core_cloud), args.quiet)  # the warnings: m3c2kit.diagnostics, through main()
+    _print_notes((reference, compared, core_cloud))  # the warnings: m3c2kit.diagnostics, through main()
     return 0
 
 
-class CrsMismatch(M3C2Error):
-    """The epochs' CRSs or units differ (exit 1); --ignore-crs overrides."""
+CrsMismatch = crs_mod.CrsMismatch  # the epochs' CRSs or units differ (exit 1); --ignore-crs overrides
 
 
-def check_same_crs(reference, compared, core=None, *, ignore: bool = False) -> None:
-    """Raises CrsMismatch when the compared cloud (or the core points) and the reference have
-    CRSs known to differ (m3c2kit.io.crs.same_crs) or different units hints; unknown ones pass."""
-    if ignore:
-        return
-    for role, other in (("compared", compared), ("core points", core)):
-        if other is None:
+def check_same_crs(reference, compared, core=None, *, ignore: bool = False, allow_angular: bool = False) -> None:
+    """m3c2kit.io.crs.check_crs: CRSs known to differ, a CRS on one cloud only, different units,
+    angular coordinates (docs/errors.md)."""
+    crs_mod.check_crs(reference, compared, core, ignore=ignore, allow_angular=allow_angular)
+
+
+def assign_crs(spec: str, *clouds) -> None:
+    """--crs: the CRS of every given cloud that has none; a cloud with another CRS is an error."""
+    wkt = crs_mod.assign_crs(spec)
+    for cloud in clouds:
+        if cloud is None:
             continue
-        if same_crs(reference.crs, other.crs) is False:
-            raise CrsMismatch(f"the clouds have different CRSs: reference {reference.path} is in "
-                              f"{crs_label(reference.crs)}, {role} {other.path} in {crs_label(other.crs)}; "
-                              f"reproject one of them, or pass --ignore-crs if the coordinates are comparable")
-        units = (reference.units_hint, other.units_hint)
-        if all(units) and units[0] != units[1]:
-            raise CrsMismatch(f"the clouds have different units: reference {reference.path} is in {units[0]}, "
-                              f"{role} {other.path} in {units[1]}; convert one of them, or pass --ignore-crs "
-                              f"if the coordinates are comparable")
+        if not cloud.crs:
+            cloud.crs, cloud.units_hint = wkt, crs_mod.crs_units(wkt) or cloud.units_hint
+        elif crs_mod.same_crs(cloud.crs, wkt) is False:
+            raise CrsMismatch(f"{cloud.path} already has a CRS, {crs_mod.crs_label(cloud.crs)}, not the --crs "
+                              f"{crs_mod.crs_label(wkt)}; --crs only assigns a CRS to inputs that have none")
 
 
-def _print_notes(clouds, quiet: bool) -> None:
-    """What reading changed in the inputs (docs/errors.md): with the summary, or on stderr with -q."""
+def _print_notes(clouds) -> None:
+    """What reading changed in the inputs (docs/errors.md), on stderr with the warnings."""
     for c in clouds:
         if getattr(c, "dropped_nonfinite", 0):
-            note = f"note: dropped {c.dropped_nonfinite} points with non-finite coordinates from {c.path}"
-            print(f"m3c2: {note}", file=sys.stderr) if quiet else print(note)
+            print(f"m3c2: note: dropped {c.dropped_nonfinite} points with non-finite coordinates from {c.path}",
+                  file=sys.stderr)
 
 
 def _show_warning(message, category, filename, lineno, file=None, line=None) -> None:
@@ -314,6 +334,11 @@ def run_normals(args) -> int:
     fields = {"nx": n[:, 0], "ny": n[:, 1], "nz": n[:, 2], "normal_scale": out["normal_scale"],
               "roughness": out["roughness"], "count": out["count"].astype(np.uint32), "status": out["status"]}
     write_cloud_table(args.output, out["core"], fields, like=cloud)
+    if not args.quiet:
+        ok = int(np.count_nonzero(np.asarray(out["status"]) == 0))
+        print(f"{args.output}: normals at {ok:,} of {len(out['core']):,} points "
+              f"({100.0 * ok / max(len(out['core']), 1):.1f} %); median roughness "
+              f"{np.nanmedian(out['roughness']) if ok else float('nan'):.4g}")
     return 0
 
 
@@ -328,8 +353,12 @@ def run_subsample(args) -> int:
 
 
 def run_info(args) -> int:
-    for key, value in file_info(args.file).items():
-        print(f"{key}: {value}")
+    d = describe(args.file)
+    if args.json:
+        import json
+        print(json.dumps(d, indent=2))
+    else:
+        print(describe_text(d))
     return 0
 
 
@@ -338,6 +367,25 @@ _CLEAN_EXIT_SIGNALS = tuple(getattr(signal, name) for name in ("SIGHUP", "SIGQUI
 
 def _raise_interrupted(signum, frame):
     raise Interrupted(f"interrupted by {signal.Signals(signum).name}; no output written")
+
+
+#: Option values that start with "-" and that argparse would take for options: "--orient -z".
+_DASH_VALUES = {"--orient": ("-x", "-y", "-z")}
+
+
+def join_dash_values(argv: list[str]) -> list[str]:
+    """["--orient", "-z"] -> ["--orient=-z"], as --help writes it (argparse reads "-z" as an option)."""
+    out: list[str] = []
+    i = 0
+    while i < len(argv):
+        a = argv[i]
+        if a in _DASH_VALUES and i + 1 < len(argv) and str(argv[i + 1]).lower() in _DASH_VALUES[a]:
+            out.append(f"{a}={argv[i + 1]}")
+            i += 2
+            continue
+        out.append(a)
+        i += 1
+    return out
 
 
 def main(argv=None) -> int:
@@ -356,6 +404,7 @@ def main(argv=None) -> int:
 
 def _main(argv) -> int:
     try:
+        argv = join_dash_values([str(a) for a in (sys.argv[1:] if argv is None else argv)])
         args = make_parser().parse_args(argv)
         return args.run(args)
     except UsageError as e:

@@ -15,29 +15,44 @@ from typing import Mapping
 import numpy as np
 
 from .engine import STATUS_NAMES
+from . import quality
 from .errors import M3C2Warning
 
-__all__ = ["EMPTY_ONE_SIDE_WARNING", "run_warnings", "cylinder_warnings", "normal_accuracy",
+__all__ = ["run_warnings", "cylinder_warnings", "normal_accuracy",
            "normal_accuracy_warnings", "warn"]
 
-#: Share of computed core points with an empty cylinder in one cloud only above which a run
-#: warns that --max-depth may be shorter than the change.
-EMPTY_ONE_SIDE_WARNING = 0.10
 #: Statuses of core points whose cylinders were searched (a normal was found).
 _SEARCHED = tuple(STATUS_NAMES.index(name) for name in ("ok", "empty_cylinder_reference", "empty_cylinder_compared",
                                                         "too_few_points_for_lod"))
 
 
-def run_warnings(result, values: Mapping) -> list[str]:
-    """Every warning for `result` of a run with the resolved parameters `values`."""
-    return (cylinder_warnings(result, values["min_points"], values.get("max_depth"), values.get("projection_scale"))
-            + normal_accuracy_warnings(result))
+def run_warnings(result, values: Mapping, reference=None, compared=None) -> list[str]:
+    """Every warning for `result` of a run with the resolved parameters `values`; the clouds
+    (xyz arrays), where the run holds them, let m3c2kit.quality tell why cylinders are empty."""
+    lines = cylinder_warnings(result, values["min_points"], values.get("max_depth"), values.get("projection_scale"))
+    failed = quality.normal_failure_message(result, values.get("normal_scale") or 0.0)
+    lines += [failed] if failed else []
+    if reference is not None and compared is not None:
+        lines += _empty_cylinder_warnings(result, values, reference, compared)
+    return lines + normal_accuracy_warnings(result)
+
+
+def _empty_cylinder_warnings(result, values: Mapping, reference, compared) -> list[str]:
+    """m3c2kit.quality's diagnosis of empty cylinders: no overlap (no depth helps), or a depth too
+    short (and the depth that reaches)."""
+    status = np.asarray(result.status)
+    with_normal = np.count_nonzero(np.isin(status, _SEARCHED))
+    empty = np.count_nonzero(np.isin(status, _SEARCHED[1:3]))
+    if not with_normal or empty / with_normal <= quality.EMPTY_SHARE:
+        return []
+    diagnoses = quality.cylinder_diagnosis(reference, compared, result, projection_scale=values["projection_scale"],
+                                           max_depth=values["max_depth"], threads=values.get("threads", 0))
+    return quality.cylinder_messages(diagnoses, values["max_depth"])
 
 
 def cylinder_warnings(result, min_points: int, max_depth=None, projection_scale=None) -> list[str]:
-    """The median n1 or n2 below `min_points` (a cylinder too thin for the point spacing), and more
-    than 10 % of the core points with a searched cylinder having it empty in one cloud only (the
-    change reaches beyond --max-depth)."""
+    """The median n1 or n2 below `min_points` (a cylinder too thin for the point spacing). Empty
+    cylinders in one cloud are m3c2kit.quality's to diagnose (no overlap, or a depth too short)."""
     searched = np.isin(result.status, _SEARCHED)
     if not searched.any():
         return []
@@ -48,23 +63,25 @@ def cylinder_warnings(result, min_points: int, max_depth=None, projection_scale=
         lines.append(f"the median cylinder holds n1 = {m1:g}, n2 = {m2:g} points, fewer than --min-points "
                      f"{min_points}: the projection scale d = {projection_scale} is small for the point spacing "
                      f"and most LODs are NaN; consider a larger --projection-scale")
-    one_side = np.count_nonzero((n1 == 0) != (n2 == 0)) / len(n1)
-    if one_side > EMPTY_ONE_SIDE_WARNING:
-        lines.append(f"{100 * one_side:.1f}% of the core points with a normal have an empty cylinder in one cloud "
-                     f"only: the change may reach beyond --max-depth {max_depth}; consider a larger --max-depth")
     return lines
 
 
 def normal_accuracy(result) -> dict:
     """Shares of core points with xi = D / sigma(D) > 20 and > 25, and the median predicted
-    E_norm = 1.3e5 xi^-3.5 (%), eq. (5) of section 5.1; empty where no roughness was computed."""
+    E_norm = 1.3e5 xi^-3.5 (%), eq. (5) of section 5.1, over the core points with a roughness
+    (`core_points` of them, `planar` with sigma(D) = 0: xi = inf counts as > 25, E_norm 0);
+    {} where none has one."""
+    roughness, scale = np.asarray(result.roughness), np.asarray(result.normal_scale)
     with np.errstate(divide="ignore", invalid="ignore"):
-        xi = np.asarray(result.normal_scale) / np.asarray(result.roughness)
-    xi = xi[np.isfinite(xi)]
+        xi = scale / roughness
+    xi = xi[np.isfinite(roughness) & np.isfinite(scale)]
     if xi.size == 0:
         return {}
+    with np.errstate(divide="ignore"):
+        e_norm = 1.3e5 * xi ** -3.5  # 0 where xi = inf
     return {"xi_over_20": float(np.mean(xi > 20)), "xi_over_25": float(np.mean(xi > 25)),
-            "median_e_norm_percent": float(np.median(1.3e5 * xi ** -3.5))}
+            "median_e_norm_percent": float(np.median(e_norm)), "core_points": int(xi.size),
+            "planar": int(np.sum(np.isinf(xi)))}
 
 
 def normal_accuracy_warnings(result) -> list[str]:
@@ -75,9 +92,9 @@ def normal_accuracy_warnings(result) -> list[str]:
     return []
 
 
-def warn(result, values: Mapping) -> list[str]:
-    """Emits each of run_warnings(result, values) as an M3C2Warning; returns them."""
-    messages = run_warnings(result, values)
+def warn(result, values: Mapping, reference=None, compared=None) -> list[str]:
+    """Emits each of run_warnings(...) as an M3C2Warning; returns them."""
+    messages = run_warnings(result, values, reference, compared)
     for message in messages:
         warnings.warn(message, M3C2Warning, stacklevel=3)
     return messages

@@ -30,6 +30,7 @@ import numpy as np
 from . import engine
 from .errors import CloudWriteError, UsageError
 from .io.crs import looks_like_wkt
+from .optional import require
 
 __all__ = ["Grid", "RASTERS", "PROJECTION_FACTOR", "grid_core_points", "grid_settings",
            "raster_paths", "rasters", "write_rasters"]
@@ -67,7 +68,7 @@ class Grid:
     @property
     def transform(self):
         """GeoTIFF geotransform: the top-left corner (x0, max y), rows going DOWN (south)."""
-        from rasterio.transform import Affine
+        Affine = require("rasterio.transform", extra="raster", purpose="GeoTIFF rasters (--grid)").Affine
         return Affine(self.cell, 0.0, self.x0, 0.0, -self.cell, self.y0 + self.rows * self.cell)
 
     def image_rows(self) -> np.ndarray:
@@ -154,7 +155,7 @@ def rasterio_crs(crs: str | None):
     or GDAL cannot read it."""
     if not crs:
         return None, "the reference cloud has no CRS"
-    from rasterio.crs import CRS
+    CRS = require("rasterio.crs", extra="raster", purpose="reading a CRS for the GeoTIFF rasters").CRS
     from rasterio.errors import CRSError
     try:
         return (CRS.from_wkt(crs) if looks_like_wkt(crs) else CRS.from_string(crs)), None
@@ -168,7 +169,7 @@ def write_rasters(paths: dict[str, Path], images: dict[str, np.ndarray], grid: G
     the grid's geotransform, nodata and band description, and the CRS `crs` (Cloud.crs). Without
     a usable CRS the rasters are written without one and `warn` (default: print to stderr) is
     told, once. `targets` are the final names used in messages (paths may be temporary)."""
-    import rasterio
+    rasterio = require("rasterio", extra="raster", purpose="writing GeoTIFF rasters (--grid)")
 
     rio_crs, why = rasterio_crs(crs)
     if rio_crs is None:

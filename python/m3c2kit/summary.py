@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 from .diagnostics import normal_accuracy
+from .lod_rates import expectation_text, run_expectation
 from .result import Result
 
 
@@ -19,10 +20,14 @@ def summary_lines(result: Result, output) -> list[str]:
     lod = result.lod[np.isfinite(result.lod)]
     if lod.size:
         lines.append(f"LOD: median {np.median(lod):.4f}, min {lod.min():.4f}, max {lod.max():.4f}")
+        expected = run_expectation(result)
+        if expected:
+            lines.append("expected false positives: " + expectation_text(expected))
     lines.append("status: " + ", ".join(f"{name} {count}" for name, count in result.status_counts().items()))
     acc = normal_accuracy(result)
     if acc:
         lines.append(f"normal accuracy: xi > 20 at {100 * acc['xi_over_20']:.1f}%, xi > 25 at "
-                     f"{100 * acc['xi_over_25']:.1f}% of core points; median predicted E_norm "
+                     f"{100 * acc['xi_over_25']:.1f}% of {acc['core_points']} core points with a roughness "
+                     f"({acc['planar']} exactly planar, xi = inf); median predicted E_norm "
                      f"{acc['median_e_norm_percent']:.2f}%")
     return lines

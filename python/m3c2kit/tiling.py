@@ -40,6 +40,8 @@ from . import api, diagnostics, engine
 from .errors import M3C2Error, UsageError
 from .io.atomic import private_folder
 from .io.streaming import DEFAULT_CHUNK, PointSource, TableWriter, _in_box
+from .io.fields import typed_columns
+from .optional import require
 from .result import Result
 from .settings import engine_params, resolve
 
@@ -421,6 +423,10 @@ def run_tiled(reference, compared, *, output=None, core=None, core_spacing=None,
     if values["lod"] == "bootstrap":
         raise UsageError("--bootstrap cannot be combined with tiling: the bootstrap stream is seeded by the "
                          "core point's index in the run, which a tile does not know")
+    if values["uncertainty"] != "eq1":
+        raise UsageError(f"--uncertainty {values['uncertainty']} runs in memory only: tiled and Dask runs do not "
+                         "carry the per-point fields it reads (precisions, scan-position ids); drop --tile-size, "
+                         "--memory-limit and --dask-scheduler")
     if tile_size is None and memory_limit is None:
         raise UsageError("tiling needs --tile-size or --memory-limit")
     if tile_size is not None and not (float(tile_size) > 0 and math.isfinite(float(tile_size))):
@@ -705,7 +711,8 @@ def _run_in(work: Path, report: TiledReport, ref_src, cmp_src, cores: _CoreStrea
 
 
 def _run_dask(tasks, engine_p, threads, retries, task_fn, accept, address, client, report, log) -> None:
-    from distributed import Client, as_completed
+    distributed = require("distributed", extra="dask", purpose="running on a Dask cluster (--dask-scheduler)")
+    Client, as_completed = distributed.Client, distributed.as_completed
     own = client is None
     if own:
         try:
@@ -803,7 +810,7 @@ def _merge(work: Path, result_spill: _Spills, dtype: np.dtype, counts, n_core: i
         if writer is not None:
             table = chunk.columns(projected=projected, position=position)
             xyz = np.column_stack([table.pop("x"), table.pop("y"), table.pop("z")])
-            writer.write(xyz, table)
+            writer.write(xyz, typed_columns(table))  # the stored types of m3c2kit.write
             del xyz, table
         if return_result:
             gathered.append(chunk)

@@ -16,7 +16,7 @@ LAYERS = {
     "_core": "engine", "engine": "engine", "result": "engine",
     "settings": "settings",
     "api": "run", "tiling": "run", "raster": "run", "diagnostics": "run", "uncertainty_inputs": "run",
-    "analysis": "run", "compat": "run", "classify": "run", "lod_rates": "run", "lod_table": "run",
+    "analysis": "run", "compat": "run", "classify": "run", "lod_rates": "run", "lod_table": "run", "quality": "run", "phases": "run",
     "report": "report", "summary": "report", "writing": "report",
     "cli": "cli", "analysis.cli": "cli", "classify.cli": "cli", "progress": "cli", "__main__": "cli",
 }

@@ -22,6 +22,9 @@ class CompareOutputs:
     report_png: Path | None = None
     projected: bool = False
     position: str = "core"
+    field_names: str = "m3c2"   # the columns' names: m3c2's or a peer's (writing.write)
+    float64: bool = False
+    core_spacing: float | None = None
     inputs: dict = field(default_factory=dict)
 
 
@@ -41,8 +44,9 @@ def write_compare_outputs(outputs: CompareOutputs, result: Result, reference, *,
     written besides the table."""
     html_path, png_prefix, table = outputs.report, outputs.report_png, Path(outputs.table)
     projected, position = outputs.projected, outputs.position
+    columns = {"field_names": outputs.field_names, "float64": outputs.float64}
     if grid is None and html_path is None and png_prefix is None:
-        write(table, result, like=reference, projected=projected, position=position)
+        write(table, result, like=reference, projected=projected, position=position, **columns)
         return []
     from . import png_paths, write_report
 
@@ -53,7 +57,7 @@ def write_compare_outputs(outputs: CompareOutputs, result: Result, reference, *,
     if len(set(targets)) != len(targets):
         raise raster.UsageError("the output, raster, report and PNG paths must all differ")
     with staged_outputs(targets) as staged:
-        write(staged[table], result, like=reference, projected=projected, position=position)
+        write(staged[table], result, like=reference, projected=projected, position=position, **columns)
         images = None
         if grid is not None:
             images = raster.rasters(result, grid)
@@ -61,5 +65,6 @@ def write_compare_outputs(outputs: CompareOutputs, result: Result, reference, *,
                                  getattr(reference, "crs", None), targets=rasters)
         if html_path is not None or png_prefix is not None:
             write_report(result, html_path, png_prefix, staged=staged, grid=grid, images=images,
-                         inputs=_inputs(outputs, reference, grid))
+                         crs=getattr(reference, "crs", None), units=getattr(reference, "units_hint", None),
+                         core_spacing=outputs.core_spacing, inputs=_inputs(outputs, reference, grid))
     return extra
