@@ -178,6 +178,10 @@ def run_compare_tiled(args, settings: dict, grid=None) -> int:
         raise UsageError("--dask-scheduler needs --tile-size S or --memory-limit SIZE to cut the work into tiles")
 
     settings = dict(settings)
+    for name, default in (("field_names", "m3c2"), ("float64", False)):
+        if settings.pop(name, default) not in (default, None):
+            raise UsageError(f"{by_name()[name].flag} cannot be combined with tiling (--tile-size, --memory-limit, "
+                             f"--dask-scheduler): the tiled writer writes m3c2's columns")
     position = settings.pop("position", "core")
     threads = settings.pop("threads", 0)
     core_spacing = settings.pop("core_spacing", None)
