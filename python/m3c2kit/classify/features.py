@@ -48,6 +48,5 @@ def features(cloud_xyz, scales, core_xyz=None, *, min_points: int = 3, threads: 
     cloud_xyz = np.ascontiguousarray(cloud_xyz, dtype=np.float64)
     core = cloud_xyz if core_xyz is None else np.ascontiguousarray(core_xyz, dtype=np.float64)
     scales = np.asarray(scales, dtype=np.float64).ravel()
-    r = engine.dimensionality(cloud_xyz, core, [float(s) for s in scales], int(min_points), threads=int(threads),
-                              progress=progress)
+    r = engine.dimensionality(cloud_xyz, core, scales, min_points, threads=threads, progress=progress)
     return Features(scales, r["proportions"], r["barycentric"], r["count"], r["status"])
