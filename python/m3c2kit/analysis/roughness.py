@@ -17,7 +17,7 @@ import numpy as np
 from .. import engine
 from ..api import as_points
 from ..errors import UsageError
-from .common import format_table, loglog_fit, pyplot, save_figure
+from .common import format_table, loglog_fit, pyplot, readable_log_axis, save_figure
 
 L0 = 0.5
 #: sigma(D) at or below this share of D is zero to the engine's precision (docs/algorithm.md#3.3:
@@ -99,6 +99,9 @@ def plot(path, table: dict, fit: dict, title: str = "") -> None:
                 label=f"beta = {fit['beta']:.3f} +/- {fit['beta_se']:.3f}, sigma({fit['l0']:g}) = {fit['sigma_l0']:.3g}")
     ax.set_xscale("log")
     ax.set_yscale("log")
+    if ok.any():  # labels at 1-2-5 only: the default labels every minor tick below a decade, overlapping
+        readable_log_axis(ax.xaxis, float(d[ok].min()), float(d[ok].max()))
+        readable_log_axis(ax.yaxis, float(m[ok].min()), float(m[ok].max()))
     ax.set_xlabel("normal scale D (diameter)")
     ax.set_ylabel("<sigma(D)>")
     ax.set_title(title or "Roughness scaling (Lague et al. 2013, Fig. 6a)")
