@@ -37,17 +37,22 @@ def expected_false_positive_rate(statistic: str, lod: str, confidence: float, n:
 
 
 def run_statistic(params: dict) -> tuple[str, str | None]:
-    """(statistic, lod) of a run from its recorded parameters (Result.params): `lod` where given,
-    else the legacy switches (--bootstrap N: bootstrap, --t-statistic: auto) or the engine's z;
-    lod None for the median under --compat cloudcompare (CloudCompare's IQR formula is not in the
-    table: it is not calibrated, docs/algorithm.md#6.4)."""
+    """(statistic, lod) of a run from its recorded parameters (Result.params: those given): `lod`
+    where given, else the legacy switches (--bootstrap N: bootstrap, --t-statistic: auto), else
+    the parameter table's default (under --compat cloudcompare its CloudCompare default); lod None
+    for the median with CloudCompare's IQR formula (median_lod cloudcompare, the --compat
+    cloudcompare default): it is not calibrated and not in the table (docs/algorithm.md#6.4)."""
+    from .settings.table import by_name
+
+    table = by_name()
+    compat = params.get("compat")
     statistic = "median" if params.get("median") else "mean"
     lod = params.get("lod")
     if lod is None:
-        lod = "bootstrap" if params.get("bootstrap") else "auto" if params.get("t_statistic") else "z"
-    if statistic == "median" and params.get("compat") == "cloudcompare" and params.get("median_lod") is None:
-        return statistic, None
-    if params.get("median_lod") == "cloudcompare":
+        lod = ("bootstrap" if params.get("bootstrap") else "auto" if params.get("t_statistic")
+               else table["lod"].default_for(compat))
+    median_lod = params.get("median_lod") or table["median_lod"].default_for(compat)
+    if statistic == "median" and median_lod == "cloudcompare":
         return statistic, None
     return statistic, lod
 

@@ -58,12 +58,14 @@ class _ResultMethods:
         position "reference" / "compared" places each row at core + i_k * normal on that cloud;
         where there is none (no normal, or an empty cylinder: the `status` column says which) the
         row's x, y, z are NaN (fallback "nan", the default), or its core point (fallback "core",
-        the behaviour before issue 14; the status still tells these rows apart)."""
+        also chosen by position "reference-or-core" / "compared-or-core": --position's values)."""
+        cloud, _, or_what = position.partition("-or-")
+        fallback = or_what or fallback
         if fallback not in ("nan", "core"):
             raise ValueError(f"fallback must be 'nan' or 'core', got {fallback!r}")
         xyz = self.core
-        if position != "core":
-            proj = self.projected(1 if position == "reference" else 2)
+        if cloud != "core":
+            proj = self.projected(1 if cloud == "reference" else 2)
             missing = np.isnan(proj).any(axis=1, keepdims=True)
             xyz = np.where(missing, self.core if fallback == "core" else np.nan, proj)
         searched = ~np.isin(self.status, _NORMAL_FAILURES)

@@ -792,7 +792,9 @@ def _merge(work: Path, result_spill: _Spills, dtype: np.dtype, counts, n_core: i
     if output is not None and (like is None or like.scale is None):
         xyz_min = np.full(3, np.inf)
         for chunk in chunks():
-            xyz_min = np.minimum(xyz_min, _output_xyz(chunk, projected, position).min(axis=0))
+            # fmin: rows without a projection (--position reference|compared) have NaN coordinates.
+            xyz_min = np.fmin(xyz_min, np.fmin.reduce(_output_xyz(chunk, projected, position), axis=0,
+                                                      initial=np.inf))
             del chunk
     gathered = []
     evidence = {k: [] for k in _EVIDENCE}

@@ -63,7 +63,8 @@ def test_agrees_with_py4dgeo_outside_its_defects(name):
     golden, meta = load_golden(name)
     ref, cmp, core = inputs_for(meta, golden)
     p = meta["params"]
-    r = m3c2kit.compare(ref, cmp, core, normal_scale=p["D"], projection_scale=p["d"], max_depth=p["L"], min_points=1)
+    r = m3c2kit.compare(ref, cmp, core, normal_scale=p["D"], projection_scale=p["d"], max_depth=p["L"], min_points=1,
+                        lod="z")  # py4dgeo's LOD statistic
     lod = r.lod * C.PY4DGEO_Z / C.Z95
     ok = C.agreement(r.distance, lod, golden["distance"], golden["lod"], meta["tolerance"])
     clean = golden["flags"] == C.FLAG_NONE
@@ -95,7 +96,7 @@ def test_flags_concern_the_boundary_at_t0_for_even_segment_counts():
 def test_pdal_autzen():
     ref, cmp, core, cc, pdal = C.load_autzen()
     r = m3c2kit.compare(ref, cmp, core, normal_scale=C.AUTZEN_D, projection_scale=C.AUTZEN_d, max_depth=C.AUTZEN_L,
-                     variance="population", min_points=1)
+                     variance="population", min_points=1, lod="z")  # PDAL's LOD statistic
     dist0, lod0 = np.nan_to_num(r.distance, nan=0.0), np.nan_to_num(r.lod, nan=0.0)  # PDAL writes 0
     ok = (np.abs(dist0 - pdal["m3c2_distance"]) <= 0.002) & (np.abs(lod0 - pdal["m3c2_uncertainty"]) <= 0.002)
     assert ok.sum() >= 102, f"only {ok.sum()} of 103 agree with PDAL at 2 mm"

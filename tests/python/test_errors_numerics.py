@@ -103,7 +103,7 @@ def test_exactly_planar_clouds_have_zero_spread(tmp_path, normals, reg, signific
     extra = [] if reg is None else ["--registration-error", str(reg)]
     source = ["--normal-scale", "0.5"] if normals == "pca" else ["--normal-source", "vertical"]
     cli("compare", tmp_path / "ref.xyz", tmp_path / "cmp.xyz", "-o", tmp_path / "out.csv", *source,
-        "--projection-scale", "0.5", "--max-depth", "0.5", "--quiet", *extra)
+        "--projection-scale", "0.5", "--max-depth", "0.5", "--lod", "z", "--quiet", *extra)  # LOD = z * reg
     cols = read_csv(tmp_path / "out.csv")
     assert np.all(cols["status"] == STATUS["ok"])
     atol = 1e-15 if normals == "pca" else 0.0

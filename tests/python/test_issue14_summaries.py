@@ -66,7 +66,7 @@ def test_rows_without_a_projection_are_nan_on_that_cloud(position, which):
     np.testing.assert_array_equal(core["x"], r.core[:, 0])
 
 
-@pytest.mark.parametrize("params,expected_lod", [({}, "z"), ({"t_statistic": True}, "auto"),
+@pytest.mark.parametrize("params,expected_lod", [({}, "auto"), ({"compat": "cloudcompare"}, "z"), ({"t_statistic": True}, "auto"),
                                                  ({"bootstrap": 100}, "bootstrap"), ({"lod": "t"}, "t")])
 def test_summary_states_the_expected_false_positive_rate_at_the_median_n(params, expected_lod):
     r = make_result([1.0] * 3, [0.1] * 3, n=5, params=dict(params, confidence=0.95))

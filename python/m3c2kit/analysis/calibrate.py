@@ -73,7 +73,7 @@ def calibrate(cloud, projection_scales, *, spacings=("raw", "3x"), normal_scale=
         common["normal_source"] = "vertical"
     else:
         common["normal_scale"] = normal_scale
-    runs = {"z": {}, "t": {"t_statistic": True}}
+    runs = {"z": {"lod": "z"}, "t": {"lod": "auto"}}  # "t": the paper's rule, t below 30 points
     if bootstrap:
         runs["bootstrap"] = {"bootstrap": int(bootstrap), "seed": int(seed)}
 
@@ -135,11 +135,11 @@ def _every_statistic(cloud1, cloud2, core_pts, d_list, common, bootstrap, seed, 
             if lod == "bootstrap" and not bootstrap:
                 cols[f"fp_{statistic}_{lod}"].append(math.nan)
                 continue
-            p = api.build_params(median=statistic == "median", **kwargs)
-            p = lod_engine.with_lod(p, lod, bootstrap_samples=int(bootstrap), seed=int(seed))
-            r = lod_engine.run(cloud1, cloud2, core_pts, p, threads=api.threads_count(threads))
-            ok = r["status"] == 0
-            cols[f"fp_{statistic}_{lod}"].append(float(np.mean(r["significant"][ok])) if ok.any() else math.nan)
+            extra = {"bootstrap": int(bootstrap), "seed": int(seed)} if lod == "bootstrap" else {}
+            r = api.compare(cloud1, cloud2, core_pts, median=statistic == "median", lod=lod, threads=threads,
+                            **kwargs, **extra)
+            ok = r.status == 0
+            cols[f"fp_{statistic}_{lod}"].append(float(np.mean(r.significant[ok])) if ok.any() else math.nan)
         rates = {k: cols[f"fp_{k[0]}_{k[1]}"][-1] for k in COMBINATIONS}
         cols["recommended"].append(_closest(rates, 1 - confidence))
     return {k: np.asarray(v) for k, v in cols.items()}

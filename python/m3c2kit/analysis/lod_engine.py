@@ -1,5 +1,5 @@
-"""The engine calls of the LOD calibration, in one place, through the engine facade: a run with the
-LOD statistic set on the engine's Params directly."""
+"""The engine runs of the LOD calibration (m3c2kit.analysis.no_change), through the engine facade:
+imposed vertical normals and the LOD statistic set field by field."""
 from __future__ import annotations
 
 import numpy as np
@@ -26,13 +26,3 @@ def run(reference: np.ndarray, compared: np.ndarray, core: np.ndarray, params, t
     """The engine's raw result arrays (name -> array)."""
     return engine.compute(np.ascontiguousarray(reference, float), np.ascontiguousarray(compared, float),
                           np.ascontiguousarray(core, float), params, threads=threads)
-
-
-def with_lod(params, lod: str, *, statistic: str | None = None, bootstrap_samples: int = 0, seed: int = 0):
-    """`params` (engine Params from api.build_params) with its LOD statistic set explicitly."""
-    fields = dict(engine.params_fields(params), bootstrap_seed=int(seed), lod=lod)
-    if statistic is not None:
-        fields["statistic"] = statistic
-    if lod == "bootstrap":
-        fields["bootstrap_samples"] = int(bootstrap_samples)
-    return engine.make_params(fields)

@@ -318,7 +318,7 @@ class M3C2:
         depth = max(float(self.max_distance), radius)  # py4dgeo: the cylinder reaches at least r
         result = compare(reference, compared, core, projection_scale=2.0 * radius, max_depth=depth,
                          registration_error=float(self.registration_error), median=bool(self.robust_aggr),
-                         orient=self._orient(), min_points=1, threads=_THREADS,
+                         orient=self._orient(), min_points=1, lod="z", threads=_THREADS,  # py4dgeo's z
                          **self._normal_options(reference, compared, len(core)))
         self.result = result
         return result.distance, uncertainties_of(result)

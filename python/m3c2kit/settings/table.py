@@ -135,9 +135,10 @@ PARAMETERS: tuple[Parameter, ...] = (
     Parameter("normal_source", "--normal-source", Choice(*NORMAL_SOURCES), section="3.1.2",
               engine=enum("normal_source"), cli_type=str, cloudcompare_keys=("NormalMode",),
               help="where normals come from"),
-    Parameter("scale_selection", "--scale-selection", Choice("most-planar", "cloudcompare"), section="3.2",
-              engine=enum("scale_selection"), cloudcompare="cloudcompare", cli_type=str, commands=BOTH,
-              help="multi-scale rule: the most planar scale (the paper's) or CloudCompare's"),
+    Parameter("scale_selection", "--scale-selection", Choice("most-planar", "cloudcompare", "py4dgeo"),
+              section="3.2", engine=enum("scale_selection"), cloudcompare="cloudcompare", cli_type=str,
+              commands=BOTH, help="multi-scale rule: the most planar scale (the paper's), CloudCompare's, or "
+                                  "py4dgeo's largest (lambda2 - lambda3) / lambda1"),
     Parameter("min_points_normal", "--min-points-normal", PLANE_POINTS, section="3.1.2",
               engine=same("min_points_normal"), cli_type=int, commands=BOTH,
               help="fewest neighbours for a plane fit at one scale"),
@@ -184,8 +185,10 @@ PARAMETERS: tuple[Parameter, ...] = (
     Parameter("min_points", "--min-points", COUNT, section="5.2.1", engine=same("min_points"), cloudcompare=5,
               cli_type=int, cloudcompare_keys=("MinPoints4Stat", "UseMinPoints4Stat"),
               help="points needed in each cylinder for a LOD"),
+    # The default from the no-change calibration (docs/validation.md, "Calibration of the LOD"):
+    # auto is calibrated at every n where z flags 9 % at n = 5; the peers (CloudCompare, py4dgeo) use z.
     Parameter("lod", "--lod", Choice("z", "t", "auto", "bootstrap"), section="3.3, Appendix B",
-              engine=enum("lod"), cli_type=str,
+              engine=enum("lod"), default="auto", cloudcompare="z", cli_type=str,
               help="the LOD's statistic: eq. (1) with z, with Welch's t (eq. 2), the paper's rule auto (t when "
                    "n1 or n2 < 30), or the bootstrap of Appendix B (--bootstrap N resamples)"),
     Parameter("median_lod", "--median-lod", Choice("maritz-jarrett", "cloudcompare"), section="3.3, Appendix B",
@@ -250,9 +253,11 @@ PARAMETERS: tuple[Parameter, ...] = (
               help="threads, 0 for all; results are identical for any count"),
     Parameter("compat", "--compat", Choice("cloudcompare"), section="-", default=None, cli_type=str, scope="run",
               help="CloudCompare qM3C2 semantics: its defaults where marked (docs/validation.md)"),
-    Parameter("position", "--position", Choice("core", "reference", "compared"), section="3.1.3",
+    Parameter("position", "--position", Choice("core", "reference", "compared", "reference-or-core",
+                                               "compared-or-core"), section="3.1.3",
               default="core", cli_type=str, cloudcompare_keys=("ProjDestIndex",), scope="output",
-              help="where output rows are placed: the core points or their projection on a cloud"),
+              help="where output rows are placed: the core points or their projection on a cloud (NaN "
+                   "coordinates where there is none, the status says why; *-or-core: the core point there)"),
     Parameter("field_names", "--field-names", Choice("m3c2", "cloudcompare", "pdal"), section="-", default="m3c2",
               cli_type=str, scope="output",
               help="output column names: m3c2kit's, CloudCompare's scalar fields (M3C2 distance, distance "
