@@ -10,7 +10,7 @@ import numpy as np
 
 from ..errors import UsageError
 from ..io import read_cloud, write_cloud_table
-from ..options import normal_scales
+from ..settings.parsers import normal_scales
 from .apply import classify
 from .labels import labels_from_field, labels_from_polygons, parse_mapping, parse_sample, read_polygons
 from .model import read_classifier, write_classifier
