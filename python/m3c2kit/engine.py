@@ -120,6 +120,14 @@ def roughness_by_scale(cloud, core, diameters, variance: str = "sample", min_poi
                                         threads=threads, progress=progress)
 
 
+def dimensionality(cloud, core, diameters, min_points: int = 3, *, threads: int = 0, progress=None) -> dict:
+    """Multi-scale dimensionality of Brodu & Lague 2012 (include/m3c2/dimensionality.hpp): status,
+    proportions and barycentric (N, S, 3), count (N, S)."""
+    with translated():
+        return _core.dimensionality(cloud, core, [float(d) for d in diameters], int(min_points), int(threads),
+                                    progress)
+
+
 def c2c(reference, compared, **kwargs) -> dict:
     """Closest-point distances (include/m3c2/baselines.hpp); keywords as the binding's."""
     with translated():
