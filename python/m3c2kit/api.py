@@ -111,6 +111,7 @@ def _compare(reference, compared, core_points=None, *, core=None, core_normals=N
         raise UsageError("give core_points or core (the same parameter), not both")
     core_points = core if core_points is None else core_points
     values = resolve(params, "compare", api=True)
+    reference, compared = _vegetation_removed(values, reference, compared)
     ref = as_points("reference", reference)
     cmp_ = as_points("compared", compared)
     for name, cloud in (("reference", ref), ("compared", cmp_)):
@@ -139,6 +140,21 @@ def _compare(reference, compared, core_points=None, *, core=None, core_normals=N
     raw = engine.compute(ref, cmp_, core_xyz, engine_p, normals, threads=values["threads"], progress=progress,
                          **uncertainty)
     return Result.from_engine(core_xyz, raw, run_record(params, engine_p)), values
+
+
+def _vegetation_removed(values: dict, reference, compared):
+    """--classifier FILE --keep CLASS: both clouds reduced to the points classified as a kept class
+    (section 4.3, CANUPO; m3c2kit.classify), each classified with its own neighbourhoods."""
+    if (values["classifier"] is None) != (values["keep"] is None):
+        raise UsageError("--classifier and --keep go together: the classifier's classes to keep, e.g. "
+                         "--classifier veg.json --keep ground")
+    if values["classifier"] is None:
+        return reference, compared
+    from .classify import filtered, read_classifier
+    clf = read_classifier(values["classifier"])
+    keep = [k.strip() for k in str(values["keep"]).split(",") if k.strip()]
+    return tuple(filtered(clf, cloud, keep, name, threads=values["threads"])
+                 for name, cloud in (("reference", reference), ("compared", compared)))
 
 
 def run_record(given: dict, engine_p) -> dict:

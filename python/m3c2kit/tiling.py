@@ -423,6 +423,10 @@ def run_tiled(reference, compared, *, output=None, core=None, core_spacing=None,
     if values["lod"] == "bootstrap":
         raise UsageError("--bootstrap cannot be combined with tiling: the bootstrap stream is seeded by the "
                          "core point's index in the run, which a tile does not know")
+    if values.get("classifier") is not None or values.get("keep") is not None:
+        raise UsageError("--classifier / --keep run in memory only: a tile would classify its points without "
+                         "the neighbourhoods beyond its halo; drop --tile-size, --memory-limit and "
+                         "--dask-scheduler, or classify first (m3c2 classify apply) and compare the kept points")
     if values["uncertainty"] != "eq1":
         raise UsageError(f"--uncertainty {values['uncertainty']} runs in memory only: tiled and Dask runs do not "
                          "carry the per-point fields it reads (precisions, scan-position ids); drop --tile-size, "

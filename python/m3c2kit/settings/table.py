@@ -244,6 +244,14 @@ PARAMETERS: tuple[Parameter, ...] = (
     Parameter("reduction_point", "--reduction-point", Text("X,Y,Z or a file"), section="6.2", default=None,
               cli_type=str, metavar="X,Y,Z", scope="run",
               help="M3C2-EP: the point the transformation rotates about (default 0,0,0)"),
+    # Vegetation removal before comparing (4.3; CANUPO: m3c2kit.classify, docs/classify.md)
+    Parameter("classifier", "--classifier", Text("a classifier file"), section="4.3", default=None, cli_type=str,
+              metavar="FILE", scope="run",
+              help="CANUPO classifier (m3c2 classify train, or qCANUPO's .prm): both clouds are classified and "
+                   "only the points of the --keep classes compared"),
+    Parameter("keep", "--keep", Text("class labels, comma separated"), section="4.3", default=None, cli_type=str,
+              metavar="CLASS[,CLASS]", scope="run",
+              help="with --classifier: the classes kept in both clouds (e.g. ground)"),
     # How the run is made (not what the engine computes)
     Parameter("core_spacing", "--core-spacing", Real(), section="3.1.1", default=None,
               cloudcompare_keys=("SubsampleRadius", "SubsampleEnabled"), scope="run",
