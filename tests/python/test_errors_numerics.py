@@ -102,8 +102,9 @@ def test_exactly_planar_clouds_have_zero_spread(tmp_path, normals, reg, signific
     np.savetxt(tmp_path / "cmp.xyz", grid(z=0.125), fmt="%.17g")
     extra = [] if reg is None else ["--registration-error", str(reg)]
     source = ["--normal-scale", "0.5"] if normals == "pca" else ["--normal-source", "vertical"]
+    # --float64: rounding at 1e-15 is the subject here (the default float32 storage is 6e-8 relative).
     cli("compare", tmp_path / "ref.xyz", tmp_path / "cmp.xyz", "-o", tmp_path / "out.csv", *source,
-        "--projection-scale", "0.5", "--max-depth", "0.5", "--quiet", *extra)
+        "--projection-scale", "0.5", "--max-depth", "0.5", "--quiet", "--float64", *extra)
     cols = read_csv(tmp_path / "out.csv")
     assert np.all(cols["status"] == STATUS["ok"])
     atol = 1e-15 if normals == "pca" else 0.0
