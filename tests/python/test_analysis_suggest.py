@@ -60,8 +60,8 @@ def test_command_line(pair, tmp_path, capsys):
         assert needle in text
 
 
-def test_real_pair(shared_data, capsys):
-    pair = shared_data / "pairs" / "autzen-bmx"
+def test_real_pair(autzen_pair, capsys):
+    pair = autzen_pair
     assert main(["suggest", str(pair / "autzen-bmx-2010.las"), str(pair / "autzen-bmx-2023.las"), "--sample",
                  "300"]) == 0
     assert "=> --max-depth" in capsys.readouterr().out

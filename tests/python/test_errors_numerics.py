@@ -33,8 +33,8 @@ def cli(*argv):
 
 # -------------------------------------------------------------------------------- UTM shift
 
-def test_utm_sized_coordinates_give_the_same_distances(shared_data, tmp_path):
-    pair = shared_data / "pairs/autzen-bmx"
+def test_utm_sized_coordinates_give_the_same_distances(autzen_pair, tmp_path):
+    pair = autzen_pair
     ref = m3c2kit.read(pair / "autzen-bmx-2010.las").xyz
     cmp = m3c2kit.read(pair / "autzen-bmx-2023.las").xyz
     core = m3c2kit.read(pair / "autzen-bmx-largersample.txt").xyz

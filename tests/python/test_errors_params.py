@@ -257,8 +257,8 @@ def test_core_points_crs_is_checked_too(tmp_path, capsys):
     assert code == 1 and f"core points {core} in 'WGS 84 / UTM zone 31N' (EPSG:32631)" in err
 
 
-def test_same_crs_spelled_differently_and_unknown_crs_pass(shared_data, tmp_path, capsys):
-    pair = shared_data / "pairs/autzen-bmx"
+def test_same_crs_spelled_differently_and_unknown_crs_pass(autzen_pair, tmp_path, capsys):
+    pair = autzen_pair
     a, b = m3c2kit.read(pair / "autzen-bmx-2010.las"), m3c2kit.read(pair / "autzen-bmx-2023.las")
     assert a.crs != b.crs and same_crs(a.crs, b.crs) is True  # two WKT spellings of one compound CRS
     cli.check_same_crs(a, b)
