@@ -107,3 +107,16 @@ def test_toronto_no_overlap_warning_never_advises_depth(tmp_path, capsys):
         assert captured.out == ""
         assert "the surveys do not overlap there" in captured.err and "cannot help" in captured.err
         assert "consider a larger --max-depth" not in captured.err
+
+
+def test_progress_over_every_phase_when_forced(tmp_path, capsys):
+    ref, cmp_ = _pair(tmp_path)
+    args = ["compare", ref, cmp_, "-o", tmp_path / "p.csv", "--normal-scale", "2", "--projection-scale", "1",
+            "--max-depth", "1"]
+    assert main(args) == 0
+    assert "reading" not in capsys.readouterr().err  # stderr is not a terminal here: no bars
+    assert main(args + ["--progress"]) == 0
+    err = capsys.readouterr().err
+    for phase in ("reading", "indexing, normals, distances", "writing"):
+        assert phase in err, phase
+    assert "3000/3000" in err  # the engine's core points done
