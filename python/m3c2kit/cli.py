@@ -18,6 +18,7 @@ from .io import read_cloud, write_cloud_table
 from .io import crs as crs_mod
 from .io.collisions import check_outputs
 from .io.describe import describe, describe_text
+from .phases import Phases
 from .progress import ProgressBar
 from .report.outputs import CompareOutputs, write_compare_outputs
 from .settings import by_name, parameters_of
@@ -76,6 +77,8 @@ def _compare_parser(sub) -> None:
                    help="run the tiles as tasks on this Dask distributed scheduler; every worker must be able to "
                         "read the inputs and the work folder beside the output (docs/scaling.md)")
     _verbosity_options(p)
+    p.add_argument("--progress", action="store_true",
+                   help="show the progress bars on stderr even when it is not a terminal (default: only on a terminal)")
     p.set_defaults(run=run_compare)
 
 
@@ -240,8 +243,15 @@ def run_compare(args) -> int:
             raise UsageError("--crs is not available with --tile-size, --memory-limit or --dask-scheduler; "
                              "give the inputs a CRS (e.g. convert them to LAS with one) or run in memory")
         return run_compare_tiled(args, settings, grid=cell)  # out-of-core / Dask (docs/scaling.md)
-    reference, compared = _read(args.reference, args), _read(args.compared, args)
-    core_cloud = _read(args.core, args) if args.core is not None else None
+    phases = Phases(enabled=False if args.quiet else (True if getattr(args, "progress", False) else None))
+    files = [f for f in (args.reference, args.compared, args.core) if f is not None]
+    with phases.phase("reading", total=len(files)) as step:
+        reference = _read(args.reference, args)
+        step(1, len(files))
+        compared = _read(args.compared, args)
+        step(2, len(files))
+        core_cloud = _read(args.core, args) if args.core is not None else None
+        step(len(files), len(files))
     if getattr(args, "crs", None):
         assign_crs(args.crs, reference, compared, core_cloud)
     check_same_crs(reference, compared, core_cloud, ignore=getattr(args, "ignore_crs", False),
@@ -258,15 +268,18 @@ def run_compare(args) -> int:
     core_normals = None
     if settings.get("normal_source") == "core":
         core_normals = _core_normals(args, core_cloud)
-    bar = ProgressBar("M3C2", enabled=not args.quiet)
-    result = api.compare(reference, compared, core_cloud, core_normals=core_normals, threads=threads,
-                         progress=bar.update, read_points=lambda p: _read(p, args).xyz, **settings)
-    bar.close()
+    # The engine indexes both clouds, fits the normals and measures the distances in one call,
+    # reporting core points done: one bar for the three.
+    with phases.phase("indexing, normals, distances") as step:
+        result = api.compare(reference, compared, core_cloud, core_normals=core_normals, threads=threads,
+                             progress=step, read_points=lambda p: _read(p, args).xyz, **settings)
     outputs = CompareOutputs(table=args.output, report=args.report, report_png=args.report_png,
                              projected=args.projected, position=position, field_names=field_names,
                              float64=float64, core_spacing=settings.get("core_spacing"),
                              inputs={"reference": args.reference, "compared": args.compared})
-    extra = write_compare_outputs(outputs, result, reference, grid=grid)
+    with phases.phase("writing", total=1) as step:
+        extra = write_compare_outputs(outputs, result, reference, grid=grid)
+        step(1, 1)
     if not args.quiet:
         for line in summary_lines(result, args.output):
             print(line)

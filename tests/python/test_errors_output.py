@@ -181,15 +181,20 @@ def test_failed_write_keeps_the_previous_output(pair, capsys, monkeypatch):
 # Runs the real command line, announcing on stderr when the engine's first progress callback
 # fires (so the signal is sent while the engine runs, not while Python starts up).
 _HOOK = textwrap.dedent("""
+    import contextlib
     import sys
-    import m3c2kit.progress as progress
-    original = progress.ProgressBar.update
-    def update(self, done, total):
-        if not getattr(update, "seen", False):
-            update.seen = True
-            print("ENGINE-RUNNING", file=sys.stderr, flush=True)
-        return original(self, done, total)
-    progress.ProgressBar.update = update
+    import m3c2kit.phases as phases
+    original = phases.Phases.phase
+    @contextlib.contextmanager
+    def phase(self, name, total=None):
+        with original(self, name, total) as step:
+            def update(done, total_now=None):
+                if name.startswith("indexing") and not getattr(update, "seen", False):
+                    update.seen = True
+                    print("ENGINE-RUNNING", file=sys.stderr, flush=True)
+                return step(done, total_now)
+            yield update
+    phases.Phases.phase = phase
     from m3c2kit.cli import main
     sys.exit(main(sys.argv[1:]))
 """)

@@ -258,17 +258,22 @@ def test_core_points_crs_is_checked_too(tmp_path, capsys):
     assert code == 1 and f"core points {core} in 'WGS 84 / UTM zone 31N' (EPSG:32631)" in err
 
 
-def test_same_crs_spelled_differently_and_unknown_crs_pass(shared_data, tmp_path, capsys):
-    pair = shared_data / "pairs/autzen-bmx"
+def test_same_crs_spelled_differently_and_unknown_crs_pass(autzen_pair, tmp_path, capsys):
+    pair = autzen_pair
     a, b = m3c2kit.read(pair / "autzen-bmx-2010.las"), m3c2kit.read(pair / "autzen-bmx-2023.las")
     assert a.crs != b.crs and same_crs(a.crs, b.crs) is True  # two WKT spellings of one compound CRS
     cli.check_same_crs(a, b)
-    # A cloud without CRS (text) against one with a CRS: nothing to compare, the run goes on.
+    # A cloud without CRS (text) against one with a CRS: refused (issue 13), unless --ignore-crs
+    # or --crs gives it the reference's.
     write_xyz(tmp_path / "cmp.xyz", grid(z=0.1))
     ref = _las(tmp_path / "ref.las", grid(), _wkt("WGS 84 / UTM zone 32N", 32632))
-    code, _, err = run(capsys, "compare", ref, tmp_path / "cmp.xyz", "-o", tmp_path / "out.csv", "--quiet",
-                       *[x for kv in BASE.items() for x in kv])
-    assert code == 0, err
+    argv = ["compare", ref, tmp_path / "cmp.xyz", "-o", tmp_path / "out.csv", "--quiet",
+            *[x for kv in BASE.items() for x in kv]]
+    code, _, err = run(capsys, *argv)
+    assert code == 1 and "only one cloud has a CRS" in err and str(tmp_path / "cmp.xyz") in err, err
+    for extra in (["--ignore-crs"], ["--crs", "EPSG:32632"]):
+        code, _, err = run(capsys, *argv, *extra)
+        assert code == 0, err
 
 
 def test_same_crs_rules():
