@@ -242,7 +242,8 @@ NB_MODULE(_core, m) {
       .value("all", m3c2::PrecisionRule::kAllPoints);
   nb::enum_<m3c2::EpCovariance>(m, "EpCovariance")
       .value("independent", m3c2::EpCovariance::kIndependent)
-      .value("mean_of_points", m3c2::EpCovariance::kMeanOfPoints);
+      .value("mean_of_points", m3c2::EpCovariance::kMeanOfPoints)
+      .value("empirical", m3c2::EpCovariance::kEmpirical);
   nb::enum_<m3c2::EpWeights>(m, "EpWeights")
       .value("normal", m3c2::EpWeights::kNormal)
       .value("matrix", m3c2::EpWeights::kMatrix);

@@ -212,7 +212,7 @@ PARAMETERS: tuple[Parameter, ...] = (
                    "every point in it"),
     Parameter("precision_scales", "--precision-scales", Positives(2), section="6.2", engine=PRECISION_SCALES,
               cli_type=str, cloudcompare_keys=("PM1Scale", "PM2Scale"), metavar="S1,S2", help="M3C2-PM: scale of each cloud's precisions"),
-    Parameter("ep_covariance", "--ep-covariance", Choice("independent", "mean-of-points"), section="6.2",
+    Parameter("ep_covariance", "--ep-covariance", Choice("independent", "mean-of-points", "empirical"), section="6.2",
               engine=enum("ep_covariance"), cli_type=str, help="M3C2-EP: the covariance of a centre of gravity"),
     Parameter("ep_lod", "--ep-lod", Choice("projected", "published"), section="6.2", engine=enum("ep_lod"),
               cli_type=str, help="M3C2-EP: the level of detection, projected on the normal or as published"),
