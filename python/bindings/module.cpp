@@ -2,6 +2,7 @@
 // the GIL released while the engine runs, numpy arrays out (the engine's vectors, not copied).
 
 #include <m3c2/m3c2.hpp>
+#include <m3c2/series.hpp>
 
 #include <nanobind/nanobind.h>
 #include <nanobind/ndarray.h>
@@ -286,4 +287,44 @@ NB_MODULE(_core, m) {
       },
       "reference"_a, "compared"_a, "model"_a = "none", "model_radius"_a = 0.0, "model_neighbours"_a = 6,
       "rule"_a = "closer", "threads"_a = 0, "progress"_a = nb::none());
+
+  // Time series (include/m3c2/series.hpp, docs/series.md): the reference prepared once, one
+  // epoch compared at a time; the reference array is kept alive by the object.
+  struct SeriesComparison {
+    nb::object reference;  // the engine reads the reference's coordinates in place
+    std::optional<m3c2::Comparison> comparison;
+  };
+  nb::class_<SeriesComparison>(m, "Comparison")
+      .def(
+          "__init__",
+          [](SeriesComparison* self, const Points& reference, const Points& core, const m3c2::Params& params,
+             std::optional<Points> core_normals, int threads, nb::object progress) {
+            std::vector<double> normals;
+            if (core_normals) normals.assign(core_normals->data(), core_normals->data() + 3 * core_normals->shape(0));
+            new (self) SeriesComparison{nb::cast(reference), std::nullopt};
+            self->comparison.emplace(run_engine(std::move(progress), threads, [&](const m3c2::RunOptions& run) {
+              return m3c2::Comparison(view(reference), view(core), params, run, normals);
+            }));
+          },
+          "reference"_a, "core_points"_a, "params"_a, "core_normals"_a = nb::none(), "threads"_a = 0,
+          "progress"_a = nb::none())
+      .def(
+          "compare",
+          [](const SeriesComparison& self, const Points& compared, int threads, nb::object progress) {
+            return result_dict(run_engine(std::move(progress), threads, [&](const m3c2::RunOptions& run) {
+              return self.comparison->compare(view(compared), run);
+            }));
+          },
+          "compared"_a, "threads"_a = 0, "progress"_a = nb::none())
+      .def("normals",
+           [](const SeriesComparison& self) {
+             m3c2::NormalsResult r = self.comparison->normals();
+             nb::dict d;
+             d["status"] = status_array(r.status);
+             d["normal"] = to_numpy(std::move(r.normal), 3);
+             d["normal_scale"] = to_numpy(std::move(r.normal_scale));
+             d["roughness"] = to_numpy(std::move(r.roughness));
+             return d;
+           })
+      .def("__len__", [](const SeriesComparison& self) { return self.comparison->size(); });
 }
