@@ -123,7 +123,8 @@ def _info_parser(sub) -> None:
 def make_parser() -> argparse.ArgumentParser:
     parser = ArgumentParser(prog="m3c2", description="M3C2 point-cloud change detection (Lague et al. 2013)")
     sub = parser.add_subparsers(dest="command", required=True, parser_class=ArgumentParser)
-    for build in (_compare_parser, _normals_parser, _subsample_parser, _info_parser, analysis_parsers):
+    from .series.cli import series_parsers  # noqa: PLC0415 - m3c2 series (docs/series.md)
+    for build in (_compare_parser, _normals_parser, _subsample_parser, _info_parser, analysis_parsers, series_parsers):
         build(sub)
     return parser
 
