@@ -32,11 +32,13 @@ class Blob:
 
 @dataclass(frozen=True)
 class Landslide:
-    """An ellipse whose surface sinks by `rate` per epoch from `onset` to the end."""
+    """An ellipse whose surface drops by `drop` at `onset` (the failure), then keeps sinking by
+    `rate` per epoch (the creep) to the end of the series."""
     cx: float
     cy: float
     ax: float
     ay: float
+    drop: float
     rate: float
     onset: int
 
@@ -50,15 +52,18 @@ class Scenario:
     offset_epoch: int = 57        # this epoch is shifted by `offset` in z (a registration error)
     offset: float = 0.04
     seed: int = 20210301
-    landslide: Landslide = Landslide(12.0, 28.0, 7.0, 5.0, 0.004, 20)
-    blobs: tuple = (Blob(30.0, 30.0, 4.0, 0.3, 30, 58), Blob(28.0, 10.0, 4.0, 0.25, 62, 88),
-                    Blob(10.0, 9.0, 3.5, 0.35, 45, 75))
+    landslide: Landslide = Landslide(12.0, 28.0, 7.0, 5.0, 0.08, 0.003, 15)
+    # Short-lived piles. Each starts after the first half window (12 epochs) and lasts longer
+    # than half the rest of the series on one side of it: the change-point search of 4D-OBC
+    # needs both to place its first break (docs/validation.md, "Time series").
+    blobs: tuple = (Blob(30.0, 30.0, 4.0, 0.3, 14, 44), Blob(28.0, 10.0, 4.0, 0.25, 62, 90),
+                    Blob(10.0, 9.0, 3.5, 0.35, 40, 76))
 
     @staticmethod
     def reduced() -> "Scenario":
         """The CI version: a 24 m square at 16 points per square metre, the same 100 epochs."""
-        return Scenario(extent=24.0, density=16.0, landslide=Landslide(7.0, 17.0, 4.5, 3.5, 0.004, 20),
-                        blobs=(Blob(18.0, 18.0, 3.0, 0.3, 30, 58), Blob(17.5, 6.0, 3.0, 0.25, 62, 88)))
+        return Scenario(extent=24.0, density=16.0, landslide=Landslide(7.0, 17.0, 4.5, 3.5, 0.08, 0.003, 15),
+                        blobs=(Blob(18.0, 18.0, 3.0, 0.3, 14, 44), Blob(17.5, 6.0, 3.0, 0.25, 62, 90)))
 
 
 def rough(x, y):
@@ -72,8 +77,8 @@ def change(s: Scenario, x, y, t: int) -> np.ndarray:
     dz = np.zeros_like(x)
     ls = s.landslide
     inside = ((x - ls.cx) / ls.ax) ** 2 + ((y - ls.cy) / ls.ay) ** 2 <= 1.0
-    if t > ls.onset:
-        dz -= np.where(inside, ls.rate * (t - ls.onset), 0.0)
+    if t >= ls.onset:
+        dz -= np.where(inside, ls.drop + ls.rate * (t - ls.onset), 0.0)
     for b in s.blobs:
         if b.onset <= t < b.removal:
             grown = min(1.0, (t - b.onset + 1) / b.rise)

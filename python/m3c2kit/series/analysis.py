@@ -48,7 +48,7 @@ def smooth(store: Path, window: int, threads: int = 0) -> int:
     _, zarr = st.require_extra()
     out_group, out = _new_variable(store, SMOOTHED, np.float64, np.nan,
                                    {"long_name": f"temporal median of distance over {window} epochs",
-                                    "window": int(window), "epochs": int(epochs), "_FillValue": np.nan})
+                                    "window": int(window), "epochs": int(epochs)})
     source = zarr.open_group(str(store), mode="r", use_consolidated=False)["distance"]
     for begin, end in _core_chunks(group):
         block = np.asarray(source[begin:end, :epochs])

@@ -111,8 +111,7 @@ def import_archive(archive: Path, output: Path) -> int:
         from .analysis import SMOOTHED, _new_variable
         _, zarr = st.require_extra()
         _, array = _new_variable(output, SMOOTHED, np.float64, np.nan,
-                                 {"long_name": "py4dgeo's smoothed_distances", "epochs": int(n_epochs),
-                                  "_FillValue": np.nan})
+                                 {"long_name": "py4dgeo's smoothed_distances", "epochs": int(n_epochs)})
         array[:, :] = smoothed.astype(np.float64)
         zarr.consolidate_metadata(str(output))
     return n_epochs
