@@ -7,8 +7,7 @@
 #include "parallel_for.hpp"
 #include "plane_fit.hpp"
 #include "spatial_order.hpp"
-
-#include <omp.h>
+#include "uncertainty.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -55,10 +54,12 @@ std::pair<Octree, Octree> build_indexes(PointsView reference, PointsView compare
   const double work0 = double(reference.size()) * (ref_moments ? 3 : 2),
                work1 = double(compared.size()) * (cmp_moments ? 3 : 2) + double(core_points.size());
   const int lighter = work1 < work0 ? 1 : 0;
+#if defined(_OPENMP)
 #pragma omp parallel num_threads(2)
+#endif
   {
-    const int part = omp_get_thread_num();
-    const bool alone = omp_get_num_threads() < 2;
+    const int part = detail::thread_num();
+    const bool alone = detail::team_size() < 2;
     try {
       if (part == 0) first.emplace(index_of(reference, "reference cloud", grid, ref_moments));
       if (part == 1 || alone) {
@@ -79,8 +80,10 @@ class Pipeline {
  public:
   /// `alongside`: the caller's set-up, run while the indexes are built (build_indexes).
   Pipeline(PointsView reference, PointsView compared, PointsView core_points, const Params& params,
-           const std::vector<double>& core_normals, const RunOptions& run, const std::function<void()>& alongside)
+           const std::vector<double>& core_normals, const RunOptions& run, const std::function<void()>& alongside,
+           const detail::UncertaintyModel* uncertainty = nullptr)
       : params_(params),
+        uncertainty_(uncertainty),
         core_normals_(core_normals),
         grid_(grid_for(params.normal_diameters, params.projection_diameter)),
         trees_(build_indexes(reference, compared, core_points, params, grid_, run, core_order_, alongside)),
@@ -108,12 +111,15 @@ class Pipeline {
       r.normal[3 * i] = r.normal[3 * i + 1] = r.normal[3 * i + 2] = std::numeric_limits<double>::quiet_NaN();
       return;
     }
-    detail::project(reference_tree_, compared_tree_, core, n.normal, params_, s.projection, s.t1, s.t2);
-    detail::measure(params_, z_, s, i, r);
+    detail::project(reference_tree_, compared_tree_, core, n.normal, params_, s.projection, s.t1, s.t2,
+                    uncertainty_ ? &s.index1 : nullptr, uncertainty_ ? &s.index2 : nullptr);
+    detail::measure(params_, z_, uncertainty_ != nullptr, s, i, r);
+    if (uncertainty_ && r.n1[i] > 0 && r.n2[i] > 0) uncertainty_->measure(core, n.normal, s.index1, s.index2, i, r);
   }
 
  private:
   const Params& params_;
+  const detail::UncertaintyModel* uncertainty_;
   const std::vector<double>& core_normals_;
   OctreeGrid grid_;
   std::vector<std::uint32_t> core_order_;  // before trees_: build_indexes() fills it
@@ -126,8 +132,9 @@ class Pipeline {
 }  // namespace
 
 Result compute(PointsView reference, PointsView compared, PointsView core_points, const Params& params,
-               const RunOptions& run, const std::vector<double>& core_normals) {
+               const RunOptions& run, const std::vector<double>& core_normals, const UncertaintyInputs& uncertainty) {
   detail::validate_params(params);
+  detail::validate_uncertainty_params(params);
   if (reference.empty()) throw InvalidArgument("the reference cloud is empty");
   if (compared.empty()) throw InvalidArgument("the compared cloud is empty");
   // The clouds' coordinates are checked by their indexes, on the thread building each
@@ -137,9 +144,22 @@ Result compute(PointsView reference, PointsView compared, PointsView core_points
     throw InvalidArgument("core_normals must hold 3 values per core point (" + std::to_string(3 * core_points.size()) +
                           "), got " + std::to_string(core_normals.size()));
 
+  // Per-point uncertainty (PM, EP): its inputs checked, EP's compared cloud transformed.
+  std::optional<detail::UncertaintyModel> model;
+  if (params.uncertainty != Uncertainty::kEq1) model.emplace(params, uncertainty, reference, compared, run);
   Result result;  // its NaN-filled arrays are set up while the indexes are built
-  const Pipeline pipeline(reference, compared, core_points, params, core_normals, run,
-                          [&] { result.resize(core_points.size()); });
+  const auto set_up = [&] {
+    result.resize(core_points.size());
+    if (!model) return;
+    result.spread1.assign(core_points.size(), std::numeric_limits<double>::quiet_NaN());
+    result.spread2.assign(core_points.size(), std::numeric_limits<double>::quiet_NaN());
+    if (uncertainty.covariances && params.uncertainty == Uncertainty::kErrorPropagation) {
+      result.covariance1.assign(9 * core_points.size(), std::numeric_limits<double>::quiet_NaN());
+      result.covariance2.assign(9 * core_points.size(), std::numeric_limits<double>::quiet_NaN());
+    }
+  };
+  const Pipeline pipeline(reference, model ? model->compared_indexed() : compared, core_points, params, core_normals,
+                          run, set_up, model ? &*model : nullptr);
   const auto& order = pipeline.core_order();
   // With two threads the team has just built the indexes: it is awake (build_indexes).
   detail::parallel_blocks<Scratch>(

@@ -6,16 +6,16 @@
 
 #include "bootstrap.hpp"
 #include "confidence.hpp"
+#include "median_error.hpp"
 #include "normals.hpp"
 #include "octree.hpp"
 #include "orientation.hpp"
 #include "projection.hpp"
 #include "statistics.hpp"
+#include "threads.hpp"
 #include "validation.hpp"
 
 #include <m3c2/m3c2.hpp>
-
-#include <omp.h>
 
 #include <algorithm>
 #include <cmath>
@@ -44,7 +44,7 @@ inline bool moments_needed(const Params& params, bool reference) {
                    : src == NormalSource::kCompared;
 }
 
-inline int thread_count(const RunOptions& run) { return run.threads > 0 ? run.threads : omp_get_max_threads(); }
+inline int thread_count(const RunOptions& run) { return run.threads > 0 ? run.threads : max_threads(); }
 
 /// The index of a cloud named `name` ("reference cloud"). Its one pass over the coordinates
 /// refuses those beyond the grid's range (NaN and Inf among them); only then is the cloud
@@ -101,6 +101,8 @@ struct Scratch {
   NormalScratch normal;
   ProjectionScratch projection;
   std::vector<double> t1, t2, work;
+  std::vector<std::uint32_t> index1, index2;  // per-point uncertainty: the cylinders' points
+  MedianWeightCache median_weights;
 };
 
 /// The oriented normal at core point i (index `i` into `core_normals`) by params.normal_source;
@@ -142,8 +144,10 @@ inline OrientedNormal normal_at(const Vec3& core, std::size_t i, const Params& p
 }
 
 /// Section 3.1.3 step 3 and 3.3: the distance, spreads, LOD and significance of core point i
-/// from its cylinders' offsets s.t1, s.t2 (z = z_critical(params.confidence)).
-inline void measure(const Params& params, double z, Scratch& s, std::size_t i, Result& r) {
+/// from its cylinders' offsets s.t1, s.t2 (z = z_critical(params.confidence)). With
+/// `lod_by_model` (per-point uncertainty, PM / EP) only the distance and spreads: the model
+/// gives the LOD.
+inline void measure(const Params& params, double z, bool lod_by_model, Scratch& s, std::size_t i, Result& r) {
   const auto n1 = static_cast<std::uint32_t>(s.t1.size()), n2 = static_cast<std::uint32_t>(s.t2.size());
   r.n1[i] = n1;
   r.n2[i] = n2;
@@ -151,21 +155,22 @@ inline void measure(const Params& params, double z, Scratch& s, std::size_t i, R
     r.status[i] = n1 == 0 ? PointStatus::kEmptyCylinder1 : PointStatus::kEmptyCylinder2;
     return;
   }
-  const Spread a = central_spread(s.t1, params, s.work);
-  const Spread b = central_spread(s.t2, params, s.work);
+  const Spread a = central_spread(s.t1, params, s.work, &s.median_weights);
+  const Spread b = central_spread(s.t2, params, s.work, &s.median_weights);
   r.i1[i] = a.centre, r.i2[i] = b.centre, r.sigma1[i] = a.sigma, r.sigma2[i] = b.sigma;
   r.distance[i] = b.centre - a.centre;
+  if (lod_by_model) return;  // PM / EP: the model gives the LOD
   // Eq. (1) is not defined below two points per cloud whatever min_points says (5.2.1).
   if (n1 < std::max(params.min_points, 2u) || n2 < std::max(params.min_points, 2u) || !std::isfinite(a.sigma) ||
       !std::isfinite(b.sigma)) {
     r.status[i] = PointStatus::kTooFewPointsForLod;
     return;
   }
-  if (params.bootstrap_samples > 0) {
+  if (params.lod == Lod::kBootstrap) {
     r.lod[i] = z * (bootstrap_sigma(s.t1, s.t2, params, i, s.work) + params.registration_error);
   } else {
-    const double critical = critical_value(params, z, a.sigma, n1, b.sigma, n2);
-    r.lod[i] = lod_parametric(critical, a.sigma, n1, b.sigma, n2, params.registration_error);
+    const double critical = critical_value(params, z, a.se, n1, b.se, n2);
+    r.lod[i] = lod_parametric(critical, a.se, b.se, params.registration_error);
   }
   r.significant[i] = std::abs(r.distance[i]) > r.lod[i];
   r.status[i] = PointStatus::kOk;

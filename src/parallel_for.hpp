@@ -5,7 +5,7 @@
 #include <m3c2/errors.hpp>
 #include <m3c2/run_options.hpp>
 
-#include <omp.h>
+#include "threads.hpp"
 
 #include <algorithm>
 #include <atomic>
@@ -32,7 +32,7 @@ namespace m3c2::detail {
 template <class Scratch, class Fn>
 void parallel_blocks(std::size_t n, const RunOptions& run, Fn&& fn, std::size_t block = 64, bool team_awake = false) {
   constexpr auto kSerialLead = std::chrono::milliseconds(2);
-  const int threads = run.threads > 0 ? run.threads : omp_get_max_threads();
+  const int threads = run.threads > 0 ? run.threads : max_threads();
   const auto blocks = static_cast<std::int64_t>((n + block - 1) / block);
   std::exception_ptr failure;
   std::atomic<bool> stop{false};
@@ -63,10 +63,15 @@ void parallel_blocks(std::size_t n, const RunOptions& run, Fn&& fn, std::size_t 
       run_block(first++, scratch);
   }
   if (first < blocks && !stop.load(std::memory_order_relaxed)) {
+    // Without OpenMP (a serial build) the pragmas are not compiled: one thread runs every block.
+#if defined(_OPENMP)
 #pragma omp parallel num_threads(threads)
+#endif
     {
       Scratch scratch;
+#if defined(_OPENMP)
 #pragma omp for schedule(dynamic, 1)
+#endif
       for (std::int64_t b = first; b < blocks; ++b) run_block(b, scratch);
     }
   }
