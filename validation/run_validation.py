@@ -418,6 +418,12 @@ def main():
     for line in out.rstrip("\n").splitlines():
         emit(line)
     emit("")
+    # Section 5: the time series (m3c2 series, 4D-OBC against py4dgeo; needs m3c2kit[series]).
+    out = subprocess.run([sys.executable, str(Path(__file__).parent / "series_validation.py")], capture_output=True,
+                         text=True, check=True, env=dict(os.environ)).stdout
+    for line in out[out.index("## 5."):].rstrip("\n").splitlines():
+        emit(line)
+    emit("")
     emit("## Runtime\n")
     emit(f"This script ran in {time.perf_counter() - start:.0f} s.")
     DOC.write_text("\n".join(LINES) + "\n")
