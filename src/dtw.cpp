@@ -12,7 +12,7 @@
 namespace m3c2 {
 
 double normalised_dtw(const double* a, const double* b, std::size_t n, double norm_a, double norm_b,
-                      double dmax_origin) {
+                      double dmax_origin, double at_least) {
   double dmax = 0.0;
   for (std::size_t k = 0; k < n; ++k)
     if (!std::isnan(a[k])) dmax += std::abs(a[k] - dmax_origin);
@@ -26,11 +26,18 @@ double normalised_dtw(const double* a, const double* b, std::size_t n, double no
   previous.resize(m), current.resize(m);
   previous[0] = std::abs(x[0] - y[0]);
   for (std::size_t j = 1; j < m; ++j) previous[j] = std::abs(x[0] - y[j]) + previous[j - 1];
+  // Early stop: 1 - (dmax - c) / dmax >= at_least once c >= at_least * dmax; the margin keeps the
+  // rounding of that expression on the safe side.
+  const double stop = at_least < 1.0 ? at_least * dmax * (1.0 + 1e-9) + 1e-300 : INFINITY;
   for (std::size_t i = 1; i < m; ++i) {
     current[0] = std::abs(x[i] - y[0]) + previous[0];
-    for (std::size_t j = 1; j < m; ++j)
+    double row_min = current[0];
+    for (std::size_t j = 1; j < m; ++j) {
       current[j] = std::abs(x[i] - y[j]) + std::fmin(std::fmin(previous[j], current[j - 1]), previous[j - 1]);
+      row_min = std::fmin(row_min, current[j]);
+    }
     std::swap(previous, current);
+    if (row_min > stop) return 1.0;
   }
   // py4dgeo's form of dtw / D_max, for the same bits at the thresholds.
   return std::fmin(1.0, 1.0 - (dmax - previous[m - 1]) / dmax);

@@ -8,11 +8,13 @@
 
 #include "kdtree.hpp"
 #include "parallel_for.hpp"
+#include "threads.hpp"
 
 #include <algorithm>
 #include <cmath>
 #include <limits>
 #include <map>
+#include <optional>
 #include <set>
 #include <string>
 #include <unordered_map>
@@ -206,18 +208,17 @@ ObjectsResult objects_by_change(const double* distances, std::size_t rows, std::
   std::vector<double> thresholds = p.thresholds;
   std::sort(thresholds.begin(), thresholds.end());
   const std::uint64_t max_segments = p.max_segments > 0 ? p.max_segments : rows + 1;
-  std::vector<std::uint32_t> neighbours;
-  for (std::size_t k = 0; k < seeds.size(); ++k) {
-    if (run.progress && !run.progress(k, seeds.size())) throw Cancelled();
-    const Seed& seed = seeds[k];
-    bool inside = false;  // the seed lies in an object that overlaps it in time
+  // A seed's growth depends on the seed alone; only whether it is skipped depends on the objects
+  // before it. So the seeds are grown in parallel, a batch at a time, and then taken in order:
+  // a seed inside an object accepted before it (in this batch too) is dropped, as in a serial run.
+  const auto inside = [&](const Seed& seed) {
     for (const ChangeObject& o : result.objects)
       if (o.seed.end > seed.start && seed.end > o.seed.start &&
-          std::binary_search(o.cores.begin(), o.cores.end(), seed.core)) {
-        inside = true;
-        break;
-      }
-    if (inside) continue;
+          std::binary_search(o.cores.begin(), o.cores.end(), seed.core))
+        return true;
+    return false;
+  };
+  const auto grow_seed = [&](const Seed& seed, std::vector<std::uint32_t>& neighbours) -> std::optional<ChangeObject> {
     const Span span = span_of(seed, epochs, p);
     const double* a = row(seed.core) + span.begin;
     const double norm_a = span.norm(row(seed.core)), origin = span.dmax_origin(row(seed.core));
@@ -225,7 +226,9 @@ ObjectsResult objects_by_change(const double* distances, std::size_t rows, std::
     const auto dtw = [&](std::uint32_t nb) {
       const auto it = memo.find(nb);
       if (it != memo.end()) return it->second;
-      const double d = normalised_dtw(a, row(nb) + span.begin, span.length, norm_a, span.norm(row(nb)), origin);
+      // Values >= the largest threshold only ever fail the comparisons: stop early there.
+      const double d =
+          normalised_dtw(a, row(nb) + span.begin, span.length, norm_a, span.norm(row(nb)), origin, thresholds.back());
       memo.emplace(nb, d);
       return d;
     };
@@ -248,19 +251,39 @@ ObjectsResult objects_by_change(const double* distances, std::size_t rows, std::
       last_ratio = ratio;
     }
     // Filters (2.3.3): the object's size, and the coefficient of variation of its DTW values.
-    if (chosen->members.size() < p.min_segments) continue;
+    if (chosen->members.size() < p.min_segments) return std::nullopt;
     double mean = 0.0;
     for (const auto& [c, d] : chosen->members) mean += d;
     mean /= double(chosen->members.size());
     double var = 0.0;
     for (const auto& [c, d] : chosen->members) var += (d - mean) * (d - mean);
     const double sd = std::sqrt(var / double(chosen->members.size()));
-    if (!(sd / (mean == 0.0 ? 1e-10 : mean) <= p.max_cv)) continue;
+    if (!(sd / (mean == 0.0 ? 1e-10 : mean) <= p.max_cv)) return std::nullopt;
     ChangeObject o;
     o.seed = seed;
     o.threshold = chosen->threshold;
     for (const auto& [c, d] : chosen->members) o.cores.push_back(c), o.dtw.push_back(d);
-    result.objects.push_back(std::move(o));
+    return o;
+  };
+  const std::size_t batch = std::size_t(4) * std::max(1, run.threads > 0 ? run.threads : detail::max_threads());
+  for (std::size_t first = 0; first < seeds.size(); first += batch) {
+    if (run.progress && !run.progress(first, seeds.size())) throw Cancelled();
+    const std::size_t last = std::min(seeds.size(), first + batch);
+    std::vector<std::optional<ChangeObject>> grown(last - first);
+    std::vector<char> skipped(last - first);
+    for (std::size_t k = first; k < last; ++k) skipped[k - first] = inside(seeds[k]);
+    RunOptions quiet = run;
+    quiet.progress = nullptr;
+    detail::parallel_blocks<std::vector<std::uint32_t>>(
+        last - first, quiet,
+        [&](std::size_t begin, std::size_t end, std::vector<std::uint32_t>& nbs) {
+          for (std::size_t k = begin; k < end; ++k)
+            if (!skipped[k]) grown[k] = grow_seed(seeds[first + k], nbs);
+        },
+        1);
+    for (std::size_t k = first; k < last; ++k)
+      if (!skipped[k - first] && grown[k - first] && !inside(seeds[k]))
+        result.objects.push_back(std::move(*grown[k - first]));
   }
   return result;
 }
