@@ -91,6 +91,18 @@ def best(truth, found):
 
 
 def main():
+    import contextlib
+    import io
+    buffer = io.StringIO()
+    with contextlib.redirect_stdout(buffer):
+        report()
+    text = buffer.getvalue()
+    text = text[text.index("Saved output"):]
+    (Path(__file__).resolve().parents[1] / "docs" / "validation" / "series.md").write_text(text)
+    print(text, end="")
+
+
+def report():
     ap = argparse.ArgumentParser()
     ap.add_argument("--full", action="store_true", help="the full scenario (default: the reduced CI one)")
     ap.add_argument("--work", type=Path)
@@ -106,9 +118,8 @@ def main():
     whole = objects_ours(store, True, folder)
     theirs, t_py4dgeo = objects_py4dgeo(store, folder)
     n_points = int(s.extent ** 2 * s.density)
-    print("## 5. Time series: 4D objects-by-change on a synthetic series\n")
-    print("Output of `PYTHONPATH=python python validation/series_validation.py`" + (" --full" if args.full else "")
-          + " (py4dgeo installed beside m3c2kit[series]).\n")
+    print("Saved output of `PYTHONPATH=python python validation/series_validation.py`" + (" --full" if args.full else "")
+          + " (py4dgeo installed beside m3c2kit[series]; it writes docs/validation/series.md).\n")
     print(f"Input: `validation/series_synthetic.py`, {'full' if args.full else 'reduced (CI)'} scenario: {s.epochs} "
           f"epochs of {n_points} points on {s.extent:g} m x {s.extent:g} m, noise {s.noise} m, epoch "
           f"{s.offset_epoch} offset by {s.offset} m in z, a landslide (drop {s.landslide.drop} m at epoch "

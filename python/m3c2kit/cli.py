@@ -11,17 +11,17 @@ import numpy as np
 
 from . import api, raster
 from .analysis.cli import analysis_parsers
-from .cloudcompare_params import read_cloudcompare_params
+from .classify.cli import classify_parsers
 from .errors import M3C2Error, UsageError
-from .io import info as file_info
 from .io import read_cloud, write_cloud_table
-from .io.crs import crs_label, same_crs
+from .io import crs as crs_mod
+from .io.describe import describe, describe_text
 from .progress import ProgressBar
 from .report.outputs import write_compare_outputs
+from .settings import by_name, parameters_of
+from .settings.cloudcompare_params import read_cloudcompare_params
 from .summary import summary_lines
 
-SCALE_HELP = ("D, the normal scale: DIAMETER of the sphere of neighbours (as in the paper and CloudCompare). "
-              "One value, a list '0.5,1,2' or a range 'MIN:MAX:STEP' (multi-scale: the most planar scale wins)")
 
 
 class Interrupted(M3C2Error):
@@ -43,41 +43,25 @@ def _compare_parser(sub) -> None:
     p.add_argument("-o", "--output", type=Path, required=True, help="output file: .las .laz .ply .csv .txt")
     core = p.add_mutually_exclusive_group()
     core.add_argument("--core", type=Path, help="core points file (default: every reference point)")
-    core.add_argument("--core-spacing", type=float, help="core points = reference subsampled to this minimum spacing")
     core.add_argument("--grid", type=float, metavar="CELL",
                       help="2D mode (section 6.1.2): core points on a CELL grid over the reference, vertical normals, "
                            "d = 1.1 CELL unless --projection-scale; also writes GeoTIFF rasters <stem>_distance.tif, "
                            "_lod, _significant, _n1, _n2, _status beside -o (docs/report.md)")
-    p.add_argument("--normal-scale", help=SCALE_HELP)
-    p.add_argument("--projection-scale", type=float, help="d: DIAMETER of the projection cylinder")
-    p.add_argument("--max-depth", type=float, help="half-length of the cylinder along the normal, on each side")
-    p.add_argument("--registration-error", type=float, help="reg of eq. (1), same unit as the clouds (default 0)")
-    p.add_argument("--orient", help="normal orientation: +z (default) -z +x -x +y -y, a point X,Y,Z, or a FILE of "
-                                    "points (scanner positions; E57 scan positions by default)")
-    p.add_argument("--normal-source", choices=api.NORMAL_SOURCES, help="where normals come from (default reference)")
+    add_table_options(p, "compare", groups={"core_spacing": core})
     p.add_argument("--core-normals", type=Path, help="with --normal-source core: file of nx,ny,nz per core point "
                                                      "(default: the core file's normal fields)")
-    p.add_argument("--median", action="store_true", default=None, help="median and IQR instead of mean and std")
-    p.add_argument("--confidence", type=float, help="confidence level of the LOD (default 0.95)")
-    p.add_argument("--min-points", type=int, help="points needed in each cylinder for a LOD (default 4)")
-    p.add_argument("--t-statistic", action="store_true", default=None,
-                   help="Welch t instead of z when n1 or n2 < 30 (eq. 2)")
-    p.add_argument("--bootstrap", type=int, help="LOD from N bootstrap resamples (Appendix B)")
-    p.add_argument("--seed", type=int, help="bootstrap seed (default 0)")
-    p.add_argument("--first-pass-depth", type=float,
-                   help="two-pass depth search (5.3): short half-length first, --max-depth only where it finds nothing")
-    p.add_argument("--depth-search", choices=api.DEPTH_SEARCHES, help="single (default), two-pass or progressive")
-    p.add_argument("--positive-search-only", action="store_true", default=None, help="search only along +normal")
-    p.add_argument("--normal-subsample", type=float, help="compute normals on the cloud subsampled to this spacing")
-    p.add_argument("--compat", choices=["cloudcompare"], help="CloudCompare qM3C2 semantics (docs/validation.md)")
     p.add_argument("--params", type=Path, help="CloudCompare qM3C2 parameter file; command-line options win")
     p.add_argument("--projected", action="store_true", help="also write the projected positions x1..z2")
-    p.add_argument("--position", choices=["core", "reference", "compared"],
-                   help="where output rows are placed (default core)")
     p.add_argument("--drop-nonfinite", action="store_true", help="drop points with NaN/Inf coordinates")
     p.add_argument("--ignore-crs", action="store_true",
-                   help="compare clouds whose CRS or units differ (default: an error naming both)")
-    p.add_argument("--threads", type=int, help="threads (default all); results are identical for any count")
+                   help="compare clouds whose CRS or units differ, or of which only one has a CRS, or in degrees "
+                        "(default: an error naming them)")
+    p.add_argument("--allow-angular", action="store_true",
+                   help="accept horizontal coordinates in degrees (a geographic CRS such as EPSG:4326; default: "
+                        "an error, as distances would mix degrees and heights)")
+    p.add_argument("--crs", metavar="CRS",
+                   help="CRS of inputs that have none (ASCII, PLY, .npy, LAS without one): EPSG:CODE, a WKT or a "
+                        ".prj file; written to LAS outputs and GeoTIFFs (default: none)")
     p.add_argument("--report", type=Path, metavar="HTML", help="also write a self-contained HTML report (docs/report.md)")
     p.add_argument("--report-png", type=Path, metavar="PREFIX", help="also write the report's figures as PREFIX_<figure>.png")
     p.add_argument("--tile-size", type=float, metavar="S",
@@ -93,15 +77,26 @@ def _compare_parser(sub) -> None:
     p.set_defaults(run=run_compare)
 
 
+def add_table_options(parser, command: str, groups: dict | None = None) -> None:
+    """One option per parameter of `command` in the parameter table (m3c2kit.settings.table).
+    Every default is None (not given): the table fills it in, so --params values and
+    --compat defaults can tell what the user said."""
+    for param in parameters_of(command):
+        target = (groups or {}).get(param.name, parser)
+        if param.cli_type is None:
+            target.add_argument(param.flag, dest=param.name, action="store_true", default=None,
+                                help=param.help_text())
+        else:
+            target.add_argument(param.flag, dest=param.name, type=param.cli_type, choices=param.choices,
+                                metavar=param.metavar, help=param.help_text())
+
+
 def _normals_parser(sub) -> None:
     p = sub.add_parser("normals", help="normals at the most planar scale, with roughness (section 6.3)")
     p.add_argument("input", type=Path)
     p.add_argument("-o", "--output", type=Path, required=True)
-    p.add_argument("--normal-scale", required=True, help=SCALE_HELP)
     p.add_argument("--core", type=Path, help="core points (default: every point)")
-    p.add_argument("--orient", help="+z (default) -z +x -x +y -y, X,Y,Z or a FILE of points")
-    p.add_argument("--normal-subsample", type=float)
-    p.add_argument("--threads", type=int, default=0)
+    add_table_options(p, "normals")
     p.add_argument("--quiet", action="store_true")
     p.set_defaults(run=run_normals)
 
@@ -116,22 +111,22 @@ def _subsample_parser(sub) -> None:
 
 def _info_parser(sub) -> None:
     p = sub.add_parser("info", help="point count, bounds, CRS and fields of a file")
-    p.add_argument("file", type=Path)
+    p.add_argument("file", type=Path, help="a point-cloud file")
+    p.add_argument("--json", action="store_true",
+                   help="machine-readable output: one JSON object, the CRS as name, EPSG code and WKT (default: text)")
     p.set_defaults(run=run_info)
 
 
 def make_parser() -> argparse.ArgumentParser:
     parser = ArgumentParser(prog="m3c2", description="M3C2 point-cloud change detection (Lague et al. 2013)")
+    from . import __version__
+    parser.add_argument("--version", action="version", version=f"m3c2 (m3c2kit) {__version__}")
     sub = parser.add_subparsers(dest="command", required=True, parser_class=ArgumentParser)
     from .series.cli import series_parsers  # noqa: PLC0415 - m3c2 series (docs/series.md)
-    for build in (_compare_parser, _normals_parser, _subsample_parser, _info_parser, analysis_parsers, series_parsers):
+    for build in (_compare_parser, _normals_parser, _subsample_parser, _info_parser, analysis_parsers, classify_parsers,
+                  series_parsers):
         build(sub)
     return parser
-
-
-COMPARE_OPTIONS = ("normal_scale", "projection_scale", "max_depth", "registration_error", "orient", "normal_source",
-                   "median", "confidence", "min_points", "t_statistic", "bootstrap", "seed", "first_pass_depth",
-                   "depth_search", "positive_search_only", "normal_subsample", "compat", "core_spacing")
 
 
 def compare_settings(args) -> dict:
@@ -140,14 +135,12 @@ def compare_settings(args) -> dict:
     if args.params is not None:
         settings.update(read_cloudcompare_params(args.params))
         settings.setdefault("compat", "cloudcompare")
-    for name in COMPARE_OPTIONS + ("threads", "position"):
-        value = getattr(args, name, None)
+    for param in parameters_of("compare"):
+        value = getattr(args, param.name, None)
         if value is not None:
-            settings[name] = value
+            settings[param.name] = value
     if args.core is not None:
         settings.pop("core_spacing", None)  # as CloudCompare: given core points win over subsampling
-    if "proj_dest" in settings:
-        settings.setdefault("position", settings.pop("proj_dest"))
     for required, flag in (("projection_scale", "--projection-scale"), ("max_depth", "--max-depth")):
         if required not in settings:
             raise UsageError(f"{flag} is required (or a --params file that sets it)")
@@ -169,11 +162,17 @@ def run_compare(args) -> int:
     cell = raster.grid_mode(args)  # --grid: checks its options, d = 1.1 CELL by default
     settings = compare_settings(args)
     if args.tile_size is not None or args.memory_limit is not None or args.dask_scheduler is not None:
+        if getattr(args, "crs", None):
+            raise UsageError("--crs is not available with --tile-size, --memory-limit or --dask-scheduler; "
+                             "give the inputs a CRS (e.g. convert them to LAS with one) or run in memory")
         from .tiling import run_compare_tiled  # out-of-core / Dask (docs/scaling.md)
         return run_compare_tiled(args, settings, grid=cell)
     reference, compared = _read(args.reference, args), _read(args.compared, args)
     core_cloud = _read(args.core, args) if args.core is not None else None
-    check_same_crs(reference, compared, core_cloud, ignore=getattr(args, "ignore_crs", False))  # docs/errors.md
+    if getattr(args, "crs", None):
+        assign_crs(args.crs, reference, compared, core_cloud)
+    check_same_crs(reference, compared, core_cloud, ignore=getattr(args, "ignore_crs", False),
+                   allow_angular=getattr(args, "allow_angular", False))  # docs/errors.md
     grid = None
     if cell is not None:
         settings = raster.grid_settings(settings)
@@ -181,6 +180,8 @@ def run_compare(args) -> int:
         core_cloud = grid.core_points
     settings["orient"] = _orient_spec(args, settings, reference)
     position = settings.pop("position", "core")
+    field_names = settings.pop("field_names", "m3c2")
+    float64 = bool(settings.pop("float64", False))
     threads = settings.pop("threads", 0)
     core_normals = None
     if settings.get("normal_source") == "core":
@@ -189,7 +190,8 @@ def run_compare(args) -> int:
     result = api.compare(reference, compared, core_cloud, core_normals=core_normals, threads=threads,
                          progress=bar.update, read_points=lambda p: _read(p, args).xyz, **settings)
     bar.close()
-    extra = write_compare_outputs(args, result, reference, grid=grid, position=position)
+    extra = write_compare_outputs(args, result, reference, grid=grid, position=position, field_names=field_names,
+                                  float64=float64, core_spacing=settings.get("core_spacing"))
     if not args.quiet:
         for line in summary_lines(result, args.output):
             print(line)
@@ -199,27 +201,26 @@ def run_compare(args) -> int:
     return 0
 
 
-class CrsMismatch(M3C2Error):
-    """The epochs' CRSs or units differ (exit 1); --ignore-crs overrides."""
+CrsMismatch = crs_mod.CrsMismatch  # the epochs' CRSs or units differ (exit 1); --ignore-crs overrides
 
 
-def check_same_crs(reference, compared, core=None, *, ignore: bool = False) -> None:
-    """Raises CrsMismatch when the compared cloud (or the core points) and the reference have
-    CRSs known to differ (m3c2kit.io.crs.same_crs) or different units hints; unknown ones pass."""
-    if ignore:
-        return
-    for role, other in (("compared", compared), ("core points", core)):
-        if other is None:
+def check_same_crs(reference, compared, core=None, *, ignore: bool = False, allow_angular: bool = False) -> None:
+    """m3c2kit.io.crs.check_crs: CRSs known to differ, a CRS on one cloud only, different units,
+    angular coordinates (docs/errors.md)."""
+    crs_mod.check_crs(reference, compared, core, ignore=ignore, allow_angular=allow_angular)
+
+
+def assign_crs(spec: str, *clouds) -> None:
+    """--crs: the CRS of every given cloud that has none; a cloud with another CRS is an error."""
+    wkt = crs_mod.assign_crs(spec)
+    for cloud in clouds:
+        if cloud is None:
             continue
-        if same_crs(reference.crs, other.crs) is False:
-            raise CrsMismatch(f"the clouds have different CRSs: reference {reference.path} is in "
-                              f"{crs_label(reference.crs)}, {role} {other.path} in {crs_label(other.crs)}; "
-                              f"reproject one of them, or pass --ignore-crs if the coordinates are comparable")
-        units = (reference.units_hint, other.units_hint)
-        if all(units) and units[0] != units[1]:
-            raise CrsMismatch(f"the clouds have different units: reference {reference.path} is in {units[0]}, "
-                              f"{role} {other.path} in {units[1]}; convert one of them, or pass --ignore-crs "
-                              f"if the coordinates are comparable")
+        if not cloud.crs:
+            cloud.crs, cloud.units_hint = wkt, crs_mod.crs_units(wkt) or cloud.units_hint
+        elif crs_mod.same_crs(cloud.crs, wkt) is False:
+            raise CrsMismatch(f"{cloud.path} already has a CRS, {crs_mod.crs_label(cloud.crs)}, not the --crs "
+                              f"{crs_mod.crs_label(wkt)}; --crs only assigns a CRS to inputs that have none")
 
 
 #: Share of computed core points with an empty cylinder in one cloud only above which
@@ -242,26 +243,43 @@ def result_warnings(result, min_points: int, max_depth=None, projection_scale=No
         lines.append(f"warning: the median cylinder holds n1 = {m1:g}, n2 = {m2:g} points, fewer than "
                      f"--min-points {min_points}: the projection scale d = {projection_scale} is small for "
                      f"the point spacing and most LODs are NaN; consider a larger --projection-scale")
-    one_side = np.count_nonzero((n1 == 0) != (n2 == 0)) / len(n1)
-    if one_side > EMPTY_ONE_SIDE_WARNING:
-        lines.append(f"warning: {100 * one_side:.1f}% of the core points with a normal have an empty cylinder "
-                     f"in one cloud only: the change may reach beyond --max-depth {max_depth}; consider a "
-                     f"larger --max-depth")
+    # Empty cylinders in one cloud: m3c2kit.quality tells no overlap from a depth too short.
+    return lines
+
+
+def quality_warnings(settings: dict, result, reference, compared) -> list[str]:
+    """m3c2kit.quality's diagnoses: normals that fail (D given as a radius?), and empty cylinders
+    split into no overlap (no depth helps) and a depth too short (the depth that reaches)."""
+    from . import quality
+
+    lines = []
+    failed = quality.normal_failure_message(result, settings.get("normal_scale") or 0.0)
+    if failed:
+        lines.append(f"warning: {failed}")
+    status = np.asarray(result.status)
+    with_normal = np.count_nonzero(np.isin(status, (0, 3, 4, 5)))
+    empty = np.count_nonzero(np.isin(status, (3, 4)))
+    if with_normal and empty / with_normal > quality.EMPTY_SHARE:
+        diagnoses = quality.cylinder_diagnosis(reference.xyz, compared.xyz, result,
+                                               projection_scale=float(settings["projection_scale"]),
+                                               max_depth=float(settings["max_depth"]),
+                                               threads=int(settings.get("threads", 0) or 0))
+        lines += [f"warning: {m}" for m in quality.cylinder_messages(diagnoses, float(settings["max_depth"]))]
     return lines
 
 
 def _print_warnings(args, settings: dict, result, *clouds) -> None:
-    defaults = api.CLOUDCOMPARE_DEFAULTS if settings.get("compat") == "cloudcompare" else api.DEFAULTS
+    """Warnings go to stderr (docs/errors.md), with --quiet too: they are about the numbers."""
     min_points = settings.get("min_points")
     lines = [f"note: dropped {c.dropped_nonfinite} points with non-finite coordinates from {c.path}"
              for c in clouds if getattr(c, "dropped_nonfinite", 0)]
-    lines += result_warnings(result, defaults["min_points"] if min_points is None else int(min_points),
+    lines += result_warnings(result, by_name()["min_points"].default_for(settings.get("compat")) if min_points is None
+                             else int(min_points),
                              settings.get("max_depth"), settings.get("projection_scale"))
+    if len(clouds) >= 2 and clouds[0] is not None and clouds[1] is not None:
+        lines += quality_warnings(settings, result, clouds[0], clouds[1])
     for line in lines:
-        if args.quiet:
-            print(f"m3c2: {line}", file=sys.stderr)
-        else:
-            print(line)
+        print(f"m3c2: {line}", file=sys.stderr)
 
 
 def _core_normals(args, core_cloud) -> np.ndarray:
@@ -280,14 +298,18 @@ def run_normals(args) -> int:
     cloud = _read(args.input, args)
     core = _read(args.core, args).xyz if args.core is not None else None
     bar = ProgressBar("normals", enabled=not args.quiet)
-    out = api.normals(cloud, core, normal_scale=args.normal_scale, orient=args.orient or "+z",
-                      normal_subsample=args.normal_subsample, threads=args.threads, progress=bar.update,
-                      read_points=lambda p: _read(p, args).xyz)
+    given = {param.name: getattr(args, param.name) for param in parameters_of("normals")}
+    out = api.normals(cloud, core, progress=bar.update, read_points=lambda p: _read(p, args).xyz, **given)
     bar.close()
     n = out["normal"]
     fields = {"nx": n[:, 0], "ny": n[:, 1], "nz": n[:, 2], "normal_scale": out["normal_scale"],
               "roughness": out["roughness"], "count": out["count"].astype(np.uint32), "status": out["status"]}
     write_cloud_table(args.output, out["core"], fields, like=cloud)
+    if not args.quiet:
+        ok = int(np.count_nonzero(np.asarray(out["status"]) == 0))
+        print(f"{args.output}: normals at {ok:,} of {len(out['core']):,} points "
+              f"({100.0 * ok / max(len(out['core']), 1):.1f} %); median roughness "
+              f"{np.nanmedian(out['roughness']) if ok else float('nan'):.4g}")
     return 0
 
 
@@ -301,8 +323,12 @@ def run_subsample(args) -> int:
 
 
 def run_info(args) -> int:
-    for key, value in file_info(args.file).items():
-        print(f"{key}: {value}")
+    d = describe(args.file)
+    if args.json:
+        import json
+        print(json.dumps(d, indent=2))
+    else:
+        print(describe_text(d))
     return 0
 
 
@@ -310,9 +336,29 @@ def _raise_interrupted(signum, frame):
     raise Interrupted(f"interrupted by {signal.Signals(signum).name}; no output written")
 
 
+#: Option values that start with "-" and that argparse would take for options: "--orient -z".
+_DASH_VALUES = {"--orient": ("-x", "-y", "-z")}
+
+
+def join_dash_values(argv: list[str]) -> list[str]:
+    """["--orient", "-z"] -> ["--orient=-z"], as --help writes it (argparse reads "-z" as an option)."""
+    out: list[str] = []
+    i = 0
+    while i < len(argv):
+        a = argv[i]
+        if a in _DASH_VALUES and i + 1 < len(argv) and str(argv[i + 1]).lower() in _DASH_VALUES[a]:
+            out.append(f"{a}={argv[i + 1]}")
+            i += 2
+            continue
+        out.append(a)
+        i += 1
+    return out
+
+
 def main(argv=None) -> int:
     previous = signal.signal(signal.SIGTERM, _raise_interrupted)
     try:
+        argv = join_dash_values([str(a) for a in (sys.argv[1:] if argv is None else argv)])
         args = make_parser().parse_args(argv)
         return args.run(args)
     except UsageError as e:

@@ -8,7 +8,7 @@ alone tells the user which file to look at.
 """
 from __future__ import annotations
 
-__all__ = ["M3C2Error", "UsageError", "CloudReadError", "CloudWriteError"]
+__all__ = ["M3C2Error", "UsageError", "CloudReadError", "CloudWriteError", "Cancelled", "M3C2Warning"]
 
 
 class M3C2Error(Exception):
@@ -28,3 +28,11 @@ class CloudWriteError(M3C2Error):
 
     Raised only after any partial output has been removed.
     """
+
+
+class Cancelled(M3C2Error):
+    """The progress callback stopped a run by returning False (exit status 1)."""
+
+
+class M3C2Warning(UserWarning):
+    """A run that is legitimate but likely mis-parameterised (m3c2kit.diagnostics, docs/errors.md)."""

@@ -1,5 +1,5 @@
 """Inputs of the per-point uncertainty models (``uncertainty`` = ``pm`` or ``ep``) and the one
-call into the engine that takes them (docs/algorithm.md#per-point-uncertainty).
+call into the engine that takes them (docs/algorithm.md §6.5).
 
 M3C2-PM (James et al. 2017) reads three precision fields per cloud (``--precision-fields``,
 default ``sx,sy,sz``: LAS extra bytes, PLY properties or ASCII columns, through the readers'
@@ -9,8 +9,10 @@ default ``sx,sy,sz``: LAS extra bytes, PLY properties or ASCII columns, through 
 (``--transform``), its 12x12 alignment covariance (``--alignment-covariance``) and the reduction
 point (``--reduction-point``).
 
-This module is the only one here that calls ``_core`` for them, so that it moves to the engine
-facade (issue 12) in one piece.
+:func:`inputs_for` turns a run's resolved settings and the clouds' fields into the engine's
+keyword arrays (m3c2kit.api.compare passes them to m3c2kit.engine.compute); :func:`compute` is
+the same engine call for arrays already at hand (tests, validation/). The engine call goes
+through the facade (m3c2kit.engine), which translates its errors.
 """
 from __future__ import annotations
 
@@ -21,11 +23,11 @@ from pathlib import Path
 
 import numpy as np
 
-from . import _core
+from . import engine
 from .errors import UsageError
 
 __all__ = ["UNCERTAINTIES", "EpInputs", "precision_array", "scan_position_ids", "load_scan_positions",
-           "load_matrix", "parse_reduction_point", "compute"]
+           "load_matrix", "parse_reduction_point", "inputs_for", "compute"]
 
 UNCERTAINTIES = ("eq1", "pm", "ep")
 _TABLE_KEYS = ("sigma_range", "sigma_scan", "sigma_yaw")
@@ -54,7 +56,9 @@ def scan_position_ids(fields: dict, name: str = "point_source_id", *, what: str 
     return np.ascontiguousarray(values.astype(np.uint32))
 
 
-def _row(sid, entry: dict, source: str) -> list[float]:
+def _row(sid, entry: dict, source: str, poses=None) -> list[float]:
+    if "origin" not in entry and poses is not None and 1 <= int(sid) <= len(poses):
+        entry = {**entry, "origin": list(poses[int(sid) - 1])}  # the E57 scan's pose
     for key in ("origin", *_TABLE_KEYS):
         if key not in entry:
             raise UsageError(f"{source}: scan position {sid} has no {key!r}")
@@ -68,11 +72,15 @@ def _row(sid, entry: dict, source: str) -> list[float]:
         raise UsageError(f"{source}: scan position {sid}: {e}") from None
 
 
-def load_scan_positions(path) -> np.ndarray:
+def load_scan_positions(path, poses=None) -> np.ndarray:
     """The scan-position table (K, 8): id, origin x, y, z, sigma_range, sigma_range_ppm, sigma_scan,
     sigma_yaw. JSON as py4dgeo's sps.json ``{"1": {"origin": [x, y, z], "sigma_range": ..,
     "sigma_scan": .., "sigma_yaw": ..}, ...}`` (optional "sigma_range_ppm"), or CSV with a header
-    ``id,x,y,z,sigma_range,sigma_scan,sigma_yaw[,sigma_range_ppm]``. Angles in radians."""
+    ``id,x,y,z,sigma_range,sigma_scan,sigma_yaw[,sigma_range_ppm]``. Angles in radians.
+
+    ``poses`` (an E57 cloud's ``scan_positions``, one row per scan): an entry without an origin
+    (JSON: no "origin"; CSV: x, y, z empty) takes the pose of scan `id` (E57 scans counted from 1,
+    as the reader's ``scan_index`` field), so that the file only gives the sigmas."""
     source = str(path)
     try:
         text = Path(path).read_text()
@@ -87,7 +95,7 @@ def load_scan_positions(path) -> np.ndarray:
         for sid, entry in table.items():
             if not str(sid).isdigit() or not isinstance(entry, dict):
                 raise UsageError(f"--scan-positions {source}: keys must be integer ids and values objects, got {sid!r}")
-            rows.append(_row(sid, entry, source))
+            rows.append(_row(sid, entry, source, poses))
     else:
         reader = csv.DictReader(text.splitlines())
         need = {"id", "x", "y", "z", *_TABLE_KEYS}
@@ -98,9 +106,10 @@ def load_scan_positions(path) -> np.ndarray:
             rec = {k.strip(): v for k, v in rec.items()}
             if not str(rec["id"]).strip().isdigit():
                 raise UsageError(f"--scan-positions {source}: ids must be integers, got {rec['id']!r}")
-            rows.append(_row(rec["id"].strip(), {"origin": [rec["x"], rec["y"], rec["z"]],
-                                                 **{k: rec[k] for k in _TABLE_KEYS},
-                                                 "sigma_range_ppm": rec.get("sigma_range_ppm") or 0.0}, source))
+            entry = {**{k: rec[k] for k in _TABLE_KEYS}, "sigma_range_ppm": rec.get("sigma_range_ppm") or 0.0}
+            if any(str(rec[c] or "").strip() for c in "xyz") or poses is None:
+                entry["origin"] = [rec["x"], rec["y"], rec["z"]]
+            rows.append(_row(rec["id"].strip(), entry, source, poses))
     if not rows:
         raise UsageError(f"--scan-positions {source}: no scan position")
     return np.ascontiguousarray(np.array(rows, dtype=np.float64).reshape(-1, 8))
@@ -157,6 +166,71 @@ class EpInputs:
     transform_applied: bool = False
 
 
+def _fields(cloud, what: str, option: str) -> dict:
+    fields = getattr(cloud, "fields", None)
+    if fields is None:
+        raise UsageError(f"{option} reads per-point fields of the {what} cloud: give it as a file or an "
+                         "m3c2kit.io.Cloud (read_cloud), not a bare array")
+    return fields
+
+
+def _table_or_file(value, poses, option: str) -> np.ndarray:
+    if isinstance(value, np.ndarray):
+        table = np.ascontiguousarray(value, dtype=np.float64)
+        if table.ndim != 2 or table.shape[1] != 8:
+            raise UsageError(f"{option}: an array table must be (K, 8): id, x, y, z, sigma_range, "
+                             "sigma_range_ppm, sigma_scan, sigma_yaw")
+        return table
+    return load_scan_positions(value, poses)
+
+
+def _matrix(value, shape, option: str) -> np.ndarray:
+    if isinstance(value, (np.ndarray, list, tuple)):
+        m = np.asarray(value, dtype=np.float64)
+        if m.shape != shape:
+            raise UsageError(f"{option}: expected a {shape[0]}x{shape[1]} matrix, got shape {m.shape}")
+        return np.ascontiguousarray(m)
+    return load_matrix(value, shape, option)
+
+
+def inputs_for(values: dict, reference, compared) -> dict:
+    """The engine's uncertainty keyword arrays for a run with these resolved settings
+    (m3c2kit.settings.resolve) on these clouds (m3c2kit.io.Cloud: their fields and E57 poses)."""
+    kind = values.get("uncertainty", "eq1")
+    if kind == "pm":
+        names = values.get("precision_fields") or "sx,sy,sz"
+        return dict(precision1=precision_array(_fields(reference, "reference", "--uncertainty pm"), names,
+                                               what="reference cloud"),
+                    precision2=precision_array(_fields(compared, "compared", "--uncertainty pm"), names,
+                                               what="compared cloud"))
+    if kind != "ep":
+        return {}
+    spec = values.get("scan_positions")
+    if spec is None:
+        raise UsageError("--uncertainty ep needs --scan-positions FILE (py4dgeo's sps.json or a CSV)")
+    files = spec.split(",") if isinstance(spec, str) else [spec]
+    if len(files) > 2:
+        raise UsageError(f"--scan-positions takes FILE or FILE1,FILE2 (reference, compared), got {spec!r}")
+    field_name = values.get("scan_position_field") or "point_source_id"
+    ref_fields = _fields(reference, "reference", "--scan-position-field")
+    cmp_fields = _fields(compared, "compared", "--scan-position-field")
+    table1 = _table_or_file(files[0], getattr(reference, "scan_positions", None), "--scan-positions")
+    table2 = _table_or_file(files[-1], getattr(compared, "scan_positions", None), "--scan-positions")
+    transform = values.get("transform")
+    if transform is None and values.get("transform_applied"):
+        raise UsageError("--transform-applied needs --transform FILE (the transformation that was applied)")
+    kw = dict(scan_positions1=table1, scan_positions2=table2,
+              scan_position1=scan_position_ids(ref_fields, field_name, what="reference cloud"),
+              scan_position2=scan_position_ids(cmp_fields, field_name, what="compared cloud"),
+              transform=np.eye(3, 4) if transform is None else _matrix(transform, (3, 4), "--transform"),
+              reduction_point=np.zeros(3) if values.get("reduction_point") is None
+              else parse_reduction_point(values["reduction_point"]),
+              transform_applied=bool(values.get("transform_applied", False)))
+    if values.get("alignment_covariance") is not None:
+        kw["alignment_covariance"] = _matrix(values["alignment_covariance"], (12, 12), "--alignment-covariance")
+    return kw
+
+
 def compute(reference, compared, core_points, params, *, core_normals=None, threads=0, progress=None,
             precision1=None, precision2=None, ep: EpInputs | None = None, covariances=False) -> dict:
     """The engine's compute() with the per-point uncertainty inputs of ``params.uncertainty``."""
@@ -174,11 +248,8 @@ def compute(reference, compared, core_points, params, *, core_normals=None, thre
                   transform_applied=bool(ep.transform_applied))
         if ep.alignment_covariance is not None:
             kw["alignment_covariance"] = np.ascontiguousarray(ep.alignment_covariance, dtype=np.float64)
-    try:
-        return _core.compute(np.ascontiguousarray(reference, dtype=np.float64),
-                             np.ascontiguousarray(compared, dtype=np.float64),
-                             np.ascontiguousarray(core_points, dtype=np.float64), params,
-                             None if core_normals is None else np.ascontiguousarray(core_normals, dtype=np.float64),
-                             threads=threads, progress=progress, covariances=covariances, **kw)
-    except ValueError as e:  # the engine's InvalidArgument
-        raise UsageError(str(e)) from None
+    return engine.compute(np.ascontiguousarray(reference, dtype=np.float64),
+                          np.ascontiguousarray(compared, dtype=np.float64),
+                          np.ascontiguousarray(core_points, dtype=np.float64), params,
+                          None if core_normals is None else np.ascontiguousarray(core_normals, dtype=np.float64),
+                          threads=threads, progress=progress, covariances=covariances, **kw)

@@ -77,7 +77,7 @@ def test_each_epoch_equals_compare_bit_for_bit(small, tmp_path):
     assert ds.sizes["epoch"] == len(paths) - 1 and ds["distance"].dims == ("core", "epoch")
     for k, epoch in enumerate(paths[1:]):
         out = tmp_path / f"c{k}.csv"
-        assert main(["compare", str(paths[0]), str(epoch), "-o", str(out), *PARAMS, "--quiet"]) == 0
+        assert main(["compare", str(paths[0]), str(epoch), "-o", str(out), *PARAMS, "--quiet", "--float64"]) == 0
         rows = list(csv.DictReader(open(out)))
         for name in FIELDS + ("x", "y", "z", "nx", "ny", "nz", "normal_scale", "roughness"):
             expected = np.array([float(r[name]) if r[name] not in ("", "nan") else np.nan for r in rows])

@@ -16,15 +16,15 @@ import argparse
 import sys
 from pathlib import Path
 
-from .. import api
 from ..errors import UsageError
 
 ACTIONS = ("add", "smooth", "changepoints", "objects", "report", "import")
 SCALE_HELP = "D, the normal scale: a DIAMETER (one value, a list 'a,b' or 'MIN:MAX:STEP')"
-#: compare options a series takes (those of `m3c2 compare` that concern one pair of clouds).
-COMPARE_KEYS = ("normal_scale", "projection_scale", "max_depth", "registration_error", "orient", "normal_source",
-                "median", "confidence", "min_points", "t_statistic", "bootstrap", "seed", "first_pass_depth",
-                "depth_search", "positive_search_only", "normal_subsample", "compat", "core_spacing")
+#: The compare parameters a series takes: the parameter table's engine parameters (their flags,
+#: types, ranges and help), the core spacing and --compat; not the per-point uncertainty's inputs
+#: nor the output options, which concern one pair's files.
+SERIES_SCOPES = ("engine", "alias")
+SERIES_RUN_PARAMETERS = ("core_spacing", "compat")
 
 
 def _parser(prog: str, description: str):
@@ -32,26 +32,23 @@ def _parser(prog: str, description: str):
     return ArgumentParser(prog=prog, description=description)
 
 
-def _compare_options(p, required: bool) -> None:
-    g = p.add_argument_group("M3C2 parameters (as m3c2 compare; stored in the store)")
-    g.add_argument("--normal-scale", help=SCALE_HELP)
-    g.add_argument("--projection-scale", type=float, required=required, help="d: DIAMETER of the projection cylinder")
-    g.add_argument("--max-depth", type=float, required=required, help="half-length of the cylinder along the normal")
-    g.add_argument("--registration-error", type=float, help="reg of eq. (1) (default 0)")
-    g.add_argument("--orient", help="+z (default) -z +x -x +y -y, X,Y,Z or a FILE of points (E57 scan positions by default)")
-    g.add_argument("--normal-source", choices=("reference", "vertical", "horizontal", "core"),
-                   help="where normals come from (default reference; computed once for every epoch)")
-    g.add_argument("--median", action="store_true", default=None, help="median and IQR instead of mean and std")
-    g.add_argument("--confidence", type=float, help="confidence level of the LOD (default 0.95)")
-    g.add_argument("--min-points", type=int, help="points needed in each cylinder for a LOD (default 4)")
-    g.add_argument("--t-statistic", action="store_true", default=None, help="Welch t when n1 or n2 < 30 (eq. 2)")
-    g.add_argument("--bootstrap", type=int, help="LOD from N bootstrap resamples (Appendix B)")
-    g.add_argument("--seed", type=int, help="bootstrap seed (default 0)")
-    g.add_argument("--first-pass-depth", type=float, help="two-pass depth search (5.3)")
-    g.add_argument("--depth-search", choices=api.DEPTH_SEARCHES, help="single (default), two-pass or progressive")
-    g.add_argument("--positive-search-only", action="store_true", default=None, help="search only along +normal")
-    g.add_argument("--normal-subsample", type=float, help="normals on the reference subsampled to this spacing")
-    g.add_argument("--compat", choices=["cloudcompare"], help="CloudCompare qM3C2 semantics")
+def series_parameters():
+    from ..settings.table import parameters_of
+    return [p for p in parameters_of("compare") if p.scope in SERIES_SCOPES or p.name in SERIES_RUN_PARAMETERS]
+
+
+def _compare_options(p, required: bool, core_group=None) -> None:
+    """The table's options (as m3c2 compare's); --projection-scale and --max-depth are required
+    to create a store, optional (checked against the store's) for add."""
+    g = p.add_argument_group("M3C2 parameters (those of m3c2 compare; stored in the store)")
+    for param in series_parameters():
+        target = core_group if param.name == "core_spacing" and core_group is not None else g
+        kw = {"dest": param.name, "help": param.help_text()}
+        if param.cli_type is None:
+            target.add_argument(param.flag, action="store_true", default=None, **kw)
+        else:
+            target.add_argument(param.flag, type=param.cli_type, choices=param.choices, metavar=param.metavar,
+                                required=required and param.name in ("projection_scale", "max_depth"), **kw)
 
 
 def _run_options(p) -> None:
@@ -74,9 +71,8 @@ def create_parser():
     p.add_argument("-o", "--output", type=Path, required=True, help="the store (a Zarr directory)")
     core = p.add_mutually_exclusive_group()
     core.add_argument("--core", type=Path, help="core points file (default: every reference point)")
-    core.add_argument("--core-spacing", type=float, help="core points = reference subsampled to this minimum spacing")
     p.add_argument("--core-normals", type=Path, help="with --normal-source core: nx,ny,nz per core point")
-    _compare_options(p, required=True)
+    _compare_options(p, required=True, core_group=core)
     p.add_argument("--core-chunk", type=int, default=16384, help="core points per chunk (default 16384)")
     p.add_argument("--epoch-chunk", type=int, default=8, help="epochs per chunk (default 8)")
     _run_options(p)
@@ -177,7 +173,7 @@ def series_parsers(sub) -> None:
 
 
 def _settings(args) -> dict:
-    return {k: getattr(args, k) for k in COMPARE_KEYS if getattr(args, k, None) is not None}
+    return {p.name: getattr(args, p.name) for p in series_parameters() if getattr(args, p.name, None) is not None}
 
 
 def _log(args):

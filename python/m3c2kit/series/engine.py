@@ -1,68 +1,61 @@
-"""The series' calls into the engine (m3c2kit._core), in one place so that they move to the
-engine facade with the rest of the front end."""
+"""The series' engine calls, through the engine facade (m3c2kit.engine) and the parameter table
+(m3c2kit.settings): the compare parameters of a series are those of `m3c2 compare`."""
 from __future__ import annotations
 
 import numpy as np
 
-from .. import _core, api
+from .. import api
+from .. import engine as facade
 from ..errors import UsageError
+from ..settings import build_params as table_params
 
-
-def _engine_call(fn, *args, **kwargs):
-    try:
-        return fn(*args, **kwargs)
-    except ValueError as e:  # the engine's InvalidArgument
-        raise UsageError(str(e)) from None
+#: Settings that are not engine parameters (the core points, the thread count).
+RUN_SETTINGS = ("core_spacing", "threads")
 
 
 def build_params(settings: dict):
-    """The engine's Params from a series' compare settings (the keywords of api.build_params)."""
-    return api.build_params(**settings)
+    """The engine's Params from a series' compare settings (the parameter table's names)."""
+    return table_params("compare", **{k: v for k, v in settings.items() if k not in RUN_SETTINGS})
 
 
 class Comparison:
     """The reference's index and the core normals, kept to compare epochs one at a time
-    (include/m3c2/series.hpp): each result equals api.compare(reference, epoch, core) bit for bit."""
+    (include/m3c2/series.hpp): each result equals m3c2kit.compare(reference, epoch, core) bit for bit."""
 
     def __init__(self, reference: np.ndarray, core: np.ndarray, settings: dict, core_normals=None,
                  threads: int = 0):
         params = build_params(settings)
-        self._params_record = settings
-        self._limit = _core.max_abs_coordinate(params)
+        self._limit = facade.max_abs_coordinate(params)
         api.check_coordinate_range("reference", None, reference, self._limit)
-        self._impl = _engine_call(_core.Comparison, reference, core, params, core_normals,
-                                  threads=api.threads_count(threads))
+        normals = None if core_normals is None else np.ascontiguousarray(core_normals, dtype=np.float64)
+        self._impl = facade.Comparison(reference, core, params, normals, threads=api.threads_count(threads))
 
     def compare(self, compared: np.ndarray, source=None, threads: int = 0) -> dict:
-        """Raw engine result of one epoch (the arrays of _core.compute)."""
+        """Raw engine result of one epoch (the arrays of the engine's compute)."""
         if len(compared) == 0:
             raise UsageError(f"the epoch {getattr(source, 'path', '')} is empty (0 points)")
         api.check_coordinate_range("compared", source, compared, self._limit)
-        return _engine_call(self._impl.compare, compared, threads=api.threads_count(threads))
+        return self._impl.compare(compared, threads=api.threads_count(threads))
 
     def normals(self) -> dict:
         return self._impl.normals()
 
 
 def temporal_median(values: np.ndarray, window: int, threads: int = 0) -> np.ndarray:
-    return _engine_call(_core.temporal_median, np.ascontiguousarray(values, dtype=np.float64), int(window),
-                        threads=api.threads_count(threads))
+    return facade.temporal_median(np.ascontiguousarray(values, dtype=np.float64), int(window),
+                                  threads=api.threads_count(threads))
 
 
 def change_points(series: np.ndarray, width: int, min_size: int, jump: int, penalty: float) -> np.ndarray:
-    return _engine_call(_core.change_points, np.ascontiguousarray(series, dtype=np.float64), int(width),
-                        int(min_size), int(jump), float(penalty))
+    return facade.change_points(np.ascontiguousarray(series, dtype=np.float64), int(width), int(min_size), int(jump),
+                                float(penalty))
 
 
 def objects_params(**kw):
-    p = _core.ObjectsParams()
-    for name, value in kw.items():
-        if value is not None:
-            setattr(p, name, value)
-    return p
+    return facade.objects_params(**kw)
 
 
 def objects_by_change(distances: np.ndarray, core: np.ndarray, params, threads: int = 0, progress=None) -> dict:
-    return _engine_call(_core.objects_by_change, np.ascontiguousarray(distances, dtype=np.float64),
-                        np.ascontiguousarray(core, dtype=np.float64), params, threads=api.threads_count(threads),
-                        progress=progress)
+    return facade.objects_by_change(np.ascontiguousarray(distances, dtype=np.float64),
+                                    np.ascontiguousarray(core, dtype=np.float64), params,
+                                    threads=api.threads_count(threads), progress=progress)
