@@ -134,7 +134,9 @@ def make_parser() -> argparse.ArgumentParser:
     from . import __version__
     parser.add_argument("--version", action="version", version=f"m3c2 (m3c2kit) {__version__}")
     sub = parser.add_subparsers(dest="command", required=True, parser_class=ArgumentParser)
-    for build in (_compare_parser, _normals_parser, _subsample_parser, _info_parser, analysis_parsers, classify_parsers):
+    from .series.cli import series_parsers  # noqa: PLC0415 - m3c2 series (docs/series.md)
+    for build in (_compare_parser, _normals_parser, _subsample_parser, _info_parser, analysis_parsers, classify_parsers,
+                  series_parsers):
         build(sub)
     return parser
 
