@@ -13,6 +13,7 @@
 #include "projection.hpp"
 #include "spatial_order.hpp"
 #include "statistics.hpp"
+#include "threads.hpp"
 #include "validation.hpp"
 
 #include <omp.h>
@@ -49,8 +50,6 @@ bool moments_needed(const Params& params, bool reference) {
                    : src == NormalSource::kCompared;
 }
 
-int thread_count(const RunOptions& run) { return run.threads > 0 ? run.threads : omp_get_max_threads(); }
-
 /// The index of a cloud named `name` ("reference cloud"). Its one pass over the coordinates
 /// refuses those beyond the grid's range (NaN and Inf among them); only then is the cloud
 /// searched for non-finite ones, to name them first: "NAME has N non-finite coordinates".
@@ -76,7 +75,8 @@ std::pair<Octree, Octree> build_indexes(PointsView reference, PointsView compare
                                         std::vector<std::uint32_t>& core_order,
                                         const std::function<void()>& alongside) {
   const bool ref_moments = moments_needed(params, true), cmp_moments = moments_needed(params, false);
-  if (thread_count(run) < 2) {
+  detail::OpenMpTeam team(std::min(2, detail::requested_threads(run)));
+  if (team.size() < 2) {
     core_order = detail::morton_order(core_points);
     if (alongside) alongside();
     return {index_of(reference, "reference cloud", grid, ref_moments),
@@ -90,6 +90,7 @@ std::pair<Octree, Octree> build_indexes(PointsView reference, PointsView compare
 #pragma omp parallel num_threads(2)
   {
     const int part = omp_get_thread_num();
+    if (part == 0) team.started();
     const bool alone = omp_get_num_threads() < 2;
     try {
       if (part == 0) first.emplace(index_of(reference, "reference cloud", grid, ref_moments));
@@ -174,7 +175,7 @@ class Pipeline {
   /// The order in which to process the core points (Morton order).
   const std::vector<std::uint32_t>& core_order() const { return core_order_; }
 
-  void run(const Vec3& core, std::size_t i, Result& r, Scratch& s) const {
+  void run(const Vec3& core, std::size_t i, Result& r, Scratch& s, detail::Pulse& pulse) const {
     const OrientedNormal n = normal_at(core, i, s);
     for (int a = 0; a < 3; ++a) r.normal[3 * i + a] = n.normal(a);
     r.normal_scale[i] = n.diameter;
@@ -185,7 +186,7 @@ class Pipeline {
       return;
     }
     detail::project(reference_tree_, compared_tree_, core, n.normal, params_, s.projection, s.t1, s.t2);
-    measure(s, i, r);
+    measure(s, i, r, pulse);
   }
 
  private:
@@ -223,7 +224,7 @@ class Pipeline {
     return {};
   }
 
-  void measure(Scratch& s, std::size_t i, Result& r) const {
+  void measure(Scratch& s, std::size_t i, Result& r, detail::Pulse& pulse) const {
     const auto n1 = static_cast<std::uint32_t>(s.t1.size()), n2 = static_cast<std::uint32_t>(s.t2.size());
     r.n1[i] = n1;
     r.n2[i] = n2;
@@ -242,7 +243,7 @@ class Pipeline {
       return;
     }
     if (params_.bootstrap_samples > 0) {
-      r.lod[i] = z_ * (detail::bootstrap_sigma(s.t1, s.t2, params_, i, s.work) + params_.registration_error);
+      r.lod[i] = z_ * (detail::bootstrap_sigma(s.t1, s.t2, params_, i, s.work, pulse) + params_.registration_error);
     } else {
       const double critical = detail::critical_value(params_, z_, a.sigma, n1, b.sigma, n2);
       r.lod[i] = detail::lod_parametric(critical, a.sigma, n1, b.sigma, n2, params_.registration_error);
@@ -282,10 +283,10 @@ Result compute(PointsView reference, PointsView compared, PointsView core_points
   // With two threads the team has just built the indexes: it is awake (build_indexes).
   detail::parallel_blocks<Scratch>(
       core_points.size(), run,
-      [&](std::size_t begin, std::size_t end, Scratch& s) {
-        for (std::size_t k = begin; k < end; ++k) pipeline.run(core_points[order[k]], order[k], result, s);
+      [&](std::size_t begin, std::size_t end, Scratch& s, detail::Pulse& pulse) {
+        for (std::size_t k = begin; k < end; ++k) pipeline.run(core_points[order[k]], order[k], result, s, pulse);
       },
-      64, thread_count(run) >= 2);
+      64, detail::requested_threads(run) >= 2);
   return result;
 }
 

@@ -80,6 +80,8 @@ void validate_params(const Params& p) {
   if (!(p.confidence > 0.0 && p.confidence < 1.0)) fail("confidence", "in (0, 1)", p.confidence);
   if (p.min_points < 1) fail("min_points", ">= 1", p.min_points);
   if (p.bootstrap_samples == 1) fail("bootstrap_samples", "0 (off) or >= 2", p.bootstrap_samples);
+  if (p.bootstrap_samples > kMaxBootstrapSamples)
+    fail("bootstrap_samples", "at most " + std::to_string(kMaxBootstrapSamples), p.bootstrap_samples);
 }
 
 }  // namespace m3c2::detail

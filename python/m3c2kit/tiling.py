@@ -800,12 +800,13 @@ def _merge(work: Path, result_spill: _Spills, dtype: np.dtype, counts, n_core: i
         if not np.array_equal(taken, counts):
             raise M3C2Error("core-point bookkeeping failed: rows taken per tile differ from the plan")
 
-    xyz_min = None
+    xyz_min = xyz_max = None
     if output is not None and (like is None or like.scale is None):
-        xyz_min = np.full(3, np.inf)
+        xyz_min, xyz_max = np.full(3, np.inf), np.full(3, -np.inf)
         for chunk in chunks():
-            xyz_min = np.minimum(xyz_min, _output_xyz(chunk, projected, position).min(axis=0))
-            del chunk
+            xyz = _output_xyz(chunk, projected, position)
+            xyz_min, xyz_max = np.minimum(xyz_min, xyz.min(axis=0)), np.maximum(xyz_max, xyz.max(axis=0))
+            del chunk, xyz
     gathered = []
     status = np.zeros(256, dtype=np.int64)
     rows_written = 0
@@ -825,7 +826,7 @@ def _merge(work: Path, result_spill: _Spills, dtype: np.dtype, counts, n_core: i
             gathered.append(chunk)
 
     if output is not None:
-        with TableWriter(output, like=like, xyz_min=xyz_min) as writer:
+        with TableWriter(output, like=like, xyz_min=xyz_min, xyz_max=xyz_max) as writer:
             for chunk in chunks():
                 consume(chunk, writer)
                 del chunk
