@@ -1,13 +1,12 @@
 #include "bootstrap.hpp"
 
+#include "portable.hpp"
 #include "statistics.hpp"
 
 #include <cmath>
 
 namespace m3c2::detail {
 namespace {
-
-__extension__ typedef unsigned __int128 Uint128;
 
 // SplitMix64 (Steele, Lea & Flood 2014): a tiny generator with a fixed, portable output
 // sequence, unlike std::uniform_int_distribution whose algorithm is library-defined.
@@ -22,7 +21,7 @@ class SplitMix64 {
   }
   /// Uniform index in [0, n) by multiply-shift (Lemire 2019); bias below 2^-40 for n < 2^24.
   std::size_t below(std::size_t n) {
-    return static_cast<std::size_t>((static_cast<Uint128>(next()) * n) >> 64);
+    return static_cast<std::size_t>(mul_high(next(), n));
   }
 
  private:

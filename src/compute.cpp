@@ -13,10 +13,10 @@
 #include "projection.hpp"
 #include "spatial_order.hpp"
 #include "statistics.hpp"
+#include "thread_limits.hpp"
 #include "threads.hpp"
+#include "uncertainty.hpp"
 #include "validation.hpp"
-
-#include <omp.h>
 
 #include <algorithm>
 #include <cmath>
@@ -87,11 +87,13 @@ std::pair<Octree, Octree> build_indexes(PointsView reference, PointsView compare
   const double work0 = double(reference.size()) * (ref_moments ? 3 : 2),
                work1 = double(compared.size()) * (cmp_moments ? 3 : 2) + double(core_points.size());
   const int lighter = work1 < work0 ? 1 : 0;
+#if defined(_OPENMP)
 #pragma omp parallel num_threads(2)
+#endif
   {
-    const int part = omp_get_thread_num();
+    const int part = detail::thread_num();
     if (part == 0) team.started();
-    const bool alone = omp_get_num_threads() < 2;
+    const bool alone = detail::team_size() < 2;
     try {
       if (part == 0) first.emplace(index_of(reference, "reference cloud", grid, ref_moments));
       if (part == 1 || alone) {
@@ -151,14 +153,18 @@ struct Scratch {
   detail::NormalScratch normal;
   detail::ProjectionScratch projection;
   std::vector<double> t1, t2, work;
+  std::vector<std::uint32_t> index1, index2;  // per-point uncertainty: the cylinders' points
+  detail::MedianWeightCache median_weights;
 };
 
 class Pipeline {
  public:
   /// `alongside`: the caller's set-up, run while the indexes are built (build_indexes).
   Pipeline(PointsView reference, PointsView compared, PointsView core_points, const Params& params,
-           const std::vector<double>& core_normals, const RunOptions& run, const std::function<void()>& alongside)
+           const std::vector<double>& core_normals, const RunOptions& run, const std::function<void()>& alongside,
+           const detail::UncertaintyModel* uncertainty = nullptr)
       : params_(params),
+        uncertainty_(uncertainty),
         core_normals_(core_normals),
         grid_(grid_for(params.normal_diameters, params.projection_diameter)),
         trees_(build_indexes(reference, compared, core_points, params, grid_, run, core_order_, alongside)),
@@ -185,8 +191,10 @@ class Pipeline {
       r.normal[3 * i] = r.normal[3 * i + 1] = r.normal[3 * i + 2] = std::numeric_limits<double>::quiet_NaN();
       return;
     }
-    detail::project(reference_tree_, compared_tree_, core, n.normal, params_, s.projection, s.t1, s.t2);
+    detail::project(reference_tree_, compared_tree_, core, n.normal, params_, s.projection, s.t1, s.t2,
+                    uncertainty_ ? &s.index1 : nullptr, uncertainty_ ? &s.index2 : nullptr);
     measure(s, i, r, pulse);
+    if (uncertainty_ && r.n1[i] > 0 && r.n2[i] > 0) uncertainty_->measure(core, n.normal, s.index1, s.index2, i, r);
   }
 
  private:
@@ -232,27 +240,29 @@ class Pipeline {
       r.status[i] = n1 == 0 ? PointStatus::kEmptyCylinder1 : PointStatus::kEmptyCylinder2;
       return;
     }
-    const detail::Spread a = detail::central_spread(s.t1, params_, s.work);
-    const detail::Spread b = detail::central_spread(s.t2, params_, s.work);
+    const detail::Spread a = detail::central_spread(s.t1, params_, s.work, &s.median_weights);
+    const detail::Spread b = detail::central_spread(s.t2, params_, s.work, &s.median_weights);
     r.i1[i] = a.centre, r.i2[i] = b.centre, r.sigma1[i] = a.sigma, r.sigma2[i] = b.sigma;
     r.distance[i] = b.centre - a.centre;
+    if (uncertainty_) return;  // PM / EP give the LOD (uncertainty_->measure)
     // Eq. (1) is not defined below two points per cloud whatever min_points says (5.2.1).
     if (n1 < std::max(params_.min_points, 2u) || n2 < std::max(params_.min_points, 2u) || !std::isfinite(a.sigma) ||
         !std::isfinite(b.sigma)) {
       r.status[i] = PointStatus::kTooFewPointsForLod;
       return;
     }
-    if (params_.bootstrap_samples > 0) {
+    if (params_.lod == Lod::kBootstrap) {
       r.lod[i] = z_ * (detail::bootstrap_sigma(s.t1, s.t2, params_, i, s.work, pulse) + params_.registration_error);
     } else {
-      const double critical = detail::critical_value(params_, z_, a.sigma, n1, b.sigma, n2);
-      r.lod[i] = detail::lod_parametric(critical, a.sigma, n1, b.sigma, n2, params_.registration_error);
+      const double critical = detail::critical_value(params_, z_, a.se, n1, b.se, n2);
+      r.lod[i] = detail::lod_parametric(critical, a.se, b.se, params_.registration_error);
     }
     r.significant[i] = std::abs(r.distance[i]) > r.lod[i];
     r.status[i] = PointStatus::kOk;
   }
 
   const Params& params_;
+  const detail::UncertaintyModel* uncertainty_;
   const std::vector<double>& core_normals_;
   OctreeGrid grid_;
   std::vector<std::uint32_t> core_order_;  // before trees_: build_indexes() fills it
@@ -265,8 +275,9 @@ class Pipeline {
 }  // namespace
 
 Result compute(PointsView reference, PointsView compared, PointsView core_points, const Params& params,
-               const RunOptions& run, const std::vector<double>& core_normals) {
+               const RunOptions& run, const std::vector<double>& core_normals, const UncertaintyInputs& uncertainty) {
   detail::validate_params(params);
+  detail::validate_uncertainty_params(params);
   if (reference.empty()) throw InvalidArgument("the reference cloud is empty");
   if (compared.empty()) throw InvalidArgument("the compared cloud is empty");
   // The clouds' coordinates are checked by their indexes, on the thread building each
@@ -276,9 +287,22 @@ Result compute(PointsView reference, PointsView compared, PointsView core_points
     throw InvalidArgument("core_normals must hold 3 values per core point (" + std::to_string(3 * core_points.size()) +
                           "), got " + std::to_string(core_normals.size()));
 
+  // Per-point uncertainty (PM, EP): its inputs checked, EP's compared cloud transformed.
+  std::optional<detail::UncertaintyModel> model;
+  if (params.uncertainty != Uncertainty::kEq1) model.emplace(params, uncertainty, reference, compared, run);
   Result result;  // its NaN-filled arrays are set up while the indexes are built
-  const Pipeline pipeline(reference, compared, core_points, params, core_normals, run,
-                          [&] { result.resize(core_points.size()); });
+  const auto set_up = [&] {
+    result.resize(core_points.size());
+    if (!model) return;
+    result.spread1.assign(core_points.size(), std::numeric_limits<double>::quiet_NaN());
+    result.spread2.assign(core_points.size(), std::numeric_limits<double>::quiet_NaN());
+    if (uncertainty.covariances && params.uncertainty == Uncertainty::kErrorPropagation) {
+      result.covariance1.assign(9 * core_points.size(), std::numeric_limits<double>::quiet_NaN());
+      result.covariance2.assign(9 * core_points.size(), std::numeric_limits<double>::quiet_NaN());
+    }
+  };
+  const Pipeline pipeline(reference, model ? model->compared_indexed() : compared, core_points, params, core_normals,
+                          run, set_up, model ? &*model : nullptr);
   const auto& order = pipeline.core_order();
   // With two threads the team has just built the indexes: it is awake (build_indexes).
   detail::parallel_blocks<Scratch>(

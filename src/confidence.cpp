@@ -18,26 +18,31 @@ double t_critical(double confidence, double dof) {
   return boost::math::quantile(boost::math::complement(student, 0.5 * (1.0 - confidence)));
 }
 
-double welch_dof(double sigma1, std::uint32_t n1, double sigma2, std::uint32_t n2) {
-  const double a = sigma1 * sigma1 / double(n1);
-  const double b = sigma2 * sigma2 / double(n2);
+double welch_dof(double se1, std::uint32_t n1, double se2, std::uint32_t n2) {
+  const double a = se1 * se1, b = se2 * se2;
   return (a + b) * (a + b) / (a * a / (double(n1) - 1.0) + b * b / (double(n2) - 1.0));
 }
 
-double critical_value(const Params& params, double z, double sigma1, std::uint32_t n1,
-                      double sigma2, std::uint32_t n2) {
-  if (!params.t_statistic || (n1 >= 30 && n2 >= 30)) return z;
-  double dof = welch_dof(sigma1, n1, sigma2, n2);
+double critical_value(const Params& params, double z, double se1, std::uint32_t n1, double se2,
+                      std::uint32_t n2) {
+  switch (params.lod) {
+    case Lod::kZ:
+    case Lod::kBootstrap: return z;
+    case Lod::kAuto:
+      if (n1 >= 30 && n2 >= 30) return z;
+      if (params.statistic == Statistic::kMedian && params.median_lod == MedianLod::kMaritzJarrett) return z;
+      break;
+    case Lod::kT: break;
+  }
+  double dof = welch_dof(se1, n1, se2, n2);
   // Both spreads zero (an exactly planar surface) leave eq. (2) as 0/0; Welch's conservative
   // lower bound min(n1, n2) - 1 is used instead.
   if (!std::isfinite(dof) || dof <= 0.0) dof = double(std::min(n1, n2)) - 1.0;
   return t_critical(params.confidence, dof);
 }
 
-double lod_parametric(double critical, double sigma1, std::uint32_t n1, double sigma2,
-                      std::uint32_t n2, double registration_error) {
-  const double se = std::sqrt(sigma1 * sigma1 / double(n1) + sigma2 * sigma2 / double(n2));
-  return critical * (se + registration_error);
+double lod_parametric(double critical, double se1, double se2, double registration_error) {
+  return critical * (std::sqrt(se1 * se1 + se2 * se2) + registration_error);
 }
 
 }  // namespace m3c2::detail

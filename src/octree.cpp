@@ -1,6 +1,8 @@
 #include "octree.hpp"
 
+#include "assert.hpp"
 #include "morton.hpp"
+#include "portable.hpp"
 
 #include <m3c2/errors.hpp>
 
@@ -14,7 +16,7 @@
 namespace m3c2::detail {
 namespace {
 
-__extension__ typedef unsigned __int128 Key;  // GCC and Clang; 3 x 42 bits
+using Key = Uint128;  // 3 x 42 bits (portable.hpp)
 
 // A node splits when it holds more than kLeafSize points, or more than kSmallLeafSize within
 // 4 x 4 x 4 cells: sparse clouds get few, large leaves (fewer nodes per query) and dense ones
@@ -26,6 +28,15 @@ constexpr std::uint32_t kSmallLeafSize = 16;
 // three axes interleave into one 126-bit Morton key.
 constexpr int kAxisBits = 42;
 constexpr std::int64_t kBias = std::int64_t(1) << (kAxisBits - 1);
+// The depth bound every traversal relies on. A node's level is the highest digit (bit of the
+// cell coordinates) at which its keys differ, so at most kAxisBits - 1 at the root, and -1 for a
+// leaf of one cell; a child's keys share the digit at which its parent split, so its level is
+// lower. A path from the root to a leaf thus has at most kAxisBits + 1 nodes.
+constexpr int kMaxPathNodes = kAxisBits + 1;
+// A depth-first traversal pops a node and stacks at most its 8 children: with the at most 7
+// siblings still stacked for each node above it on the path, at most 7 (kMaxPathNodes - 2) + 8.
+constexpr int kTraversalStack = 8 * kMaxPathNodes;
+static_assert(kTraversalStack >= 7 * (kMaxPathNodes - 2) + 8, "traversal stack below its depth bound");
 constexpr double kBlockDiameters = 1024.0;
 // Box tests that prune use this relative margin (as kdtree.cpp) so that rounding can never drop
 // a point the exact per-point test keeps; the "inside" test needs none (see farthest_distance2).
@@ -71,7 +82,7 @@ std::uint64_t low_morton_key(const CellKey& u) {
 
 int highest_bit(std::uint64_t x) { return 63 - std::countl_zero(x); }
 int highest_bit(Key x) {
-  const auto hi = std::uint64_t(x >> 64);
+  const std::uint64_t hi = high64(x);
   return hi ? 127 - std::countl_zero(hi) : highest_bit(std::uint64_t(x));
 }
 
@@ -250,7 +261,7 @@ void Octree::build(const std::vector<K>& keys, std::vector<std::uint32_t>& order
   // requested well ahead of its use.
   constexpr std::size_t kAhead = 32;
   for (std::size_t s = 0; s < n; ++s) {
-    if (s + kAhead < n) __builtin_prefetch(points_.data() + 3 * std::size_t(index_[s + kAhead]));
+    if (s + kAhead < n) prefetch(points_.data() + 3 * std::size_t(index_[s + kAhead]));
     for (int a = 0; a < 3; ++a) xyz_[3 * s + a] = points_.coord(index_[s], a);
   }
 
@@ -262,6 +273,7 @@ void Octree::build(const std::vector<K>& keys, std::vector<std::uint32_t>& order
   for (std::size_t k = 0; k < nodes_.size(); ++k) {
     Node node = nodes_[k];
     node.level = std::int8_t(differing_level(keys[node.begin], keys[node.end - 1]));
+    M3C2_ASSERT(node.level < kAxisBits, "a node's level is a digit of the 42-bit cell coordinates");
     node.in_block = node.level + 1 <= grid_.block_level;
     const std::uint32_t held = node.end - node.begin;
     if (node.level >= 0 && (held > kLeafSize || (held > kSmallLeafSize && node.level <= 1) || !node.in_block)) {
@@ -273,6 +285,8 @@ void Octree::build(const std::vector<K>& keys, std::vector<std::uint32_t>& order
         const auto end = std::uint32_t(std::partition_point(keys.begin() + begin, keys.begin() + node.end,
                                                             [&](K x) { return (std::uint32_t(x >> shift) & 7u) <= d; }) -
                                        keys.begin());
+        M3C2_ASSERT(end > begin && differing_level(keys[begin], keys[end - 1]) < node.level,
+                    "a child's level is below its parent's (the depth bound)");
         nodes_.push_back({{}, {}, begin, end});
         node.child_mask |= std::uint8_t(1u << d);
         ++node.children;
@@ -319,6 +333,7 @@ void Octree::bound_nodes() {
 }
 
 DescentCache::Path& DescentCache::path_for(const Octree* tree) {
+  static_assert(std::tuple_size_v<decltype(Path::node)> >= kMaxPathNodes, "a path holds a root-to-leaf path");
   for (int k = 0; k < 2; ++k)
     if (paths_[k].tree == tree) return paths_[last_ = k];
   last_ = 1 - last_;  // replace the path used least recently
@@ -364,6 +379,7 @@ std::uint32_t Octree::covering_node(const std::array<double, 3>& lo, const std::
       break;
     }
     n = node.first_child + std::uint32_t(std::popcount(unsigned(node.child_mask) & ((1u << wanted) - 1u)));
+    M3C2_ASSERT(depth + 1 < kMaxPathNodes, "a descent path is a root-to-leaf path");
     if (path) path->node[++depth] = n;
   }
   if (path) path->node[0] = 0, path->size = depth + 1, path->klo = klo;
@@ -393,7 +409,7 @@ bool Octree::ball_holds(const Vec3& centre, double radius, std::uint32_t n, Desc
   // Depth first; a node is stacked only when its box reaches the sphere, and a stacked leaf's
   // points are requested from memory at once.
   const auto reaches = [&](const Node& node) { return nearest_distance2(node.lo, node.hi, centre) <= prune_r2; };
-  std::uint32_t stack[8 * 128];
+  std::uint32_t stack[kTraversalStack];  // the depth bound above
   int top = 0;
   if (reaches(nodes_[start])) stack[top++] = start;
   std::uint32_t found = 0;
@@ -406,7 +422,8 @@ bool Octree::ball_holds(const Vec3& centre, double radius, std::uint32_t n, Desc
     } else {
       for (std::uint32_t c = node.first_child; c < node.first_child + node.children; ++c)
         if (reaches(nodes_[c])) {
-          if (nodes_[c].first_child == 0) __builtin_prefetch(slot_xyz(nodes_[c].begin));
+          M3C2_ASSERT(top < kTraversalStack, "the traversal stack's depth bound");
+          if (nodes_[c].first_child == 0) prefetch(slot_xyz(nodes_[c].begin));
           stack[top++] = c;
         }
     }
@@ -486,6 +503,7 @@ struct Octree::BallQuery {
       merge_into(out[k], moved);
     }
     if (ka == inside) return;
+    M3C2_ASSERT(depth + 1 < kMaxPathNodes + 3, "one level of results per node on the path (ball_moments)");
     Moments* fold = level_out(depth + 1);
     std::fill(fold + ka, fold + inside, Moments{});
     if (node.first_child == 0) {
@@ -564,9 +582,8 @@ void Octree::ball_moments(const Vec3& centre, std::span<const double> radii_asce
     scratch.r2[scales + k] = scratch.r2[k] * (1.0 + kRelativeMargin) + 1e-300;
   }
   BallQuery q{*this, centre, radii_ascending, scratch, scales, scratch.r2.data(), scratch.r2.data() + scales};
-  // One level of results per depth; a branching always lowers the digit, so the depth stays
-  // below the key's 42 digits plus the root.
-  if (scratch.stack.size() < (kAxisBits + 4) * scales) scratch.stack.resize((kAxisBits + 4) * scales);
+  // One level of results per node on the path (the depth bound above), plus the caller's.
+  if (scratch.stack.size() < (kMaxPathNodes + 3) * scales) scratch.stack.resize((kMaxPathNodes + 3) * scales);
   std::fill(scratch.stack.begin(), scratch.stack.begin() + scales, Moments{});
   // Start at the deepest node holding the largest sphere's box. Its ancestors would only merge
   // its result with empty sets (copies) and, below a node spanning blocks, move it to the
@@ -579,8 +596,10 @@ void Octree::ball_moments(const Vec3& centre, std::span<const double> radii_asce
   out.assign(scratch.stack.begin(), scratch.stack.begin() + scales);
 }
 
-void Octree::cylinder(const Cylinder& cyl, std::vector<double>& t_out, DescentCache* cache) const {
+void Octree::cylinder(const Cylinder& cyl, std::vector<double>& t_out, DescentCache* cache,
+                      std::vector<std::uint32_t>* index_out) const {
   t_out.clear();
+  if (index_out) index_out->clear();
   if (nodes_.empty()) return;
   const Vec3& c = cyl.core;
   const Vec3& n = cyl.normal;
@@ -600,7 +619,7 @@ void Octree::cylinder(const Cylinder& cyl, std::vector<double>& t_out, DescentCa
   // Start at the deepest node holding the box: the points inside come out in the same key order.
   const std::uint32_t start = covering_node(box_lo, box_hi, cache);
   if (start == kNoNode) return;
-  std::uint32_t stack[8 * 128];
+  std::uint32_t stack[kTraversalStack];  // the depth bound above
   int top = 0;
   stack[top++] = start;
   while (top > 0) {
@@ -620,9 +639,13 @@ void Octree::cylinder(const Cylinder& cyl, std::vector<double>& t_out, DescentCa
         const double t = vx * n.x() + vy * n.y() + vz * n.z();
         if (t < cyl.t_min || t > cyl.t_max) continue;
         const double wx = vx - t * n.x(), wy = vy - t * n.y(), wz = vz - t * n.z();
-        if (wx * wx + wy * wy + wz * wz <= r2) t_out.push_back(t);
+        if (wx * wx + wy * wy + wz * wz <= r2) {
+          t_out.push_back(t);
+          if (index_out) index_out->push_back(index_[slot]);
+        }
       }
     } else {
+      M3C2_ASSERT(top + int(node.children) <= kTraversalStack, "the traversal stack's depth bound");
       for (std::uint32_t k = node.children; k-- > 0;) stack[top++] = node.first_child + k;  // key order
     }
   }

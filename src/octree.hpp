@@ -92,7 +92,9 @@ class Octree {
 
   /// Replaces `t_out` with the axial offsets t of the points inside `cylinder` (the inclusive
   /// test of cylinder.hpp), in key order: the same order in any tile.
-  void cylinder(const Cylinder& cylinder, std::vector<double>& t_out, DescentCache* cache = nullptr) const;
+  /// `index_out`, if given, receives the points' original indices in the same order.
+  void cylinder(const Cylinder& cylinder, std::vector<double>& t_out, DescentCache* cache = nullptr,
+                std::vector<std::uint32_t>* index_out = nullptr) const;
 
   /// Whether at least `n` points lie within `radius` of `centre` (the test of ball_moments),
   /// counted until n are found: a neighbourhood too small for a plane fit costs no moments.

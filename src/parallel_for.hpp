@@ -6,9 +6,8 @@
 #include <m3c2/run_options.hpp>
 
 #include "pulse.hpp"
+#include "thread_limits.hpp"
 #include "threads.hpp"
-
-#include <omp.h>
 
 #include <algorithm>
 #include <atomic>
@@ -78,13 +77,18 @@ void parallel_blocks(std::size_t n, const RunOptions& run, Fn&& fn, std::size_t 
       std::atomic<std::int64_t> finished{first};
       std::mutex watch_lock;
       std::condition_variable all_done;
+      // Without OpenMP (a serial build) the pragmas are not compiled: one thread runs every block.
+#if defined(_OPENMP)
 #pragma omp parallel num_threads(team.size())
+#endif
       {
-        const bool caller = omp_get_thread_num() == 0;
+        const bool caller = thread_num() == 0;
         if (caller) team.started();
         Scratch scratch;
         Pulse pulse(&control);
+#if defined(_OPENMP)
 #pragma omp for schedule(dynamic, 1) nowait
+#endif
         for (std::int64_t b = first; b < blocks; ++b) {
           run_block(b, scratch, pulse);
           if (finished.fetch_add(1) + 1 == blocks) {

@@ -14,14 +14,21 @@ Cylinder make_cylinder(const Vec3& core, const Vec3& normal, const Params& param
 }
 
 /// Truncates `t` (offsets of the full cylinder) as CloudCompare's progressive search would.
-void progressive_truncate(std::vector<double>& t, const Params& params, ProjectionScratch& s) {
+/// `index` (if any) is truncated alike.
+void progressive_truncate(std::vector<double>& t, const Params& params, ProjectionScratch& s,
+                          std::vector<std::uint32_t>* index) {
   const double step = 0.5 * params.projection_diameter;
   s.full.swap(t);
+  if (index) s.full_index.swap(*index);
   std::size_t previous = 0;
   for (double h = step;; h = std::min(h + step, params.max_depth)) {
     t.clear();
-    for (const double v : s.full)
-      if (std::abs(v) <= h) t.push_back(v);
+    if (index) index->clear();
+    for (std::size_t k = 0; k < s.full.size(); ++k)
+      if (std::abs(s.full[k]) <= h) {
+        t.push_back(s.full[k]);
+        if (index) index->push_back(s.full_index[k]);
+      }
     if (h >= params.max_depth) return;
     if (t.size() == previous) continue;
     previous = t.size();
@@ -34,19 +41,20 @@ void progressive_truncate(std::vector<double>& t, const Params& params, Projecti
 }  // namespace
 
 void project(const Octree& reference, const Octree& compared, const Vec3& core, const Vec3& normal,
-             const Params& params, ProjectionScratch& s, std::vector<double>& t1, std::vector<double>& t2) {
+             const Params& params, ProjectionScratch& s, std::vector<double>& t1, std::vector<double>& t2,
+             std::vector<std::uint32_t>* index1, std::vector<std::uint32_t>* index2) {
   if (params.depth_search == DepthSearch::kTwoPass) {
     const Cylinder short_cyl = make_cylinder(core, normal, params, params.first_pass_depth);
-    reference.cylinder(short_cyl, t1, &s.descent);
-    compared.cylinder(short_cyl, t2, &s.descent);
+    reference.cylinder(short_cyl, t1, &s.descent, index1);
+    compared.cylinder(short_cyl, t2, &s.descent, index2);
     if (!t1.empty() && !t2.empty()) return;
   }
   const Cylinder cyl = make_cylinder(core, normal, params, params.max_depth);
-  reference.cylinder(cyl, t1, &s.descent);
-  compared.cylinder(cyl, t2, &s.descent);
+  reference.cylinder(cyl, t1, &s.descent, index1);
+  compared.cylinder(cyl, t2, &s.descent, index2);
   if (params.depth_search == DepthSearch::kProgressive) {
-    progressive_truncate(t1, params, s);
-    progressive_truncate(t2, params, s);
+    progressive_truncate(t1, params, s, index1);
+    progressive_truncate(t2, params, s, index2);
   }
 }
 

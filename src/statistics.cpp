@@ -39,9 +39,18 @@ Spread median_and_sigma(std::span<const double> values, std::vector<double>& wor
   return {median, iqr / kIqrToSigma};
 }
 
-Spread central_spread(std::span<const double> values, const Params& params, std::vector<double>& work) {
-  return params.statistic == Statistic::kMedian ? median_and_sigma(values, work)
-                                                : mean_and_sigma(values, params.variance);
+Spread central_spread(std::span<const double> values, const Params& params, std::vector<double>& work,
+                      MedianWeightCache* weights) {
+  const double root_n = std::sqrt(double(values.size()));
+  if (params.statistic != Statistic::kMedian) {
+    Spread s = mean_and_sigma(values, params.variance);
+    s.se = s.sigma / root_n;
+    return s;
+  }
+  Spread s = median_and_sigma(values, work);  // leaves `work` sorted
+  if (params.median_lod == MedianLod::kCloudCompare) s.se = s.sigma / root_n;
+  else s.se = weights && !values.empty() ? median_standard_error(work, s.centre, *weights) : kNaN;
+  return s;
 }
 
 }  // namespace m3c2::detail

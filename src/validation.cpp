@@ -79,7 +79,8 @@ void validate_params(const Params& p) {
     fail("registration_error", "finite and >= 0", p.registration_error);
   if (!(p.confidence > 0.0 && p.confidence < 1.0)) fail("confidence", "in (0, 1)", p.confidence);
   if (p.min_points < 1) fail("min_points", ">= 1", p.min_points);
-  if (p.bootstrap_samples == 1) fail("bootstrap_samples", "0 (off) or >= 2", p.bootstrap_samples);
+  if (p.lod == Lod::kBootstrap && p.bootstrap_samples < 2)
+    fail("bootstrap_samples", ">= 2 with the bootstrap LOD", p.bootstrap_samples);
   if (p.bootstrap_samples > kMaxBootstrapSamples)
     fail("bootstrap_samples", "at most " + std::to_string(kMaxBootstrapSamples), p.bootstrap_samples);
 }

@@ -4,11 +4,13 @@
 // See docs/algorithm.md for each equation, its paper reference and the choices made.
 
 #include <m3c2/baselines.hpp>
+#include <m3c2/dimensionality.hpp>
 #include <m3c2/errors.hpp>
 #include <m3c2/params.hpp>
 #include <m3c2/points_view.hpp>
 #include <m3c2/result.hpp>
 #include <m3c2/run_options.hpp>
+#include <m3c2/uncertainty.hpp>
 
 #include <cstdint>
 #include <vector>
@@ -17,10 +19,11 @@ namespace m3c2 {
 
 /// M3C2 distance, LOD and significance at each core point (sections 3.1-3.3, Appendix B).
 /// `core_normals` (3 per core point) is read only with NormalSource::kCorePoints.
+/// `uncertainty` holds the per-point inputs of params.uncertainty (PM, EP; uncertainty.hpp).
 /// Throws InvalidArgument on bad parameters or inputs, Cancelled if the progress callback says so.
 Result compute(PointsView reference, PointsView compared, PointsView core_points,
                const Params& params, const RunOptions& run = {},
-               const std::vector<double>& core_normals = {});
+               const std::vector<double>& core_normals = {}, const UncertaintyInputs& uncertainty = {});
 
 /// The largest |coordinate| of a cloud compute() accepts with these parameters: its spatial index
 /// keys 2^41 cells of a grid that follows the smallest diameter (D / 16, or d / 16 without

@@ -2,6 +2,8 @@
 // Parameters of an M3C2 run (Lague et al. 2013). Lengths are in the clouds' unit.
 // D and d are DIAMETERS, as in the paper and CloudCompare; max_depth is a half-length.
 
+#include <m3c2/uncertainty.hpp>
+
 #include <cstdint>
 #include <vector>
 
@@ -20,7 +22,22 @@ enum class NormalSource : std::uint8_t {
 /// Central position and spread of the points in a cylinder (section 3.1.3).
 enum class Statistic : std::uint8_t {
   kMean,    ///< mean and standard deviation
-  kMedian,  ///< median and interquartile range; the LOD uses sigma = IQR / kIqrToSigma
+  kMedian,  ///< median and interquartile range (sigma = IQR / kIqrToSigma); LOD as median_lod says
+};
+
+/// The statistic of the level of detection (section 3.3, Appendix B; docs/algorithm.md#6).
+enum class Lod : std::uint8_t {
+  kZ,          ///< eq. (1) with the normal critical value z (the paper's routine choice, CloudCompare's)
+  kT,          ///< eq. (1) with Welch's t and eq. (2)'s degrees of freedom at every n
+  kAuto,       ///< the paper's rule (3.3): Welch t when n1 or n2 < 30, else z (the median: z, see median_lod)
+  kBootstrap,  ///< Appendix B: z (sd of bootstrap_samples resampled distances + reg)
+};
+
+/// Standard error of a cylinder's median in eq. (1) (section 3.3, Appendix B: the paper gives no
+/// parametric LOD for the median; docs/algorithm.md#6.4).
+enum class MedianLod : std::uint8_t {
+  kMaritzJarrett,  ///< the exact bootstrap standard error of the median order statistic (Maritz & Jarrett 1978)
+  kCloudCompare,   ///< CloudCompare's: IQR / kIqrToSigma in eq. (1) as if it were a mean's spread (understates)
 };
 
 /// Denominator of every variance: sample (n - 1, as py4dgeo) or population (n, as CloudCompare).
@@ -78,10 +95,19 @@ struct Params {
   double registration_error = 0.0;   ///< reg in eq. (1)
   double confidence = 0.95;          ///< two-tailed level of the LOD
   std::uint32_t min_points = 4;      ///< per cylinder, below it no LOD and not significant (5.2.1)
-  bool t_statistic = false;          ///< Welch t with eq. (2)'s DF when n1 or n2 < 30
-  std::uint32_t bootstrap_samples = 0;  ///< > 0: LOD = z (sd of resampled distances + reg), App. B;
-                                        ///< at most kMaxBootstrapSamples
-  std::uint64_t bootstrap_seed = 0;
+  Lod lod = Lod::kZ;                 ///< the statistic of the LOD (the command line's default is its own)
+  MedianLod median_lod = MedianLod::kMaritzJarrett;  ///< with Statistic::kMedian and a parametric lod
+  std::uint32_t bootstrap_samples = 0;  ///< resamples of Lod::kBootstrap (>= 2 there, at most
+                                        ///< kMaxBootstrapSamples), App. B
+  std::uint64_t bootstrap_seed = 0;     ///< Lod::kBootstrap: the stream of core point i is (seed, i)
+
+  // Per-point uncertainty (6.2; include/m3c2/uncertainty.hpp, docs/algorithm.md#per-point-uncertainty)
+  Uncertainty uncertainty = Uncertainty::kEq1;  ///< eq. (1), M3C2-PM or M3C2-EP
+  PrecisionRule precision_rule = PrecisionRule::kNearest;  ///< PM: which points give sigma
+  double precision_scale1 = 1.0, precision_scale2 = 1.0;  ///< PM: scale of each cloud's sigmas
+  EpCovariance ep_covariance = EpCovariance::kIndependent;  ///< EP: the centres' covariance
+  EpLod ep_lod = EpLod::kProjected;  ///< EP: the level of detection
+  EpWeights ep_weights = EpWeights::kNormal;  ///< EP: the weights of the centres of gravity
 };
 
 }  // namespace m3c2

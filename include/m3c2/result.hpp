@@ -30,6 +30,11 @@ struct Result {
   std::vector<double> normal_scale;    ///< D used (the chosen one with multi-scale)
   std::vector<double> roughness;       ///< sigma(D): spread of the normal neighbours about their plane
   std::vector<PointStatus> status;
+  /// PM: each cloud's sigma on the normal; EP: sqrt(n^T S n) of each centre of gravity.
+  /// Empty with Uncertainty::kEq1; NaN where not computed.
+  std::vector<double> spread1, spread2;
+  /// EP with UncertaintyInputs::covariances: each centre's 3x3 covariance, 9 per core point.
+  std::vector<double> covariance1, covariance2;
 
   std::size_t size() const { return distance.size(); }
   void resize(std::size_t n);

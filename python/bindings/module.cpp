@@ -10,7 +10,9 @@
 #include <nanobind/stl/string.h>
 #include <nanobind/stl/vector.h>
 
+#include <algorithm>
 #include <atomic>
+#include <cmath>
 #include <memory>
 #include <optional>
 
@@ -22,6 +24,39 @@ namespace {
 using Points = nb::ndarray<const double, nb::shape<-1, 3>, nb::c_contig, nb::device::cpu>;
 
 m3c2::PointsView view(const Points& a) { return {a.data(), a.shape(0)}; }
+
+using Ids = nb::ndarray<const std::uint32_t, nb::ndim<1>, nb::c_contig, nb::device::cpu>;
+using Table = nb::ndarray<const double, nb::shape<-1, 8>, nb::c_contig, nb::device::cpu>;
+using Flat = nb::ndarray<const double, nb::c_contig, nb::device::cpu>;
+
+/// One cloud's per-point uncertainty inputs: precisions (N, 3), scan-position ids (N,) and the
+/// scan-position table (K, 8): id, origin x y z, sigma_range, sigma_range_ppm, sigma_scan, sigma_yaw.
+m3c2::CloudUncertainty cloud_uncertainty(const std::optional<Points>& precision, const std::optional<Ids>& ids,
+                                         const std::optional<Table>& table) {
+  m3c2::CloudUncertainty c;
+  if (precision) c.precision = {precision->data(), 3 * precision->shape(0)};
+  if (ids) c.scan_position = {ids->data(), ids->shape(0)};
+  if (table)
+    for (std::size_t k = 0; k < table->shape(0); ++k) {
+      const double* row = table->data() + 8 * k;
+      if (!(row[0] >= 0.0 && row[0] <= 16777216.0 && row[0] == std::floor(row[0])))
+        throw m3c2::InvalidArgument("scan-position ids must be integers in [0, 2^24]");
+      m3c2::ScanPosition sp;
+      sp.id = static_cast<std::uint32_t>(row[0]);
+      for (int a = 0; a < 3; ++a) sp.origin[a] = row[1 + a];
+      sp.sigma_range = row[4], sp.sigma_range_ppm = row[5], sp.sigma_scan = row[6], sp.sigma_yaw = row[7];
+      c.scan_positions.push_back(sp);
+    }
+  return c;
+}
+
+void copy_exact(const char* what, const std::optional<Flat>& a, std::size_t count, double* out) {
+  if (!a) return;
+  if (a->size() != count)
+    throw m3c2::InvalidArgument(std::string(what) + " must hold " + std::to_string(count) + " values, got " +
+                                std::to_string(a->size()));
+  std::copy(a->data(), a->data() + count, out);
+}
 
 template <class T>
 nb::ndarray<nb::numpy, T> to_numpy(std::vector<T>&& values, std::size_t columns = 1) {
@@ -112,6 +147,19 @@ nb::dict result_dict(m3c2::Result&& r) {
   d["normal"] = to_numpy(std::move(r.normal), 3);
   d["normal_scale"] = to_numpy(std::move(r.normal_scale));
   d["roughness"] = to_numpy(std::move(r.roughness));
+  if (!r.spread1.empty()) {
+    d["spread1"] = to_numpy(std::move(r.spread1));
+    d["spread2"] = to_numpy(std::move(r.spread2));
+  }
+  if (!r.covariance1.empty()) {
+    const std::size_t n = r.covariance1.size() / 9;
+    auto* c1 = new std::vector<double>(std::move(r.covariance1));
+    auto* c2 = new std::vector<double>(std::move(r.covariance2));
+    nb::capsule o1(c1, [](void* p) noexcept { delete static_cast<std::vector<double>*>(p); });
+    nb::capsule o2(c2, [](void* p) noexcept { delete static_cast<std::vector<double>*>(p); });
+    d["covariance1"] = nb::ndarray<nb::numpy, double>(c1->data(), {n, 3, 3}, o1);
+    d["covariance2"] = nb::ndarray<nb::numpy, double>(c2->data(), {n, 3, 3}, o2);
+  }
   return d;
 }
 
@@ -140,6 +188,31 @@ NB_MODULE(_core, m) {
   nb::enum_<m3c2::ScaleSelection>(m, "ScaleSelection")
       .value("most_planar", m3c2::ScaleSelection::kMostPlanar)
       .value("cloudcompare", m3c2::ScaleSelection::kCloudCompare);
+  nb::enum_<m3c2::Lod>(m, "Lod")
+      .value("z", m3c2::Lod::kZ)
+      .value("t", m3c2::Lod::kT)
+      .value("auto", m3c2::Lod::kAuto)
+      .value("bootstrap", m3c2::Lod::kBootstrap);
+  nb::enum_<m3c2::MedianLod>(m, "MedianLod")
+      .value("maritz_jarrett", m3c2::MedianLod::kMaritzJarrett)
+      .value("cloudcompare", m3c2::MedianLod::kCloudCompare);
+
+  nb::enum_<m3c2::Uncertainty>(m, "Uncertainty")
+      .value("eq1", m3c2::Uncertainty::kEq1)
+      .value("pm", m3c2::Uncertainty::kPrecisionMaps)
+      .value("ep", m3c2::Uncertainty::kErrorPropagation);
+  nb::enum_<m3c2::PrecisionRule>(m, "PrecisionRule")
+      .value("nearest", m3c2::PrecisionRule::kNearest)
+      .value("all", m3c2::PrecisionRule::kAllPoints);
+  nb::enum_<m3c2::EpCovariance>(m, "EpCovariance")
+      .value("independent", m3c2::EpCovariance::kIndependent)
+      .value("mean_of_points", m3c2::EpCovariance::kMeanOfPoints);
+  nb::enum_<m3c2::EpWeights>(m, "EpWeights")
+      .value("normal", m3c2::EpWeights::kNormal)
+      .value("matrix", m3c2::EpWeights::kMatrix);
+  nb::enum_<m3c2::EpLod>(m, "EpLod")
+      .value("projected", m3c2::EpLod::kProjected)
+      .value("published", m3c2::EpLod::kPublished);
 
   nb::class_<m3c2::Params>(m, "Params")
       .def(nb::init<>())
@@ -172,9 +245,30 @@ NB_MODULE(_core, m) {
       .def_rw("registration_error", &m3c2::Params::registration_error)
       .def_rw("confidence", &m3c2::Params::confidence)
       .def_rw("min_points", &m3c2::Params::min_points)
-      .def_rw("t_statistic", &m3c2::Params::t_statistic)
-      .def_rw("bootstrap_samples", &m3c2::Params::bootstrap_samples)
-      .def_rw("bootstrap_seed", &m3c2::Params::bootstrap_seed);
+      .def_rw("lod", &m3c2::Params::lod)
+      .def_rw("median_lod", &m3c2::Params::median_lod)
+      // The legacy switches of --t-statistic and --bootstrap N, mapped onto `lod`: t_statistic
+      // True is the paper's rule (Lod.auto), False leaves `lod` alone; bootstrap_samples > 0 also
+      // selects Lod.bootstrap (0 leaves `lod` alone).
+      .def_prop_rw(
+          "t_statistic", [](const m3c2::Params& p) { return p.lod == m3c2::Lod::kAuto; },
+          [](m3c2::Params& p, bool on) {
+            if (on) p.lod = m3c2::Lod::kAuto;
+          })
+      .def_prop_rw(
+          "bootstrap_samples", [](const m3c2::Params& p) { return p.bootstrap_samples; },
+          [](m3c2::Params& p, std::uint32_t n) {
+            p.bootstrap_samples = n;
+            if (n > 0) p.lod = m3c2::Lod::kBootstrap;
+          })
+      .def_rw("bootstrap_seed", &m3c2::Params::bootstrap_seed)
+      .def_rw("uncertainty", &m3c2::Params::uncertainty)
+      .def_rw("precision_rule", &m3c2::Params::precision_rule)
+      .def_rw("precision_scale1", &m3c2::Params::precision_scale1)
+      .def_rw("precision_scale2", &m3c2::Params::precision_scale2)
+      .def_rw("ep_covariance", &m3c2::Params::ep_covariance)
+      .def_rw("ep_lod", &m3c2::Params::ep_lod)
+      .def_rw("ep_weights", &m3c2::Params::ep_weights);
 
   nb::exception<m3c2::Cancelled>(m, "Cancelled", PyExc_RuntimeError);
 
@@ -193,15 +287,34 @@ NB_MODULE(_core, m) {
   m.def(
       "compute",
       [](const Points& reference, const Points& compared, const Points& core, const m3c2::Params& params,
-         std::optional<Points> core_normals, int threads, nb::object progress) {
+         std::optional<Points> core_normals, int threads, nb::object progress, std::optional<Points> precision1,
+         std::optional<Points> precision2, std::optional<Ids> scan_position1, std::optional<Ids> scan_position2,
+         std::optional<Table> scan_positions1, std::optional<Table> scan_positions2, std::optional<Flat> transform,
+         std::optional<Flat> alignment_covariance, std::optional<Flat> reduction_point, bool transform_applied,
+         bool covariances) {
         std::vector<double> normals;
         if (core_normals) normals.assign(core_normals->data(), core_normals->data() + 3 * core_normals->shape(0));
+        // Per-point uncertainty inputs (include/m3c2/uncertainty.hpp), viewed, not copied.
+        m3c2::UncertaintyInputs u;
+        u.reference = cloud_uncertainty(precision1, scan_position1, scan_positions1);
+        u.compared = cloud_uncertainty(precision2, scan_position2, scan_positions2);
+        copy_exact("transform (3x4)", transform, 12, u.transform);
+        if (alignment_covariance) {
+          u.alignment_covariance.resize(144);
+          copy_exact("alignment covariance (12x12)", alignment_covariance, 144, u.alignment_covariance.data());
+        }
+        copy_exact("reduction point", reduction_point, 3, u.reduction_point);
+        u.transform_applied = transform_applied;
+        u.covariances = covariances;
         return result_dict(run_engine(std::move(progress), threads, [&](const m3c2::RunOptions& run) {
-          return m3c2::compute(view(reference), view(compared), view(core), params, run, normals);
+          return m3c2::compute(view(reference), view(compared), view(core), params, run, normals, u);
         }));
       },
       "reference"_a, "compared"_a, "core_points"_a, "params"_a, "core_normals"_a = nb::none(), "threads"_a = 0,
-      "progress"_a = nb::none());
+      "progress"_a = nb::none(), "precision1"_a = nb::none(), "precision2"_a = nb::none(),
+      "scan_position1"_a = nb::none(), "scan_position2"_a = nb::none(), "scan_positions1"_a = nb::none(),
+      "scan_positions2"_a = nb::none(), "transform"_a = nb::none(), "alignment_covariance"_a = nb::none(),
+      "reduction_point"_a = nb::none(), "transform_applied"_a = false, "covariances"_a = false);
 
   m.def(
       "compute_normals",
@@ -288,4 +401,27 @@ NB_MODULE(_core, m) {
       },
       "reference"_a, "compared"_a, "model"_a = "none", "model_radius"_a = 0.0, "model_neighbours"_a = 6,
       "rule"_a = "closer", "threads"_a = 0, "progress"_a = nb::none());
+
+  // Multi-scale dimensionality of Brodu & Lague 2012 (CANUPO; include/m3c2/dimensionality.hpp).
+  m.def(
+      "dimensionality",
+      [](const Points& cloud, const Points& core, const std::vector<double>& diameters, std::uint32_t min_points,
+         int threads, nb::object progress) {
+        m3c2::DimensionalityResult r = run_engine(std::move(progress), threads, [&](const m3c2::RunOptions& run) {
+          return m3c2::dimensionality(view(cloud), view(core), diameters, min_points, run);
+        });
+        const std::size_t n = r.size(), s = r.scales;
+        nb::dict d;
+        d["status"] = status_array(r.status);
+        auto per_scale3 = [&](std::vector<double>&& v) {
+          auto* owned = new std::vector<double>(std::move(v));
+          nb::capsule owner(owned, [](void* p) noexcept { delete static_cast<std::vector<double>*>(p); });
+          return nb::ndarray<nb::numpy, double>(owned->data(), {n, s, 3}, owner);
+        };
+        d["proportions"] = per_scale3(std::move(r.proportions));
+        d["barycentric"] = per_scale3(std::move(r.barycentric));
+        d["count"] = to_numpy(std::move(r.count), s);
+        return d;
+      },
+      "cloud"_a, "core_points"_a, "diameters"_a, "min_points"_a = 3, "threads"_a = 0, "progress"_a = nb::none());
 }

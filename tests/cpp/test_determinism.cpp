@@ -14,6 +14,7 @@ Params rough_params() {
   p.normal_diameters = {0.4, 0.8, 1.6, 3.2};  // multi-scale
   p.projection_diameter = 0.5;
   p.max_depth = 2.0;
+  p.lod = Lod::kBootstrap;
   p.bootstrap_samples = 50;
   p.bootstrap_seed = 987654321;
   return p;
@@ -90,7 +91,7 @@ TEST(Determinism, RoughnessByScaleIsBitIdenticalFor1And8Threads) {
 TEST(Progress, DoneNeverExceedsTotalAndLastCallIsComplete) {
   const Pair pr = rough_pair(3);
   Params p = rough_params();
-  p.bootstrap_samples = 0;
+  p.lod = Lod::kZ;
   std::vector<std::pair<std::size_t, std::size_t>> calls;
   std::mutex m;
   std::atomic<int> concurrent{0};
@@ -120,7 +121,7 @@ TEST(Progress, DoneNeverExceedsTotalAndLastCallIsComplete) {
 TEST(Progress, ReturningFalseThrowsCancelled) {
   const Pair pr = rough_pair(4);
   Params p = rough_params();
-  p.bootstrap_samples = 0;
+  p.lod = Lod::kZ;
   int calls = 0;
   RunOptions run;
   run.threads = 2;

@@ -129,13 +129,13 @@ TEST(Lod, WelchTWithEq2DegreesOfFreedomWhenCylindersAreSmall) {
   ASSERT_DOUBLE_EQ(sample_var(z1), 14.0);
   ASSERT_DOUBLE_EQ(sample_var(z2), 14.0);
   Params p = vertical_params();
-  p.t_statistic = true;
+  p.lod = Lod::kAuto;
   const Result r = run_one(z1, z2, p);
   const double expected = kT975df10 * std::sqrt(14.0 / 6 + 14.0 / 6);
   // Rounding of the quantile computation (boost/iterative inverse): 1e-10 relative.
   EXPECT_NEAR(r.lod[0], expected, 1e-10 * expected);
   // Without the option the z value is used.
-  p.t_statistic = false;
+  p.lod = Lod::kZ;
   const Result rz = run_one(z1, z2, p);
   EXPECT_NEAR(rz.lod[0], kZ95 * std::sqrt(14.0 / 3), 1e-12 * rz.lod[0]);
 }
@@ -148,7 +148,7 @@ TEST(Lod, WelchTAt99PercentWithTwentyDegreesOfFreedom) {
     z2.push_back(30.0 - k);
   }
   Params p = vertical_params();
-  p.t_statistic = true;
+  p.lod = Lod::kAuto;
   p.confidence = 0.99;
   const Result r = run_one(z1, z2, p);
   const double v = sample_var(z1);  // 11
@@ -162,7 +162,7 @@ TEST(Lod, WelchTWithNonIntegerDegreesOfFreedom) {
   const double df = (a1 + a2) * (a1 + a2) / (a1 * a1 / 4 + a2 * a2 / 7);
   ASSERT_NEAR(df, 10.890982503364738, 1e-12);
   Params p = vertical_params();
-  p.t_statistic = true;
+  p.lod = Lod::kAuto;
   const Result r = run_one(kZ1, kZ2, p);
   const double expected = kT975df10_89098 * std::sqrt(a1 + a2);
   EXPECT_NEAR(r.lod[0], expected, 1e-10 * expected);
@@ -175,7 +175,7 @@ TEST(Lod, TStatisticNotUsedWhenBothCylindersHaveAtLeast30Points) {
     z2.push_back(5.0 + 0.2 * k);
   }
   Params p = vertical_params();
-  p.t_statistic = true;
+  p.lod = Lod::kAuto;
   const Result r = run_one(z1, z2, p);
   ASSERT_EQ(r.n1[0], 30u);
   ASSERT_EQ(r.n2[0], 30u);
@@ -188,7 +188,7 @@ TEST(Lod, TStatisticNotUsedWhenBothCylindersHaveAtLeast30Points) {
   EXPECT_GT(rt.lod[0], zlod * (1 + 1e-6));
 }
 
-TEST(Lod, MedianModeUsesMedianAndIqrOverKIqrToSigma) {
+TEST(Lod, CloudCompareMedianLodUsesIqrOverKIqrToSigmaAsAMeansSpread) {
   // Cloud 1 (n = 6, shuffled): sorted 0 1 3 7 15 31. numpy linear percentiles: median at
   // position 2.5 -> 5; q25 at 1.25 -> 1.5; q75 at 3.75 -> 13; IQR 11.5.
   // Cloud 2 (n = 5): sorted 100 102 103 110 111: median 103, q25 102, q75 110, IQR 8.
@@ -196,6 +196,7 @@ TEST(Lod, MedianModeUsesMedianAndIqrOverKIqrToSigma) {
   const std::vector<double> z2 = {110, 103, 100, 111, 102};
   Params p = vertical_params();
   p.statistic = Statistic::kMedian;
+  p.median_lod = MedianLod::kCloudCompare;
   const Result r = run_one(z1, z2, p);
   ASSERT_EQ(r.status[0], PointStatus::kOk);
   EXPECT_NEAR(r.i1[0], 5.0, 1e-13);
@@ -206,6 +207,72 @@ TEST(Lod, MedianModeUsesMedianAndIqrOverKIqrToSigma) {
   EXPECT_NEAR(r.sigma2[0], s2, 1e-12);
   const double expected = kZ95 * std::sqrt(s1 * s1 / 6 + s2 * s2 / 5);
   EXPECT_NEAR(r.lod[0], expected, 1e-12 * expected);
+}
+
+/// Brute-force oracle: the variance of the m-th order statistic (m = floor(n / 2 + 1 / 2)) over
+/// all n^n equally likely bootstrap resamples of `values`, enumerated one by one.
+double exact_bootstrap_median_variance(std::vector<double> values) {
+  const std::size_t n = values.size(), m = n / 2 + (n % 2);  // floor(n / 2 + 1 / 2), 1-based
+  std::vector<std::size_t> pick(n, 0);
+  std::vector<double> draw(n);
+  double sum = 0, sum2 = 0, count = 0;
+  for (;;) {
+    for (std::size_t k = 0; k < n; ++k) draw[k] = values[pick[k]];
+    std::nth_element(draw.begin(), draw.begin() + (m - 1), draw.end());
+    sum += draw[m - 1], sum2 += draw[m - 1] * draw[m - 1], count += 1;
+    std::size_t k = 0;
+    while (k < n && ++pick[k] == n) pick[k++] = 0;
+    if (k == n) break;
+  }
+  return sum2 / count - (sum / count) * (sum / count);
+}
+
+TEST(Lod, MedianLodIsZTimesTheExactBootstrapStandardErrorOfTheMedian) {
+  // n = 5 and 7 (odd: the median is the middle order statistic); the oracle enumerates all
+  // 5^5 and 7^7 resamples. The sigma columns stay IQR / kIqrToSigma.
+  const std::vector<double> z1 = {15, 0, 31, 3, 1};
+  const std::vector<double> z2 = {110, 103, 100, 111, 102, 95, 130};
+  Params p = vertical_params();
+  p.statistic = Statistic::kMedian;
+  for (const Lod lod : {Lod::kZ, Lod::kAuto}) {  // auto: z for this median (docs/algorithm.md#6.4)
+    p.lod = lod;
+    const Result r = run_one(z1, z2, p);
+    ASSERT_EQ(r.status[0], PointStatus::kOk);
+    EXPECT_DOUBLE_EQ(r.distance[0], 103.0 - 3.0);
+    EXPECT_NEAR(r.sigma1[0], (15.0 - 1.0) / kIqrToSigma, 1e-12);
+    const double v1 = exact_bootstrap_median_variance(z1), v2 = exact_bootstrap_median_variance(z2);
+    const double expected = kZ95 * std::sqrt(v1 + v2);
+    EXPECT_NEAR(r.lod[0], expected, 1e-12 * expected);
+  }
+  // Welch t on the same standard errors, eq. (2) with se_k^2 in place of sigma_k^2 / n_k.
+  p.lod = Lod::kT;
+  const Result rt = run_one(z1, z2, p);
+  const Result rz = run_one(z1, z2, [&] { Params q = p; q.lod = Lod::kZ; return q; }());
+  EXPECT_GT(rt.lod[0], rz.lod[0] * 1.05);
+}
+
+TEST(Lod, TUsesWelchAtEveryNAndAutoOnlyBelowThirty) {
+  std::vector<double> z1, z2;
+  for (int k = -15; k < 15; ++k) {
+    z1.push_back(k);
+    z2.push_back(40.0 - k);
+  }
+  Params p = vertical_params();
+  const double v = sample_var(z1), se = std::sqrt(2 * v / 30);
+  p.lod = Lod::kAuto;
+  EXPECT_NEAR(run_one(z1, z2, p).lod[0], kZ95 * se, 1e-12 * se);
+  p.lod = Lod::kT;
+  // Equal variances, n = 30: DF = 58; t_0.975(58) = 2.001717484145236.
+  EXPECT_NEAR(run_one(z1, z2, p).lod[0], 2.001717484145236 * se, 1e-9 * se);
+}
+
+TEST(Lod, BootstrapNeedsAtLeastTwoResamples) {
+  Params p = vertical_params();
+  p.lod = Lod::kBootstrap;
+  p.bootstrap_samples = 1;
+  EXPECT_THROW(run_one(kZ1, kZ2, p), InvalidArgument);
+  p.bootstrap_samples = 0;
+  EXPECT_THROW(run_one(kZ1, kZ2, p), InvalidArgument);
 }
 
 TEST(Lod, KIqrToSigmaIsTwicePhiInverseOfThreeQuarters) {
@@ -240,6 +307,7 @@ BootstrapScene bootstrap_scene(std::size_t clusters, std::size_t n, std::uint64_
 TEST(LodBootstrap, SameLodFor1And2And8Threads) {
   const BootstrapScene s = bootstrap_scene(64, 50, 11);
   Params p = vertical_params();
+  p.lod = Lod::kBootstrap;
   p.bootstrap_samples = 200;
   p.bootstrap_seed = 12345;
   const Result r1 = compute(s.ref.view(), s.cmp.view(), s.cores.view(), p, with_threads(1));
@@ -254,6 +322,7 @@ TEST(LodBootstrap, SameLodFor1And2And8Threads) {
 TEST(LodBootstrap, SeedChangesTheResamples) {
   const BootstrapScene s = bootstrap_scene(8, 50, 11);
   Params p = vertical_params();
+  p.lod = Lod::kBootstrap;
   p.bootstrap_samples = 200;
   p.bootstrap_seed = 1;
   const Result a = compute(s.ref.view(), s.cmp.view(), s.cores.view(), p, with_threads(1));
@@ -270,6 +339,7 @@ TEST(LodBootstrap, WithinTenPercentOfParametricOnGaussianData) {
   const BootstrapScene s = bootstrap_scene(4, 200, 2024);
   Params p = vertical_params();
   const Result param = compute(s.ref.view(), s.cmp.view(), s.cores.view(), p);
+  p.lod = Lod::kBootstrap;
   p.bootstrap_samples = 1000;
   p.bootstrap_seed = 7;
   const Result boot = compute(s.ref.view(), s.cmp.view(), s.cores.view(), p);
@@ -286,6 +356,7 @@ TEST(LodBootstrap, WithinTenPercentOfParametricOnGaussianData) {
 TEST(LodBootstrap, RegistrationErrorAddedInsideTheParentheses) {
   const BootstrapScene s = bootstrap_scene(4, 60, 5);
   Params p = vertical_params();
+  p.lod = Lod::kBootstrap;
   p.bootstrap_samples = 300;
   p.bootstrap_seed = 99;
   const Result a = compute(s.ref.view(), s.cmp.view(), s.cores.view(), p);

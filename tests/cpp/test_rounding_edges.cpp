@@ -75,7 +75,7 @@ TEST(Lod, NeedsTwoPointsPerCloudEvenWithPopulationVarianceAndMinPointsOne) {
   p.variance = Variance::kPopulation;
   p.min_points = 1;
   for (const bool t : {false, true}) {
-    p.t_statistic = t;
+    p.lod = t ? Lod::kAuto : Lod::kZ;
     const Result res = compute(ref.view(), cmp.view(), cores.view(), p);
     EXPECT_EQ(res.status[0], PointStatus::kTooFewPointsForLod);
     EXPECT_TRUE(std::isnan(res.lod[0]));

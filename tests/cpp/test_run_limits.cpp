@@ -3,7 +3,7 @@
 // long bootstrap inside one core point is cancellable.
 
 #include "test_support.hpp"
-#include "threads.hpp"
+#include "thread_limits.hpp"
 #include "validation.hpp"
 
 #include <sys/resource.h>
@@ -29,6 +29,7 @@ TEST(RunLimits, ThreadCapIsFourPerHardwareThreadAndAtMost1024) {
 TEST(RunLimits, HugeThreadCountsRunAndGiveTheSameBits) {
   const Pair pr = rough_pair(21, 3000);
   Params p = basic_params(1.0, 0.5, 2.0);
+  p.lod = Lod::kBootstrap;
   p.bootstrap_samples = 20;
   const Result one = compute(pr.reference.view(), pr.compared.view(), pr.cores.view(), p, with_threads(1));
   for (const int threads : {100000, 100000000, 2147483647}) {
@@ -79,6 +80,7 @@ LongBootstrap long_bootstrap() {
   b.p.normal_source = NormalSource::kVertical;
   b.p.projection_diameter = 1.0;
   b.p.max_depth = 2.0;
+  b.p.lod = Lod::kBootstrap;
   b.p.bootstrap_samples = kMaxBootstrapSamples;
   return b;
 }
@@ -109,7 +111,8 @@ TEST(RunLimits, AProcessThreadLimitRunsWithTheThreadsItCanCreate) {
   if (std::getenv("M3C2_THREAD_LIMIT_CHILD") != nullptr) {
     const Pair pr = rough_pair(23, 3000);
     Params p = basic_params(1.0, 0.5, 2.0);
-    p.bootstrap_samples = 20;
+    p.lod = Lod::kBootstrap;
+  p.bootstrap_samples = 20;
     const Result one = compute(pr.reference.view(), pr.compared.view(), pr.cores.view(), p, with_threads(1));
     const Result eight = compute(pr.reference.view(), pr.compared.view(), pr.cores.view(), p, with_threads(8));
     EXPECT_TRUE(BitIdentical(one.lod, eight.lod));
@@ -146,6 +149,7 @@ TEST(RunLimits, ALongBootstrapIsCancelledInsideItsCorePoint) {
   p.normal_source = NormalSource::kVertical;
   p.projection_diameter = 1.0;
   p.max_depth = 2.0;
+  p.lod = Lod::kBootstrap;
   p.bootstrap_samples = kMaxBootstrapSamples;
   std::vector<std::size_t> polled;
   RunOptions run;

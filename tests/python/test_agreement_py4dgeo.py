@@ -35,31 +35,33 @@ def load_golden(name):
     return {k: z[k] for k in z.files}, json.loads(str(z["meta"]))
 
 
-def inputs_for(meta, golden, shared_data):
+def pair_xyz(rel: str) -> np.ndarray:
+    """A golden's input (a path under shared/data, e.g. pairs/autzen-bmx/...las) from the copies
+    in the repository: tests/data/pairs/autzen-bmx, and the bundled Toronto LAZ."""
+    name = Path(rel).name
+    if rel.startswith("pairs/autzen-bmx/"):
+        return np.ascontiguousarray(m3c2kit.read(C.AUTZEN / name).xyz)
+    if rel.startswith("pairs/toronto-ttp/"):
+        return C.toronto_xyz(name)
+    raise AssertionError(f"no repository copy of {rel}")
+
+
+def inputs_for(meta, golden):
     spec = meta["inputs"]
     if spec["source"] == "rough_pair":
         ref, cmp, core = C.rough_pair(**spec["kwargs"])
     else:
-        if not shared_data.is_dir():
-            pytest.skip("shared data not found")
-        ref, cmp = [np.ascontiguousarray(m3c2kit.read(shared_data / spec[k]).xyz) if spec[k].endswith(".las")
-                    else np.ascontiguousarray(np.loadtxt(shared_data / spec[k], comments="//", usecols=(0, 1, 2)))
-                    for k in ("reference", "compared")]
+        ref, cmp = [pair_xyz(spec[k]) for k in ("reference", "compared")]
         core = golden["core"]
     assert C.sha256(ref, cmp) == str(golden["inputs_sha256"]), "inputs differ from those py4dgeo was run on"
     np.testing.assert_array_equal(core, golden["core"])
     return ref, cmp, core
 
 
-@pytest.fixture(scope="module")
-def pairs_dir(shared_data):  # the shared data folder; golden paths start with pairs/
-    return shared_data
-
-
 @pytest.mark.parametrize("name", NAMES)
-def test_agrees_with_py4dgeo_outside_its_defects(name, pairs_dir):
+def test_agrees_with_py4dgeo_outside_its_defects(name):
     golden, meta = load_golden(name)
-    ref, cmp, core = inputs_for(meta, golden, pairs_dir)
+    ref, cmp, core = inputs_for(meta, golden)
     p = meta["params"]
     r = m3c2kit.compare(ref, cmp, core, normal_scale=p["D"], projection_scale=p["d"], max_depth=p["L"], min_points=1)
     lod = r.lod * C.PY4DGEO_Z / C.Z95
@@ -90,9 +92,8 @@ def test_flags_concern_the_boundary_at_t0_for_even_segment_counts():
             assert not np.any(flags == C.FLAG_BOUNDARY), name
 
 
-def test_pdal_autzen(pairs_dir):
-    d = pairs_dir / "pairs" / "autzen-bmx"
-    ref, cmp, core, cc, pdal = C.load_autzen() if d.is_dir() else pytest.skip("no autzen-bmx")
+def test_pdal_autzen():
+    ref, cmp, core, cc, pdal = C.load_autzen()
     r = m3c2kit.compare(ref, cmp, core, normal_scale=C.AUTZEN_D, projection_scale=C.AUTZEN_d, max_depth=C.AUTZEN_L,
                      variance="population", min_points=1)
     dist0, lod0 = np.nan_to_num(r.distance, nan=0.0), np.nan_to_num(r.lod, nan=0.0)  # PDAL writes 0

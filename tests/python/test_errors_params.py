@@ -236,7 +236,7 @@ def test_different_crs_is_an_error_naming_both(tmp_path, capsys):
 
 def test_different_units_is_an_error(tmp_path, capsys, shared_data):
     ref = _las(tmp_path / "ref.las", grid(), _wkt("site grid", 0, ("US survey foot", 0.304800609601219)))
-    # The compared file has GeoTIFF keys only (EPSG:26916, metre): not comparable as CRSs, but the units differ.
+    # The compared file has GeoTIFF keys only (EPSG:26916, metre), the reference a local grid in feet.
     utm = m3c2kit.read(shared_data / "readers/pdal/las/test_utm16.las")
     cmp = tmp_path / "cmp.las"
     write_cloud_table(cmp, grid(z=0.1) + utm.offset, {}, like=utm)
@@ -244,8 +244,10 @@ def test_different_units_is_an_error(tmp_path, capsys, shared_data):
     code, _, err = run(capsys, "compare", ref, cmp, "-o", tmp_path / "out.csv", "--quiet",
                        *[x for kv in BASE.items() for x in kv])
     assert code == 1
-    assert err == (f"m3c2: error: the clouds have different units: reference {ref} is in US survey foot, compared "
-                   f"{cmp} in metre; convert one of them, or pass --ignore-crs if the coordinates are comparable\n")
+    # With pyproj the two CRSs are told apart first (a local grid in feet vs UTM 16N).
+    assert err == (f"m3c2: error: the clouds have different CRSs: reference {ref} is in 'site grid', compared "
+                   f"{cmp} in 'NAD83 / UTM zone 16N' (EPSG:26916); reproject one of them, or pass --ignore-crs "
+                   f"if the coordinates are comparable\n")
 
 
 def test_core_points_crs_is_checked_too(tmp_path, capsys):
@@ -277,8 +279,11 @@ def test_same_crs_rules():
     assert same_crs(utm32, "EPSG:32633") is False and same_crs(utm32, utm33) is False
     assert same_crs("EPSG:2992", "EPSG:2992") is True
     assert same_crs(None, utm32) is None and same_crs(utm32, "") is None
-    assert same_crs(_wkt("local", 0), "EPSG:32632") is None  # cannot tell without a CRS library
-    assert same_crs(_wkt("a", 0), _wkt("b", 0)) is False
+    # pyproj compares definitions: a WKT without authority with UTM 32N's parameters is UTM 32N,
+    # whatever its name; another central meridian is another CRS.
+    assert same_crs(_wkt("local", 0), "EPSG:32632") is True
+    assert same_crs(_wkt("a", 0), _wkt("b", 0).replace('"central_meridian",9', '"central_meridian",15')) is False
+    assert same_crs(_wkt("a", 0), "not a CRS[]") is None  # PROJ cannot read it: unknown, never refused
     assert crs_label(utm32) == "'WGS 84 / UTM zone 32N' (EPSG:32632)" and crs_label(None) == "unknown"
 
 

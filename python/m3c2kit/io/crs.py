@@ -1,18 +1,39 @@
-"""Just enough CRS parsing, without pyproj, to tell WKT apart from junk, name the linear units
-of a WKT (1 or 2) CRS, and read the EPSG code and units of LAS GeoTIFF keys."""
+"""Coordinate reference systems through pyproj: equality, names, EPSG codes, units, checks.
+
+A CRS travels through the package as text (``Cloud.crs``: WKT 1 or 2, ESRI WKT, or
+``"EPSG:<code>"``); pyproj (PROJ) parses it. Two texts are the same CRS when pyproj says they are
+equivalent (``CRS.equals``, axis order ignored), so the ESRI and OGC WKT of one CRS are equal.
+Without pyproj (it is a dependency, but an environment can lack it) every CRS is "unknown"
+except byte-equal texts: nothing is refused on a guess.
+
+Only :func:`looks_like_wkt` (a sniff that tells WKT from junk in a LAS record) and the GeoTIFF
+key tables (:func:`geokey_crs`, :func:`geokey_units`: numbers, not WKT) are done by hand.
+"""
 from __future__ import annotations
 
+import functools
 import re
+from typing import Any
 
-__all__ = ["looks_like_wkt", "wkt_units", "geokey_crs", "geokey_units", "combine_units", "same_crs", "crs_label"]
+from ..errors import M3C2Error, UsageError
+
+__all__ = ["looks_like_wkt", "parse_crs", "wkt_units", "crs_units", "geokey_crs", "geokey_units",
+           "combine_units", "same_crs", "crs_label", "crs_info", "is_angular", "CrsMismatch",
+           "check_crs", "assign_crs", "PYPROJ_MISSING"]
 
 _WKT_START = re.compile(r"\s*[A-Za-z_][A-Za-z0-9_]*\s*[\[(]")
-_TOKEN = re.compile(r'\s*(?:"((?:[^"]|"")*)"|([\[\](),])|([^\s\[\](),"]+))')
 
 # GeoTIFF unit codes (EPSG unit of measure) that LAS files use.
 _LINEAR_UNITS = {9001: "metre", 9002: "foot", 9003: "US survey foot", 9030: "nautical mile",
                  9036: "kilometre"}
 _USER_DEFINED = 32767
+_ANGULAR = ("degree", "radian", "grad", "arc-second", "arc-minute")
+
+PYPROJ_MISSING = "pyproj is not installed (pip install pyproj): CRSs are unknown"
+
+
+class CrsMismatch(M3C2Error):
+    """The clouds' CRSs or units differ or cannot be compared (exit 1); --ignore-crs overrides."""
 
 
 def looks_like_wkt(text: str | None) -> bool:
@@ -20,77 +41,35 @@ def looks_like_wkt(text: str | None) -> bool:
     return bool(text) and bool(_WKT_START.match(text)) and text.rstrip().endswith(("]", ")"))
 
 
-def _parse(text: str):
-    """WKT as nested [keyword, arg, ...] lists; strings stay str, numbers stay their text."""
-    stack: list[list] = [[None]]
-    last_word: str | None = None
-    for m in _TOKEN.finditer(text):
-        quoted, punct, word = m.groups()
-        if punct in ("[", "("):
-            node = [last_word or ""]
-            if last_word is not None:
-                stack[-1].pop()  # the keyword was pushed as a plain word; it becomes the node
-            stack[-1].append(node)
-            stack.append(node)
-            last_word = None
-        elif punct in ("]", ")"):
-            if len(stack) == 1:
-                raise ValueError("unbalanced brackets")
-            stack.pop()
-            last_word = None
-        elif punct == ",":
-            last_word = None
-        elif quoted is not None:
-            stack[-1].append(quoted.replace('""', '"'))
-            last_word = None
-        elif word is not None:
-            stack[-1].append(word)
-            last_word = word
-    if len(stack) != 1:
-        raise ValueError("unbalanced brackets")
-    return stack[0][1:]
+@functools.lru_cache(maxsize=64)
+def parse_crs(text: str | None) -> Any:
+    """The ``pyproj.CRS`` of a CRS text, or None when there is none, pyproj is missing, or PROJ
+    cannot read it."""
+    if not text or not text.strip():
+        return None
+    try:
+        import pyproj
+    except ImportError:
+        return None
+    try:
+        crs = pyproj.CRS.from_user_input(text)
+    except Exception:  # pyproj.exceptions.CRSError, or junk PROJ refuses in other ways
+        return None
+    # A WKT 1 with a TOWGS84 clause is a BoundCRS (the CRS plus a datum shift to WGS 84): the
+    # coordinates are in its source CRS, which is what names, units and equality concern.
+    return crs.source_crs if crs.is_bound and crs.source_crs is not None else crs
 
 
-_UNIT_KEYS = ("UNIT", "LENGTHUNIT")
-_GEOG_KEYS = ("GEOGCS", "BASEGEOGCRS", "GEOGCRS", "GEODCRS", "BASEGEODCRS")
-_PROJ_KEYS = ("PROJCS", "PROJCRS", "GEOCCS")
-_VERT_KEYS = ("VERT_CS", "VERTCRS", "VERTICALCRS")
+def _unit_name(name: str | None) -> str | None:
+    if not name:
+        return None
+    n = name.strip()
+    return {"meter": "metre", "m": "metre", "us survey foot": "US survey foot", "degree (supplier to define representation)": "degree"}.get(n.lower(), n)
 
 
-def _first_unit(node: list, skip: tuple[str, ...] = ()) -> str | None:
-    """Name of the first UNIT/LENGTHUNIT under `node`, not descending into `skip` keywords."""
-    for child in node[1:]:
-        if not isinstance(child, list):
-            continue
-        key = str(child[0]).upper()
-        if key in _UNIT_KEYS and len(child) > 1 and isinstance(child[1], str):
-            return child[1]
-        if key in skip:
-            continue
-        found = _first_unit(child, skip)
-        if found:
-            return found
-    return None
-
-
-def _find(node: list, keys: tuple[str, ...]) -> list | None:
-    if str(node[0]).upper() in keys:
-        return node
-    for child in node[1:]:
-        if isinstance(child, list):
-            found = _find(child, keys)
-            if found is not None:
-                return found
-    return None
-
-
-_UNIT_NAMES = {"metre": "metre", "meter": "metre", "m": "metre", "foot_us": "US survey foot",
-               "us survey foot": "US survey foot", "foot": "foot", "foot_international": "foot",
-               "international foot": "foot", "degree": "degree"}
-
-
-def _normal_unit(name: str) -> str:
-    return _UNIT_NAMES.get(name.strip().lower(), name.strip())
+def _axis_unit(crs) -> str | None:
+    axes = crs.axis_info
+    return _unit_name(axes[0].unit_name) if axes else None
 
 
 def combine_units(horizontal: str | None, vertical: str | None) -> str | None:
@@ -100,28 +79,20 @@ def combine_units(horizontal: str | None, vertical: str | None) -> str | None:
     return horizontal or vertical
 
 
-def wkt_units(wkt: str) -> str | None:
-    """The linear units a WKT CRS gives coordinates, or None if it cannot tell."""
-    try:
-        roots = [n for n in _parse(wkt) if isinstance(n, list)]
-    except ValueError:
+def crs_units(text: str | None) -> str | None:
+    """The units a CRS gives coordinates (horizontal, and vertical when it differs), or None."""
+    crs = parse_crs(text)
+    if crs is None:
         return None
-    if not roots:
-        return None
-    root = roots[0]
-    horizontal = vertical = None
-    proj = _find(root, _PROJ_KEYS)
-    if proj is not None:
-        horizontal = _first_unit(proj, skip=_GEOG_KEYS)
-    else:
-        geog = _find(root, _GEOG_KEYS)
-        if geog is not None:
-            horizontal = _first_unit(geog)
-    vert = _find(root, _VERT_KEYS)
-    if vert is not None:
-        vertical = _first_unit(vert)
-    return combine_units(_normal_unit(horizontal) if horizontal else None,
-                         _normal_unit(vertical) if vertical else None)
+    if crs.is_compound and crs.sub_crs_list:
+        parts = crs.sub_crs_list
+        vertical = _axis_unit(parts[1]) if len(parts) > 1 else None
+        return combine_units(_axis_unit(parts[0]), vertical)
+    return _axis_unit(crs)
+
+
+#: The units of a WKT text (kept under this name for the LAS reader).
+wkt_units = crs_units
 
 
 def geokey_crs(keys: dict[int, int]) -> str | None:
@@ -143,91 +114,210 @@ def geokey_units(keys: dict[int, int]) -> str | None:
     return combine_units(horizontal, vertical)
 
 
-# ------------------------------------------------------------------------- comparing two CRSs
-
-_EPSG_TEXT = re.compile(r"\s*EPSG\s*:\s*(\d+)\s*", re.IGNORECASE)
-_AUTHORITY_KEYS = ("AUTHORITY", "ID")
-_COMPOUND_KEYS = ("COMPD_CS", "COMPOUNDCRS")
-_CRS_KEYS = _GEOG_KEYS + _PROJ_KEYS + _VERT_KEYS + _COMPOUND_KEYS + ("GEOCCS", "ENGCRS", "LOCAL_CS")
+#: Two CRSs on one datum are the same when converting coordinates from one to the other moves no
+#: sample point by more than this (in the target's units): the ESRI and OGC WKT of one CRS often
+#: differ in the last digits of a parameter (a false easting given to 1e-9 ft or to 1e-3 ft).
+SAME_CRS_TOLERANCE = 1e-3
 
 
-def _root(crs: str) -> list | None:
-    try:
-        roots = [n for n in _parse(crs) if isinstance(n, list)]
-    except ValueError:
-        return None
-    return roots[0] if roots else None
+def same_crs(a: str | None, b: str | None, sample=None) -> bool | None:
+    """True / False when two CRS texts are / are not the same CRS, None when either is absent or
+    cannot be read (or pyproj is missing and the texts differ).
 
-
-def _authority(node: list) -> tuple | None:
-    for child in node[1:]:
-        if isinstance(child, list) and str(child[0]).upper() in _AUTHORITY_KEYS and len(child) >= 3:
-            return ("AUTH", str(child[1]).upper(), str(child[2]).strip())
-    return None
-
-
-def _node_identity(node: list) -> tuple:
-    auth = _authority(node)
-    if auth is not None:
-        return auth
-    if str(node[0]).upper() in _COMPOUND_KEYS:
-        parts = tuple(_node_identity(c) for c in node[1:]
-                      if isinstance(c, list) and str(c[0]).upper() in _CRS_KEYS)
-        return ("COMPOUND", parts)
-    name = node[1] if len(node) > 1 and isinstance(node[1], str) else ""
-    return ("NAME", " ".join(name.lower().split()))
-
-
-def _identity(crs: str) -> tuple | None:
-    m = _EPSG_TEXT.fullmatch(crs)
-    if m:
-        return ("AUTH", "EPSG", m.group(1))
-    root = _root(crs)
-    return None if root is None else _node_identity(root)
-
-
-def _same_identity(a: tuple, b: tuple) -> bool | None:
-    if a == b:
-        return True
-    if a[0] == b[0] and a[0] in ("AUTH", "NAME"):
-        return False
-    if a[0] == b[0] == "COMPOUND" and len(a[1]) == len(b[1]) and a[1]:
-        answers = [_same_identity(x, y) for x, y in zip(a[1], b[1])]
-        if False in answers:
-            return False
-        return True if all(answers) else None
-    for compound, single in ((a, b), (b, a)):  # a 2D/3D CRS against a compound's horizontal part
-        if compound[0] == "COMPOUND" and single[0] != "COMPOUND" and compound[1]:
-            return False if _same_identity(compound[1][0], single) is False else None
-    return None  # e.g. an EPSG code against a WKT without one: cannot tell without pyproj
-
-
-def same_crs(a: str | None, b: str | None) -> bool | None:
-    """True / False when two CRS strings (WKT 1 or 2, or ``"EPSG:<code>"``) can be told to be
-    the same / different, None when either is unknown or they cannot be compared without a
-    full CRS library. Equal texts (up to white space) are the same; otherwise the root's
-    authority code (``AUTHORITY``/``ID``), compound parts one by one, or the root names are
-    compared, so two WKT spellings of one EPSG CRS count as the same."""
+    The same: PROJ finds them equivalent (axis order ignored), or they share a datum and
+    converting `sample` points ((K, 2+) coordinates in `a`; default: a grid over either CRS's
+    area of use) from `a` to `b` moves none by more than :data:`SAME_CRS_TOLERANCE`."""
     if not a or not b:
         return None
     if " ".join(a.split()) == " ".join(b.split()):
         return True
-    ia, ib = _identity(a), _identity(b)
-    if ia is None or ib is None:
+    ca, cb = parse_crs(a), parse_crs(b)
+    if ca is None or cb is None:
         return None
-    return _same_identity(ia, ib)
+    da, db = _declared_epsg(ca), _declared_epsg(cb)
+    if da is not None and db is not None and da != db:
+        return False  # two different EPSG CRSs, even where PROJ finds their definitions equal
+    if ca.equals(cb, ignore_axis_order=True):
+        return True
+    ea, eb = _epsg(ca), _epsg(cb)
+    if ea is not None and eb is not None:
+        return ea == eb
+    try:
+        return _same_by_conversion(ca, cb, sample)
+    except Exception:  # PROJ cannot convert between them: not shown to be the same
+        return False
 
 
-def crs_label(crs: str | None, limit: int = 120) -> str:
-    """A one-line name for a CRS: ``'NAME' (EPSG:code)``, ``EPSG:code`` or the text cut short."""
-    if not crs:
-        return "unknown"
-    if _EPSG_TEXT.fullmatch(crs):
-        return crs.strip()
-    root = _root(crs)
-    if root is not None and len(root) > 1 and isinstance(root[1], str):
-        auth = _authority(root)
-        label = repr(root[1]) + (f" ({auth[1]}:{auth[2]})" if auth else "")
+def _horizontal(crs):
+    return crs.sub_crs_list[0] if crs.is_compound and crs.sub_crs_list else crs
+
+
+def _vertical(crs):
+    return crs.sub_crs_list[1] if crs.is_compound and len(crs.sub_crs_list) > 1 else None
+
+
+def _same_by_conversion(ca, cb, sample) -> bool:
+    import numpy as np
+    import pyproj
+
+    ha, hb = _horizontal(ca), _horizontal(cb)
+    da, db = ha.datum, hb.datum
+    if da is None or db is None or not da == db:
+        return False
+    va, vb = _vertical(ca), _vertical(cb)
+    if (va is None) != (vb is None) or (va is not None and not va.equals(vb, ignore_axis_order=True)):
+        return False
+    if _axis_unit(ha) != _axis_unit(hb):
+        return False
+    points = None
+    if sample is not None:
+        points = np.asarray(sample, dtype=float).reshape(-1, np.shape(sample)[-1])[:, :2]
     else:
-        label = " ".join(crs.split())
-    return label if len(label) <= limit else label[: limit - 3] + "..."
+        area = ha.area_of_use or hb.area_of_use
+        for crs in (ha, hb):  # a WKT 1 with an EPSG AUTHORITY carries no area: PROJ's database has it
+            code = _epsg(crs) if area is None else None
+            area = pyproj.CRS.from_epsg(code).area_of_use if code else area
+        if area is None:
+            return False
+        lon, lat = np.meshgrid(np.linspace(area.west, area.east, 3), np.linspace(area.south, area.north, 3))
+        to_a = pyproj.Transformer.from_crs(ha.geodetic_crs, ha, always_xy=True)
+        points = np.column_stack(to_a.transform(lon.ravel(), lat.ravel()))
+    convert = pyproj.Transformer.from_crs(ha, hb, always_xy=True)
+    x, y = convert.transform(points[:, 0], points[:, 1])
+    moved = np.hypot(np.asarray(x) - points[:, 0], np.asarray(y) - points[:, 1])
+    return bool(np.all(np.isfinite(moved)) and moved.max() <= SAME_CRS_TOLERANCE)
+
+
+def _declared_epsg(crs) -> int | None:
+    """The EPSG code a CRS text declares (its ID / AUTHORITY), or None."""
+    try:
+        ident = crs.to_json_dict().get("id") or {}
+        if str(ident.get("authority", "")).upper() == "EPSG":
+            return int(ident["code"])
+    except Exception:
+        pass
+    return None
+
+
+def _epsg(crs) -> int | None:
+    """The EPSG code a CRS declares, else the one PROJ identifies it as, or None."""
+    code = _declared_epsg(crs)
+    if code is not None:
+        return code
+    try:
+        return crs.to_epsg(min_confidence=90)
+    except Exception:
+        return None
+
+
+def crs_label(text: str | None, limit: int = 120) -> str:
+    """A one-line name: ``'NAME' (EPSG:code)``, ``'NAME'``, ``unknown``, or the text cut short
+    when PROJ cannot read it."""
+    if not text:
+        return "unknown"
+    crs = parse_crs(text)
+    if crs is None:
+        label = " ".join(text.split())
+        return label if len(label) <= limit else label[: limit - 3] + "..."
+    code = _epsg(crs)
+    return f"'{crs.name}' (EPSG:{code})" if code else f"'{crs.name}'"
+
+
+def is_angular(text: str | None, units_hint: str | None = None) -> bool:
+    """True when the horizontal coordinates are angles (a geographic CRS such as EPSG:4326)."""
+    crs = parse_crs(text)
+    if crs is not None:
+        horizontal = crs.sub_crs_list[0] if crs.is_compound and crs.sub_crs_list else crs
+        return bool(horizontal.is_geographic) or (_axis_unit(horizontal) or "").lower() in _ANGULAR
+    return (units_hint or "").split(" (")[0].lower() in _ANGULAR
+
+
+def crs_info(text: str | None, units_hint: str | None = None) -> dict[str, Any] | None:
+    """A JSON-ready description: ``name``, ``epsg`` (int or None), ``wkt`` (WKT2 from PROJ, else
+    the text as stored), ``units``, ``angular``; None when there is no CRS."""
+    if not text:
+        return None
+    crs = parse_crs(text)
+    if crs is None:
+        return {"name": None, "epsg": None, "wkt": text, "units": units_hint, "angular": is_angular(None, units_hint),
+                "readable": False}
+    return {"name": crs.name, "epsg": _epsg(crs), "wkt": crs.to_wkt(), "units": crs_units(text) or units_hint,
+            "angular": is_angular(text), "readable": True}
+
+
+def assign_crs(spec: str) -> str:
+    """WKT2 of a user's ``--crs`` (``EPSG:32617``, a WKT, a PROJ string or a path to a .prj/.wkt
+    file), or a UsageError naming it."""
+    text = spec
+    try:
+        from pathlib import Path
+        p = Path(spec)
+        if len(spec) < 4096 and p.is_file():
+            text = p.read_text(encoding="utf-8", errors="replace")
+    except OSError:
+        pass
+    try:
+        import pyproj  # noqa: F401
+    except ImportError:
+        raise UsageError(f"--crs {spec!r} needs pyproj (pip install pyproj)") from None
+    crs = parse_crs(text.strip())
+    if crs is None:
+        raise UsageError(f"--crs {spec!r} is not a CRS PROJ can read (give e.g. EPSG:32617, a WKT or a .prj file)")
+    return crs.to_wkt()
+
+
+def _role(cloud, role: str) -> str:
+    path = getattr(cloud, "path", None)
+    return f"{role} {path}" if path is not None else f"the {role} cloud"
+
+
+def _extent_corners(cloud):
+    import numpy as np
+    xyz = getattr(cloud, "xyz", None)
+    if xyz is None or len(xyz) == 0:
+        return None
+    lo, hi = np.nanmin(xyz[:, :2], axis=0), np.nanmax(xyz[:, :2], axis=0)
+    return np.array([[lo[0], lo[1]], [hi[0], lo[1]], [lo[0], hi[1]], [hi[0], hi[1]]])
+
+
+def check_crs(reference, compared, core=None, *, ignore: bool = False, allow_angular: bool = False) -> None:
+    """Refuses (CrsMismatch) clouds that cannot be compared as they are (docs/errors.md):
+
+    - the compared cloud (or the core points) in a CRS known to differ from the reference's, or
+      with different units;
+    - a CRS on one of reference and compared only (core points without one are taken to be in
+      the reference's CRS);
+    - horizontal coordinates in degrees (a geographic CRS): distances would mix degrees and
+      metres; reproject, or pass --allow-angular.
+
+    `ignore` (--ignore-crs) skips every check. Clouds are objects with ``crs``, ``units_hint``
+    and ``path`` (m3c2kit.io.Cloud)."""
+    if ignore:
+        return
+    ref_crs, ref_units = getattr(reference, "crs", None), getattr(reference, "units_hint", None)
+    for role, other in (("compared", compared), ("core points", core)):
+        if other is None:
+            continue
+        other_crs, other_units = getattr(other, "crs", None), getattr(other, "units_hint", None)
+        if role == "compared" and bool(ref_crs) != bool(other_crs):
+            has, lacks = (reference, other) if ref_crs else (other, reference)
+            has_role, lacks_role = ("reference", role) if ref_crs else (role, "reference")
+            raise CrsMismatch(
+                f"only one cloud has a CRS: {_role(has, has_role)} is in {crs_label(has.crs)}, "
+                f"{_role(lacks, lacks_role)} has none; give it one with --crs (e.g. --crs EPSG:<code>), "
+                f"or pass --ignore-crs if the coordinates are comparable")
+        if same_crs(ref_crs, other_crs, _extent_corners(reference)) is False:
+            raise CrsMismatch(f"the clouds have different CRSs: {_role(reference, 'reference')} is in "
+                              f"{crs_label(ref_crs)}, {_role(other, role)} in {crs_label(other_crs)}; "
+                              f"reproject one of them, or pass --ignore-crs if the coordinates are comparable")
+        if ref_units and other_units and ref_units != other_units:
+            raise CrsMismatch(f"the clouds have different units: {_role(reference, 'reference')} is in "
+                              f"{ref_units}, {_role(other, role)} in {other_units}; convert one of them, or "
+                              f"pass --ignore-crs if the coordinates are comparable")
+    if not allow_angular:
+        for role, cloud in (("reference", reference), ("compared", compared)):
+            if cloud is not None and is_angular(getattr(cloud, "crs", None), getattr(cloud, "units_hint", None)):
+                raise CrsMismatch(
+                    f"{_role(cloud, role)} has angular coordinates ({crs_label(cloud.crs)}, units: degrees): "
+                    f"M3C2's scales and distances would mix degrees with heights; reproject to a projected "
+                    f"CRS in metres (e.g. UTM), or pass --allow-angular if you mean it")

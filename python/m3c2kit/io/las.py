@@ -80,22 +80,24 @@ def _read_crs(header: laspy.LasHeader) -> tuple[str | None, str | None, tuple]:
     records = list(header.vlrs) + list(header.evlrs or [])
     raw = tuple((v.user_id, v.record_id, v.description, _vlr_bytes(v)) for v in records
                 if v.user_id == _PROJECTION_USER and v.record_id in (_WKT_RECORD, *_GEOTIFF_RECORDS))
-    wkt = _pyproj_wkt(header)
-    if wkt is None:
-        # LASF_Projection 2112 is the standard WKT record; libLAS wrote the same text under its
-        # own user id, so that is the fallback.
-        for user in (_PROJECTION_USER, "liblas"):
-            for v in records:
-                if v.user_id == user and v.record_id == _WKT_RECORD:
-                    text = _vlr_bytes(v).split(b"\0", 1)[0].decode("utf-8", "replace").strip()
-                    if looks_like_wkt(text):
-                        wkt = text
-                        break
-            if wkt:
-                break
+    # The file's own WKT text is kept as written (m3c2kit.io.crs compares CRSs through pyproj).
+    # LASF_Projection 2112 is the standard WKT record; libLAS wrote the same text under its own
+    # user id, so that is the fallback.
+    wkt = None
+    for user in (_PROJECTION_USER, "liblas"):
+        for v in records:
+            if v.user_id == user and v.record_id == _WKT_RECORD:
+                text = _vlr_bytes(v).split(b"\0", 1)[0].decode("utf-8", "replace").strip()
+                if looks_like_wkt(text):
+                    wkt = text
+                    break
+        if wkt:
+            break
     keys = _geokeys(records)
-    units = (wkt_units(wkt) if wkt else None) or geokey_units(keys)
-    return wkt or geokey_crs(keys), units, raw
+    # GeoTIFF keys only: their EPSG code, else (user-defined keys) what pyproj makes of them.
+    crs = wkt or geokey_crs(keys) or _pyproj_wkt(header)
+    units = (wkt_units(wkt) if wkt else None) or geokey_units(keys) or (wkt_units(crs) if crs else None)
+    return crs, units, raw
 
 
 def _pyproj_wkt(header: laspy.LasHeader) -> str | None:

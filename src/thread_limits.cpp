@@ -1,6 +1,7 @@
+#include "thread_limits.hpp"
+
 #include "threads.hpp"
 
-#include <omp.h>
 #include <pthread.h>
 #include <sys/resource.h>
 
@@ -125,11 +126,14 @@ int thread_cap() {
 }
 
 int requested_threads(const RunOptions& run) {
-  const int wanted = run.threads > 0 ? run.threads : omp_get_max_threads();
+  const int wanted = run.threads > 0 ? run.threads : max_threads();
   return std::clamp(wanted, 1, thread_cap());
 }
 
 OpenMpTeam::OpenMpTeam(int want) {
+#if !defined(_OPENMP)
+  want = 1;  // a serial build starts no thread
+#endif
   want = std::clamp(want, 1, thread_cap());
   if (want < 2) return;
   const int to_create = want - 1 - kept_by_openmp;
@@ -142,7 +146,7 @@ OpenMpTeam::OpenMpTeam(int want) {
 }
 
 void OpenMpTeam::started() {
-  kept_by_openmp = omp_get_num_threads() - 1;  // OMP_THREAD_LIMIT or OMP_DYNAMIC may give fewer
+  kept_by_openmp = team_size() - 1;  // OMP_THREAD_LIMIT or OMP_DYNAMIC may give fewer
   if (probing_.owns_lock()) probing_.unlock();
 }
 

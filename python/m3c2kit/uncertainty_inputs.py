@@ -1,0 +1,184 @@
+"""Inputs of the per-point uncertainty models (``uncertainty`` = ``pm`` or ``ep``) and the one
+call into the engine that takes them (docs/algorithm.md#per-point-uncertainty).
+
+M3C2-PM (James et al. 2017) reads three precision fields per cloud (``--precision-fields``,
+default ``sx,sy,sz``: LAS extra bytes, PLY properties or ASCII columns, through the readers'
+``fields``). M3C2-EP (Winiwarter et al. 2021) reads a scan-position id per point
+(``--scan-position-field``, default ``point_source_id``), a scan-position table
+(``--scan-positions``: py4dgeo's ``sps.json`` or a CSV), the compared epoch's 3x4 transformation
+(``--transform``), its 12x12 alignment covariance (``--alignment-covariance``) and the reduction
+point (``--reduction-point``).
+
+This module is the only one here that calls ``_core`` for them, so that it moves to the engine
+facade (issue 12) in one piece.
+"""
+from __future__ import annotations
+
+import csv
+import json
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from . import _core
+from .errors import UsageError
+
+__all__ = ["UNCERTAINTIES", "EpInputs", "precision_array", "scan_position_ids", "load_scan_positions",
+           "load_matrix", "parse_reduction_point", "compute"]
+
+UNCERTAINTIES = ("eq1", "pm", "ep")
+_TABLE_KEYS = ("sigma_range", "sigma_scan", "sigma_yaw")
+
+
+def precision_array(fields: dict, names: str | tuple = "sx,sy,sz", *, what: str = "cloud") -> np.ndarray:
+    """(N, 3) float64 precisions sx, sy, sz from a cloud's ``fields`` (``names``: 'SX,SY,SZ')."""
+    wanted = [n.strip() for n in names.split(",")] if isinstance(names, str) else list(names)
+    if len(wanted) != 3 or not all(wanted):
+        raise UsageError(f"--precision-fields needs three field names SX,SY,SZ, got {names!r}")
+    missing = [n for n in wanted if n not in fields]
+    if missing:
+        raise UsageError(f"{what}: no precision field {', '.join(missing)} (its fields: {', '.join(fields) or 'none'})")
+    return np.ascontiguousarray(np.column_stack([np.asarray(fields[n], dtype=np.float64) for n in wanted]))
+
+
+def scan_position_ids(fields: dict, name: str = "point_source_id", *, what: str = "cloud") -> np.ndarray:
+    """(N,) uint32 scan-position ids from a cloud's field ``name`` (integers >= 0)."""
+    if name not in fields:
+        raise UsageError(f"{what}: no scan-position field {name!r} (its fields: {', '.join(fields) or 'none'})")
+    values = np.asarray(fields[name])
+    as_float = values.astype(np.float64)
+    if values.size and (not np.all(np.isfinite(as_float)) or np.any(as_float < 0) or np.any(as_float != np.round(as_float))
+                        or np.any(as_float > 2**24)):
+        raise UsageError(f"{what}: scan-position field {name!r} must hold integers in [0, 2^24]")
+    return np.ascontiguousarray(values.astype(np.uint32))
+
+
+def _row(sid, entry: dict, source: str) -> list[float]:
+    for key in ("origin", *_TABLE_KEYS):
+        if key not in entry:
+            raise UsageError(f"{source}: scan position {sid} has no {key!r}")
+    origin = entry["origin"]
+    if len(origin) != 3:
+        raise UsageError(f"{source}: scan position {sid}: origin must have 3 coordinates")
+    try:
+        return [float(int(sid)), *map(float, origin), float(entry["sigma_range"]),
+                float(entry.get("sigma_range_ppm", 0.0)), float(entry["sigma_scan"]), float(entry["sigma_yaw"])]
+    except (TypeError, ValueError) as e:
+        raise UsageError(f"{source}: scan position {sid}: {e}") from None
+
+
+def load_scan_positions(path) -> np.ndarray:
+    """The scan-position table (K, 8): id, origin x, y, z, sigma_range, sigma_range_ppm, sigma_scan,
+    sigma_yaw. JSON as py4dgeo's sps.json ``{"1": {"origin": [x, y, z], "sigma_range": ..,
+    "sigma_scan": .., "sigma_yaw": ..}, ...}`` (optional "sigma_range_ppm"), or CSV with a header
+    ``id,x,y,z,sigma_range,sigma_scan,sigma_yaw[,sigma_range_ppm]``. Angles in radians."""
+    source = str(path)
+    try:
+        text = Path(path).read_text()
+    except OSError as e:
+        raise UsageError(f"--scan-positions {source}: {e.strerror or e}") from None
+    rows = []
+    if text.lstrip().startswith("{"):
+        try:
+            table = json.loads(text)
+        except json.JSONDecodeError as e:
+            raise UsageError(f"--scan-positions {source}: not valid JSON ({e})") from None
+        for sid, entry in table.items():
+            if not str(sid).isdigit() or not isinstance(entry, dict):
+                raise UsageError(f"--scan-positions {source}: keys must be integer ids and values objects, got {sid!r}")
+            rows.append(_row(sid, entry, source))
+    else:
+        reader = csv.DictReader(text.splitlines())
+        need = {"id", "x", "y", "z", *_TABLE_KEYS}
+        if reader.fieldnames is None or not need <= {f.strip() for f in reader.fieldnames}:
+            raise UsageError(f"--scan-positions {source}: a CSV needs the header "
+                             "id,x,y,z,sigma_range,sigma_scan,sigma_yaw[,sigma_range_ppm]")
+        for rec in reader:
+            rec = {k.strip(): v for k, v in rec.items()}
+            if not str(rec["id"]).strip().isdigit():
+                raise UsageError(f"--scan-positions {source}: ids must be integers, got {rec['id']!r}")
+            rows.append(_row(rec["id"].strip(), {"origin": [rec["x"], rec["y"], rec["z"]],
+                                                 **{k: rec[k] for k in _TABLE_KEYS},
+                                                 "sigma_range_ppm": rec.get("sigma_range_ppm") or 0.0}, source))
+    if not rows:
+        raise UsageError(f"--scan-positions {source}: no scan position")
+    return np.ascontiguousarray(np.array(rows, dtype=np.float64).reshape(-1, 8))
+
+
+def load_matrix(path, shape: tuple[int, int], option: str) -> np.ndarray:
+    """A matrix of `shape` from a CSV / whitespace-separated text file (``--transform``: 3x4,
+    ``--alignment-covariance``: 12x12)."""
+    try:
+        text = Path(path).read_text()
+    except OSError as e:
+        raise UsageError(f"{option} {path}: {e.strerror or e}") from None
+    try:
+        rows = [[float(v) for v in line.replace(",", " ").split()] for line in text.splitlines() if line.strip()]
+        m = np.array(rows, dtype=np.float64)
+    except ValueError as e:
+        raise UsageError(f"{option} {path}: not a numeric matrix ({e})") from None
+    if m.shape != shape:
+        raise UsageError(f"{option} {path}: expected a {shape[0]}x{shape[1]} matrix, got "
+                         f"{'x'.join(map(str, m.shape)) if m.ndim == 2 else 'ragged rows'}")
+    if not np.all(np.isfinite(m)):
+        raise UsageError(f"{option} {path}: non-finite value")
+    return np.ascontiguousarray(m)
+
+
+def parse_reduction_point(value) -> np.ndarray:
+    """``--reduction-point X,Y,Z`` (or a file holding three numbers, as redPoint.csv)."""
+    if isinstance(value, (list, tuple, np.ndarray)):
+        parts = list(value)
+    else:
+        text = str(value)
+        if Path(text).is_file():
+            text = Path(text).read_text()
+        parts = text.replace(",", " ").split()
+    try:
+        point = np.array([float(v) for v in parts], dtype=np.float64)
+    except ValueError:
+        raise UsageError(f"--reduction-point must be X,Y,Z (three numbers), got {value!r}") from None
+    if point.shape != (3,) or not np.all(np.isfinite(point)):
+        raise UsageError(f"--reduction-point must be X,Y,Z (three finite numbers), got {value!r}")
+    return point
+
+
+@dataclass
+class EpInputs:
+    """M3C2-EP's inputs beyond the clouds (tables as load_scan_positions returns them)."""
+    scan_positions1: np.ndarray
+    scan_positions2: np.ndarray
+    scan_position1: np.ndarray  # uint32 id per reference point
+    scan_position2: np.ndarray  # uint32 id per compared point
+    transform: np.ndarray = field(default_factory=lambda: np.eye(3, 4))
+    alignment_covariance: np.ndarray | None = None
+    reduction_point: np.ndarray = field(default_factory=lambda: np.zeros(3))
+    transform_applied: bool = False
+
+
+def compute(reference, compared, core_points, params, *, core_normals=None, threads=0, progress=None,
+            precision1=None, precision2=None, ep: EpInputs | None = None, covariances=False) -> dict:
+    """The engine's compute() with the per-point uncertainty inputs of ``params.uncertainty``."""
+    kw = {}
+    if precision1 is not None:
+        kw.update(precision1=np.ascontiguousarray(precision1, dtype=np.float64),
+                  precision2=np.ascontiguousarray(precision2, dtype=np.float64))
+    if ep is not None:
+        kw.update(scan_positions1=np.ascontiguousarray(ep.scan_positions1, dtype=np.float64),
+                  scan_positions2=np.ascontiguousarray(ep.scan_positions2, dtype=np.float64),
+                  scan_position1=np.ascontiguousarray(ep.scan_position1, dtype=np.uint32),
+                  scan_position2=np.ascontiguousarray(ep.scan_position2, dtype=np.uint32),
+                  transform=np.ascontiguousarray(ep.transform, dtype=np.float64),
+                  reduction_point=np.ascontiguousarray(ep.reduction_point, dtype=np.float64),
+                  transform_applied=bool(ep.transform_applied))
+        if ep.alignment_covariance is not None:
+            kw["alignment_covariance"] = np.ascontiguousarray(ep.alignment_covariance, dtype=np.float64)
+    try:
+        return _core.compute(np.ascontiguousarray(reference, dtype=np.float64),
+                             np.ascontiguousarray(compared, dtype=np.float64),
+                             np.ascontiguousarray(core_points, dtype=np.float64), params,
+                             None if core_normals is None else np.ascontiguousarray(core_normals, dtype=np.float64),
+                             threads=threads, progress=progress, covariances=covariances, **kw)
+    except ValueError as e:  # the engine's InvalidArgument
+        raise UsageError(str(e)) from None
