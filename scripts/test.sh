@@ -23,7 +23,7 @@ cd /tmp && python3 -m pytest -q -p no:cacheprovider "$repo/tests/python"
 # target with atheris (libFuzzer), or the seeded mutation fuzzer when no atheris wheel installs.
 fuzz_dir=$(mktemp -d)
 if python3 -c "import atheris" 2>/dev/null || python3 -m pip install --quiet --disable-pip-version-check atheris; then
-  for target in ascii_reader ply_reader cc_params cli_args; do
+  for target in ascii_reader ply_reader cc_params cli_args crs_text las_header; do
     (cd "$fuzz_dir" && python3 "$repo/tests/fuzz/fuzz.py" "$target" -max_total_time=25 -print_final_stats=0 \
       >"$fuzz_dir/$target.log" 2>&1) || { tail -50 "$fuzz_dir/$target.log"; exit 1; }
     echo "fuzz $target: $(grep -Eo 'Done [0-9]+ runs' "$fuzz_dir/$target.log" || echo done)"
