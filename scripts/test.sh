@@ -1,35 +1,59 @@
 #!/usr/bin/env bash
-# README command (2): install m3c2 with its test dependencies, then run every test: the C++
-# GoogleTest suite (ctest) and the Python suite (pytest).
+# README command (2): install m3c2kit with its test dependencies (scripts/install.sh --test: into
+# a virtual environment), then run every test: the C++ GoogleTest suite (ctest) with GCC, with
+# clang and under AddressSanitizer + UndefinedBehaviorSanitizer; the installed C++ package used
+# by another project; the same bits from a serial build; a wheel built from PyPI alone and run in
+# a clean venv; the Python suite (pytest); bounded fuzzing of the parsers.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 bash scripts/install.sh --test
+source scripts/python-env.sh
+m3c2_activate
+jobs=$(nproc)
+step() { echo; echo "==== $* ($(date -u +%H:%M:%S))"; }
 
+step "C++ tests, GCC, Release"
 cmake -S . -B build/tests -DCMAKE_BUILD_TYPE=Release -DM3C2_BUILD_TESTS=ON >/dev/null
-cmake --build build/tests -j"$(nproc)"
-ctest --test-dir build/tests --output-on-failure
+cmake --build build/tests -j"$jobs"
+ctest --test-dir build/tests --output-on-failure -j"$jobs"
 
-# The same C++ suite under AddressSanitizer + UndefinedBehaviorSanitizer (docs/errors.md).
-cmake -S . -B build/asan -DCMAKE_BUILD_TYPE=RelWithDebInfo -DM3C2_BUILD_TESTS=ON -DM3C2_SANITIZE=ON >/dev/null
-cmake --build build/asan -j"$(nproc)"
+step "the installed C++ package from another project (tests/consumer)"
+bash scripts/check-consumer.sh build/tests
+
+step "a wheel from PyPI alone, repaired, in a clean venv"
+bash scripts/check-wheel.sh "$M3C2_PYTHON"
+
+step "same bits from a serial build with the portable fallbacks and PyPI's headers"
+bash scripts/check-serial.sh "$PWD/build/wheel/build-venv/bin/python"
+
+step "C++ tests, clang"
+bash scripts/check-clang.sh
+
+# The same C++ suite under AddressSanitizer + UndefinedBehaviorSanitizer (docs/errors.md), with
+# the engine's internal invariants checked (M3C2_ASSERT).
+step "C++ tests, ASan + UBSan, assertions on"
+cmake -S . -B build/asan -DCMAKE_BUILD_TYPE=RelWithDebInfo -DM3C2_BUILD_TESTS=ON -DM3C2_SANITIZE=ON -DM3C2_ASSERTS=ON >/dev/null
+cmake --build build/asan -j"$jobs"
 ASAN_OPTIONS=detect_leaks=1 UBSAN_OPTIONS=print_stacktrace=1 \
-  ctest --test-dir build/asan --output-on-failure -j"$(nproc)"
+  ctest --test-dir build/asan --output-on-failure -j"$jobs"
 
 # Run from outside the source tree so that the installed package, not python/, is tested.
+step "Python tests"
 repo=$(pwd)
-cd /tmp && python3 -m pytest -q -p no:cacheprovider "$repo/tests/python"
+(cd /tmp && python -m pytest -q -p no:cacheprovider "$repo/tests/python")
 
 # Bounded fuzzing of the parsers of untrusted input (tests/fuzz/, docs/errors.md): 25 s per
 # target with atheris (libFuzzer), or the seeded mutation fuzzer when no atheris wheel installs.
+step "fuzzing"
 fuzz_dir=$(mktemp -d)
-if python3 -c "import atheris" 2>/dev/null || python3 -m pip install --quiet --disable-pip-version-check atheris; then
+if python -c "import atheris" 2>/dev/null || python -m pip install --quiet --disable-pip-version-check atheris; then
   for target in ascii_reader ply_reader cc_params cli_args crs_text las_header; do
-    (cd "$fuzz_dir" && python3 "$repo/tests/fuzz/fuzz.py" "$target" -max_total_time=25 -print_final_stats=0 \
+    (cd "$fuzz_dir" && python "$repo/tests/fuzz/fuzz.py" "$target" -max_total_time=25 -print_final_stats=0 \
       >"$fuzz_dir/$target.log" 2>&1) || { tail -50 "$fuzz_dir/$target.log"; exit 1; }
     echo "fuzz $target: $(grep -Eo 'Done [0-9]+ runs' "$fuzz_dir/$target.log" || echo done)"
   done
 else
   echo "atheris unavailable: running the seeded mutation fuzzer instead"
-  (cd "$fuzz_dir" && python3 "$repo/tests/fuzz/random_fuzz.py" --runs 20000 --seconds 25 --seed 1)
+  (cd "$fuzz_dir" && python "$repo/tests/fuzz/random_fuzz.py" --runs 20000 --seconds 25 --seed 1)
 fi
 rm -rf "$fuzz_dir"

@@ -3,6 +3,7 @@
 #include "portable.hpp"
 #include "statistics.hpp"
 
+#include <algorithm>
 #include <cmath>
 
 namespace m3c2::detail {
@@ -28,10 +29,23 @@ class SplitMix64 {
   std::uint64_t state_;
 };
 
+/// The median of `v` (reordered), the same bits as sorted_quantile(sorted v, 0.5): the two middle
+/// order statistics by selection (O(n)) instead of a sort, interpolated by the same formula.
+double selected_median(std::vector<double>& v) {
+  const std::size_t n = v.size();
+  const double h = (double(n) - 1.0) * 0.5;
+  const auto lo = static_cast<std::size_t>(std::floor(h));
+  std::nth_element(v.begin(), v.begin() + std::ptrdiff_t(lo), v.end());
+  if (lo + 1 >= n) return v[lo];
+  const double upper = *std::min_element(v.begin() + std::ptrdiff_t(lo) + 1, v.end());
+  return v[lo] + (h - double(lo)) * (upper - v[lo]);
+}
+
 double resampled_stat(std::span<const double> values, const Params& params, SplitMix64& rng,
                       std::vector<double>& draw, std::vector<double>& work) {
   draw.resize(values.size());
   for (double& v : draw) v = values[rng.below(values.size())];
+  if (params.statistic == Statistic::kMedian) return selected_median(draw);
   return central_spread(draw, params, work).centre;
 }
 

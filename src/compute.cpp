@@ -368,11 +368,29 @@ std::vector<double> roughness_by_scale(PointsView cloud, PointsView core_points,
         for (std::size_t j = begin; j < end; ++j) {
           const std::size_t i = order[j];
           detail::moments_by_scale(tree, core_points[i], radii, s);
+          bool gathered = false;  // the largest sphere's offsets, for the centred pass
+          std::vector<double> kept;
           for (std::size_t k = 0; k < scales; ++k) {
             const auto& m = s.moments[k];
             if (m.count < min_points) continue;
-            out[i * scales + by_size[k]] =
-                detail::plane_roughness(detail::comoment_eigenvalues(m.comoment)(0), m.count, variance);
+            const detail::PlaneFit fit = detail::fit_plane(m.comoment);
+            double sigma = detail::plane_roughness(fit.eigenvalues(0), m.count, variance);
+            if (detail::roughness_needs_centred_pass(fit.eigenvalues) && fit.normal.allFinite()) {
+              if (!gathered) {
+                s.offsets.clear();
+                tree.ball_offsets(core_points[i], radii.back(), s.offsets, &s.octree.descent);
+                gathered = true;
+              }
+              // This scale's points: the test of squared_distance() on the same differences.
+              const double r2 = radii[k] * radii[k];
+              kept.clear();
+              for (std::size_t j = 0; j + 2 < s.offsets.size(); j += 3) {
+                const double dx = s.offsets[j], dy = s.offsets[j + 1], dz = s.offsets[j + 2];
+                if (dx * dx + dy * dy + dz * dz <= r2) kept.insert(kept.end(), {dx, dy, dz});
+              }
+              sigma = detail::centred_roughness(kept, fit.normal, variance);
+            }
+            out[i * scales + by_size[k]] = sigma;
           }
         }
       });

@@ -32,7 +32,8 @@ double box_distance2(const std::array<double, 3>& lo, const std::array<double, 3
 KdTree::KdTree(PointsView points) : points_(points) {
   if (points.size() >= std::numeric_limits<std::uint32_t>::max())
     throw InvalidArgument("a cloud has " + std::to_string(points.size()) +
-                          " points; one spatial index holds at most 4294967294 (use --tile-size)");
+                          " points; one spatial index holds at most 4294967294: process the clouds in tiles "
+                          "(parameter tile_size)");
   if (points.empty()) return;
   std::vector<std::uint32_t> order(points.size());
   std::iota(order.begin(), order.end(), 0u);

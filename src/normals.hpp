@@ -8,6 +8,7 @@
 
 #include <Eigen/Core>
 
+#include <span>
 #include <vector>
 
 namespace m3c2::detail {
@@ -21,6 +22,7 @@ struct ScaleMoments {
 
 struct NormalScratch {
   OctreeScratch octree;
+  std::vector<double> offsets;  // the chosen scale's points, for the centred roughness pass
   std::vector<Moments> sums;
   std::vector<ScaleMoments> moments;
 };
@@ -57,5 +59,18 @@ class NormalEstimator {
 
 /// Roughness sqrt(lambda3) of the co-moment divided by n - 1 (kSample) or n (kPopulation).
 double plane_roughness(double smallest_eigenvalue_of_comoment, std::uint32_t n, Variance variance);
+
+/// Whether lambda3 of the co-moment is too small against lambda1 for its rounding (about eps
+/// lambda1 from the summed moments) to leave sigma(D) accurate: below kCentredRatio, sigma(D) is
+/// recomputed by a centred pass over the points (docs/algorithm.md#3.3).
+inline constexpr double kCentredRatio = 1e-4;
+bool roughness_needs_centred_pass(const Eigen::Vector3d& ascending_eigenvalues);
+
+/// sigma(D) by a second, centred pass over the points' offsets (3 per point, key order, summed
+/// in that order): their mean, the plane of their centred co-moment (`normal` where it has none)
+/// and sqrt(sum h_j^2 / (n - 1 or n)), h_j the centred offsets along that plane's normal. Its
+/// rounding is ~eps of the offsets' spread whatever sigma(D): no eigenvalue of a summed co-moment,
+/// and the Rayleigh quotient differs from lambda3 only to second order in the normal's error.
+double centred_roughness(std::span<const double> offsets, const Vec3& normal, Variance variance);
 
 }  // namespace m3c2::detail

@@ -33,6 +33,8 @@ constexpr std::int64_t kBias = std::int64_t(1) << (kAxisBits - 1);
 // leaf of one cell; a child's keys share the digit at which its parent split, so its level is
 // lower. A path from the root to a leaf thus has at most kAxisBits + 1 nodes.
 constexpr int kMaxPathNodes = kAxisBits + 1;
+static_assert(3 * kAxisBits <= 128, "three axes' cells interleave into one 128-bit key (morton_key)");
+static_assert(3 * 21 <= 64, "low_morton_key: 21 bits per axis in 64");
 // A depth-first traversal pops a node and stacks at most its 8 children: with the at most 7
 // siblings still stacked for each node above it on the path, at most 7 (kMaxPathNodes - 2) + 8.
 constexpr int kTraversalStack = 8 * kMaxPathNodes;
@@ -222,7 +224,8 @@ Octree::Octree(PointsView points, OctreeGrid grid, bool with_moments, const char
     : points_(points), grid_(grid), inverse_cell_(1.0 / grid.cell) {
   if (points.size() >= std::numeric_limits<std::uint32_t>::max())
     throw InvalidArgument("a cloud has " + std::to_string(points.size()) +
-                          " points; one spatial index holds at most 4294967294 (use --tile-size)");
+                          " points; one spatial index holds at most 4294967294: process the clouds in tiles "
+                          "(parameter tile_size)");
   require_within_grid(name, points, grid);
   if (points.empty()) return;
   const std::size_t n = points.size();
@@ -430,6 +433,31 @@ bool Octree::ball_holds(const Vec3& centre, double radius, std::uint32_t n, Desc
     if (found >= n) return true;
   }
   return false;
+}
+
+void Octree::ball_offsets(const Vec3& centre, double radius, std::vector<double>& offsets,
+                          DescentCache* cache) const {
+  const std::uint32_t start = covering_node(centre, radius, cache);
+  if (start == kNoNode) return;
+  const double r2 = radius * radius, prune_r2 = r2 * (1.0 + kRelativeMargin) + 1e-300;
+  std::uint32_t stack[8 * 128];
+  int top = 0;
+  stack[top++] = start;
+  while (top > 0) {
+    const Node& node = nodes_[stack[--top]];
+    if (nearest_distance2(node.lo, node.hi, centre) > prune_r2) continue;
+    if (node.first_child != 0) {
+      for (std::uint32_t k = node.children; k-- > 0;) stack[top++] = node.first_child + k;  // key order
+      continue;
+    }
+    for (std::uint32_t slot = node.begin; slot < node.end; ++slot) {
+      const double* p = slot_xyz(slot);
+      if (squared_distance(p, centre) > r2) continue;
+      offsets.push_back(p[0] - centre.x());
+      offsets.push_back(p[1] - centre.y());
+      offsets.push_back(p[2] - centre.z());
+    }
+  }
 }
 
 template <class Level>

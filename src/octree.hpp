@@ -100,6 +100,12 @@ class Octree {
   /// counted until n are found: a neighbourhood too small for a plane fit costs no moments.
   bool ball_holds(const Vec3& centre, double radius, std::uint32_t n, DescentCache* cache = nullptr) const;
 
+  /// Appends to `offsets` p - centre (3 values) of every point p within `radius` of `centre`
+  /// (squared_distance <= r^2, the test of ball_moments), in key order: the same points in the
+  /// same order in any tile. The second, centred pass of a roughness (normals.cpp).
+  void ball_offsets(const Vec3& centre, double radius, std::vector<double>& offsets,
+                    DescentCache* cache = nullptr) const;
+
   /// Moments, about any origin, of the points within each radius of `radii_ascending` of
   /// `centre` (squared_distance <= r^2), written to out[k]. Requires with_moments.
   void ball_moments(const Vec3& centre, std::span<const double> radii_ascending, OctreeScratch& scratch,

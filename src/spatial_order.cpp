@@ -2,9 +2,13 @@
 
 #include "morton.hpp"
 
+#include <m3c2/errors.hpp>
+
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <numeric>
+#include <string>
 #include <utility>
 
 namespace m3c2::detail {
@@ -15,6 +19,7 @@ namespace {
 // stable, and moves 8 bytes per item.
 constexpr int kBitsPerAxis = 10;
 constexpr int kIndexBits = 32;
+static_assert(3 * kBitsPerAxis + kIndexBits <= 64, "a key and an index share one 64-bit word");
 
 /// Stable LSD radix sort of the words by their key bits: three 10-bit digits, the histograms
 /// of all three taken in one pass, a pass skipped where every word has the same digit.
@@ -40,6 +45,11 @@ void radix_sort(std::vector<std::uint64_t>& items) {
 
 std::vector<std::uint32_t> morton_order(PointsView points) {
   const std::size_t n = points.size();
+  // The index takes the word's low kIndexBits and the order is returned as uint32: checked
+  // before either would wrap.
+  if (n > std::size_t(std::numeric_limits<std::uint32_t>::max()))
+    throw InvalidArgument("there are " + std::to_string(n) + " core points; one run takes at most 4294967295: "
+                          "process them in tiles (parameter tile_size)");
   std::vector<std::uint32_t> order(n);
   std::iota(order.begin(), order.end(), 0u);
   if (n < 2) return order;

@@ -1,5 +1,5 @@
 // Setting up the per-point uncertainty of a run (inputs checked once, EP's transformed compared
-// cloud) and the per-core-point LOD of M3C2-PM and M3C2-EP (docs/algorithm.md#per-point-uncertainty).
+// cloud) and the per-core-point LOD of M3C2-PM and M3C2-EP (docs/algorithm.md §6.5).
 
 #include "uncertainty.hpp"
 
@@ -77,10 +77,11 @@ std::vector<std::int32_t> scan_rows(const CloudUncertainty& c, PointsView cloud,
 void validate_uncertainty_params(const Params& p) {
   if (p.uncertainty == Uncertainty::kEq1) return;
   const char* name = p.uncertainty == Uncertainty::kPrecisionMaps ? "pm" : "ep";
+  // Its LOD has no n-dependent statistic: z applies (Lod::kAuto's rule gives z too); the bootstrap
+  // and Welch's t are eq. (1)'s.
   if (p.lod == Lod::kBootstrap)
     throw InvalidArgument(std::string("uncertainty ") + name + " replaces eq. (1): it cannot be bootstrapped");
-  if (p.lod == Lod::kT || p.lod == Lod::kAuto)
-    throw InvalidArgument(std::string("uncertainty ") + name + " has no Welch t (eq. (2) is eq. (1)'s)");
+  if (p.lod == Lod::kT) throw InvalidArgument(std::string("uncertainty ") + name + " has no Welch t (eq. (2) is eq. (1)'s)");
   if (p.uncertainty == Uncertainty::kPrecisionMaps) {
     for (const double s : {p.precision_scale1, p.precision_scale2})
       if (!(s >= 0.0) || !std::isfinite(s))

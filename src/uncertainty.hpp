@@ -1,7 +1,7 @@
 #pragma once
 // The per-point uncertainty models of include/m3c2/uncertainty.hpp inside compute(): prepared
 // once per run (inputs checked, EP's transformed compared cloud), then applied per core point
-// to the points of its two cylinders (docs/algorithm.md#per-point-uncertainty).
+// to the points of its two cylinders (docs/algorithm.md §6.5).
 
 #include <m3c2/params.hpp>
 #include <m3c2/points_view.hpp>

@@ -1,6 +1,7 @@
 #include "validation.hpp"
 
 #include <m3c2/errors.hpp>
+#include <m3c2/m3c2.hpp>
 
 #include <cmath>
 #include <sstream>
@@ -39,7 +40,7 @@ void require_cell_count(std::string_view name, double cell, PointsView points) {
   Vec3 lo = points[0], hi = points[0];
   for (std::size_t i = 1; i < points.size(); ++i) lo = lo.cwiseMin(points[i]), hi = hi.cwiseMax(points[i]);
   const double cells = (hi - lo).maxCoeff() / cell;
-  if (!(cells <= 1099511627776.0))  // 2^40
+  if (!(cells <= kMaxCellsPerAxis))
     throw InvalidArgument(std::string(name) + " " + format(cell) + " is too small for the points' extent " +
                           format((hi - lo).maxCoeff()) + " (more than 2^40 cells along an axis)");
 }

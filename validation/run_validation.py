@@ -418,6 +418,10 @@ def main():
     for line in out.rstrip("\n").splitlines():
         emit(line)
     emit("")
+    emit("## 5. CANUPO classification on AHN (issue 18)\n")
+    canupo = C.REPO / "docs" / "validation" / "canupo-ahn.md"  # written by validation/canupo_ahn.py
+    emit(canupo.read_text().rstrip("\n") if canupo.exists() else "Not generated: run validation/canupo_ahn.py.")
+    emit("")
     emit("## Runtime\n")
     emit(f"This script ran in {time.perf_counter() - start:.0f} s.")
     DOC.write_text("\n".join(LINES) + "\n")

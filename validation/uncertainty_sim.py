@@ -130,7 +130,7 @@ def core_points(rng, k):
     return np.column_stack([xy, height(xy[:, 0], xy[:, 1])])
 
 
-def ep_campaign(pairs, cores_per_pair, seed=2021, change=0.0):
+def ep_campaign(pairs, cores_per_pair, seed=2021, change=0.0, only=None):
     """Flags of ep (projected / published LoD, independent / mean-of-points covariance) and of
     eq. (1) with a single registration error, over `pairs` independent registration draws."""
     rng = np.random.default_rng(seed)
@@ -139,6 +139,8 @@ def ep_campaign(pairs, cores_per_pair, seed=2021, change=0.0):
                 "ep, published LoD": ("normal", "independent", "published"),
                 "ep, matrix weights": ("matrix", "independent", "projected"),
                 "ep as published (py4dgeo)": ("matrix", "mean_of_points", "published")}
+    if only is not None:
+        variants = {k: v for k, v in variants.items() if k in only}
     tallies = {k: Tally([], []) for k in [*variants, "eq1 (single reg)", "eq1 (reg 0)"]}
     for _ in range(pairs):
         ref, ids1 = scan(rng)
@@ -173,13 +175,21 @@ def ep_campaign(pairs, cores_per_pair, seed=2021, change=0.0):
     return tallies
 
 
-def correlated_field(rng, points, length=3.0, features=256):
-    """Three independent smooth unit-variance Gaussian fields at `points` (random Fourier features)."""
+def correlated_field(rng, points, length=3.0, spacing=0.25, size=128):
+    """Three independent smooth unit-variance Gaussian fields at `points`: white noise on a periodic
+    grid (side size * spacing = 32 m, larger than the area plus three correlation lengths)
+    convolved with a Gaussian kernel of sd `length` whose squares sum to 1 (so the variance is 1),
+    read at each point's grid cell."""
+    k = np.fft.fftfreq(size, d=1.0 / size)
+    u = np.minimum(np.abs(k), size - np.abs(k)) * spacing
+    kernel = np.exp(-0.5 * (u[:, None] ** 2 + u[None, :] ** 2) / length**2)
+    kernel /= np.sqrt((kernel**2).sum())
+    spectrum = np.fft.fft2(kernel)
+    cells = np.floor(points[:, :2] / spacing).astype(int) % size
     out = np.empty((len(points), 3))
     for a in range(3):
-        w = rng.normal(0, 1.0 / length, (features, 2))
-        phase = rng.uniform(0, 2 * np.pi, features)
-        out[:, a] = math.sqrt(2.0 / features) * np.cos(points[:, :2] @ w.T + phase).sum(1)
+        field = np.real(np.fft.ifft2(np.fft.fft2(rng.normal(size=(size, size))) * spectrum))
+        out[:, a] = field[cells[:, 1], cells[:, 0]]
     return out
 
 
@@ -195,11 +205,11 @@ def pm_cloud(rng, n=40000):
     return truth + s * correlated_field(rng, truth), s
 
 
-def pm_campaign(pairs, cores_per_pair, seed=2017):
+def pm_campaign(pairs, cores_per_pair, seed=2017, n=40000):
     rng = np.random.default_rng(seed)
     tallies = {k: Tally([], []) for k in ("pm nearest", "pm all points", "eq1 (reg 0)")}
     for _ in range(pairs):
-        (ref, s1), (cmp_, s2) = pm_cloud(rng), pm_cloud(rng)
+        (ref, s1), (cmp_, s2) = pm_cloud(rng, n), pm_cloud(rng, n)
         core = core_points(rng, cores_per_pair)
         for name, rule in (("pm nearest", "nearest"), ("pm all points", "all")):
             p = base_params("pm")
@@ -227,9 +237,6 @@ def binomial_interval(n, p=0.05, level=0.99):
             hi = k
             break
     return lo / n, hi / n
-
-
-NEAR = staticmethod(lambda xy: np.hypot(xy[:, 0], xy[:, 1]) < 5.0)
 
 
 def main(pairs=300, cores=20):

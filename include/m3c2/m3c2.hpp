@@ -30,6 +30,27 @@ Result compute(PointsView reference, PointsView compared, PointsView core_points
 /// normal diameters; docs/algorithm.md). Beyond it compute() throws InvalidArgument.
 double max_abs_coordinate(const Params& params);
 
+/// Largest distance from a core point to a point that can change its result: the normal sphere
+/// (largest D / 2) or the cylinder (radius d / 2, half-length max_depth, any direction).
+double neighbourhood_reach(const Params& params);
+
+/// The halo a tile of core points needs (neighbourhood_reach plus a hair of margin): a tile
+/// computed from the points within this distance of its core points' bounding box gives the same
+/// bits as the whole clouds (docs/scaling.md).
+double tile_halo(const Params& params);
+
+/// Most cells along an axis of the integer grids of subsample_min_spacing and grid_core_points
+/// (extent / cell): beyond it their cell indices would stop being exact, and they throw.
+inline constexpr double kMaxCellsPerAxis = 1099511627776.0;  // 2^40
+
+/// What compute() allocates beyond its inputs, for a caller's memory check.
+struct IndexMemory {
+  double bytes_per_point = 24 + 4;    ///< per point of each cloud: float64 copy and uint32 index
+  double overhead = 1.05;             ///< tree nodes, a few percent of the points
+  double bytes_per_core_point = 120;  ///< the Result's vectors and the per-thread scratch
+};
+IndexMemory index_memory();
+
 /// Normals of `cloud` at `core_points` with params.normal_diameters (one scale or multi-scale),
 /// oriented by params.orientation, with roughness sigma(D) (sections 3.1.2, 3.2, 6.3).
 /// Reads normal_diameters, scale_selection, min_points_normal, min_points_multiscale,

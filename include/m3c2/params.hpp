@@ -4,6 +4,7 @@
 
 #include <m3c2/uncertainty.hpp>
 
+#include <array>
 #include <cstdint>
 #include <vector>
 
@@ -54,12 +55,13 @@ enum class DepthSearch : std::uint8_t {
 enum class ScaleSelection : std::uint8_t {
   kMostPlanar,    ///< smallest lambda3 / (lambda1 + lambda2 + lambda3), the paper's rule
   kCloudCompare,  ///< CloudCompare's largest 2 s0 + 4 s1 - 2 with s_k = lambda_k^2 / sum lambda^2
+  kPy4dgeo,       ///< py4dgeo's largest planarity (lambda2 - lambda3) / lambda1 (lambda1 the largest)
 };
 
 /// Orientation of normals (section 3.1.2): towards the closest orientation point when any are
 /// given (the paper's scanner positions), otherwise along `direction` (+Z by default).
 struct Orientation {
-  double direction[3] = {0.0, 0.0, 1.0};
+  std::array<double, 3> direction = {0.0, 0.0, 1.0};
   std::vector<double> points;  ///< row-major x, y, z of orientation points; may be empty
 };
 
@@ -101,7 +103,7 @@ struct Params {
                                         ///< kMaxBootstrapSamples), App. B
   std::uint64_t bootstrap_seed = 0;     ///< Lod::kBootstrap: the stream of core point i is (seed, i)
 
-  // Per-point uncertainty (6.2; include/m3c2/uncertainty.hpp, docs/algorithm.md#per-point-uncertainty)
+  // Per-point uncertainty (6.2; include/m3c2/uncertainty.hpp, docs/algorithm.md §6.5)
   Uncertainty uncertainty = Uncertainty::kEq1;  ///< eq. (1), M3C2-PM or M3C2-EP
   PrecisionRule precision_rule = PrecisionRule::kNearest;  ///< PM: which points give sigma
   double precision_scale1 = 1.0, precision_scale2 = 1.0;  ///< PM: scale of each cloud's sigmas
@@ -109,5 +111,42 @@ struct Params {
   EpLod ep_lod = EpLod::kProjected;  ///< EP: the level of detection
   EpWeights ep_weights = EpWeights::kNormal;  ///< EP: the weights of the centres of gravity
 };
+
+/// Every field of Params once, with the name the bindings and the Python parameter table use
+/// (docs/architecture.md): `visit(name, access)` where `access(params)` returns a reference to
+/// the field. The binding builds its properties and its pickling from this list, and a test checks
+/// it against the Python table, so a new field is added here and nowhere else in C++.
+template <class Visitor>
+constexpr void visit_param_fields(Visitor&& visit) {
+  visit("normal_diameters", [](auto& p) -> auto& { return p.normal_diameters; });
+  visit("normal_source", [](auto& p) -> auto& { return p.normal_source; });
+  visit("scale_selection", [](auto& p) -> auto& { return p.scale_selection; });
+  visit("min_points_normal", [](auto& p) -> auto& { return p.min_points_normal; });
+  visit("min_points_multiscale", [](auto& p) -> auto& { return p.min_points_multiscale; });
+  visit("normal_subsample_spacing", [](auto& p) -> auto& { return p.normal_subsample_spacing; });
+  visit("orientation_direction", [](auto& p) -> auto& { return p.orientation.direction; });
+  visit("orientation_points", [](auto& p) -> auto& { return p.orientation.points; });
+  visit("projection_diameter", [](auto& p) -> auto& { return p.projection_diameter; });
+  visit("max_depth", [](auto& p) -> auto& { return p.max_depth; });
+  visit("depth_search", [](auto& p) -> auto& { return p.depth_search; });
+  visit("first_pass_depth", [](auto& p) -> auto& { return p.first_pass_depth; });
+  visit("positive_search_only", [](auto& p) -> auto& { return p.positive_search_only; });
+  visit("statistic", [](auto& p) -> auto& { return p.statistic; });
+  visit("variance", [](auto& p) -> auto& { return p.variance; });
+  visit("registration_error", [](auto& p) -> auto& { return p.registration_error; });
+  visit("confidence", [](auto& p) -> auto& { return p.confidence; });
+  visit("min_points", [](auto& p) -> auto& { return p.min_points; });
+  visit("lod", [](auto& p) -> auto& { return p.lod; });
+  visit("median_lod", [](auto& p) -> auto& { return p.median_lod; });
+  visit("bootstrap_samples", [](auto& p) -> auto& { return p.bootstrap_samples; });
+  visit("bootstrap_seed", [](auto& p) -> auto& { return p.bootstrap_seed; });
+  visit("uncertainty", [](auto& p) -> auto& { return p.uncertainty; });
+  visit("precision_rule", [](auto& p) -> auto& { return p.precision_rule; });
+  visit("precision_scale1", [](auto& p) -> auto& { return p.precision_scale1; });
+  visit("precision_scale2", [](auto& p) -> auto& { return p.precision_scale2; });
+  visit("ep_covariance", [](auto& p) -> auto& { return p.ep_covariance; });
+  visit("ep_lod", [](auto& p) -> auto& { return p.ep_lod; });
+  visit("ep_weights", [](auto& p) -> auto& { return p.ep_weights; });
+}
 
 }  // namespace m3c2

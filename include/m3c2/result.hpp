@@ -40,6 +40,32 @@ struct Result {
   void resize(std::size_t n);
 };
 
+/// Every per-core-point column of Result once, with its name, its values per core point (9: a
+/// 3x3 matrix) and whether it is optional (empty unless some parameter asks for it):
+/// `visit(name, column, width, optional)`. The binding builds its result dictionary from it and
+/// the Python front end takes the schema from the binding (m3c2kit.engine.RESULT_FIELDS), so a new
+/// column is added to the struct and here only.
+template <class R, class Visitor>
+void visit_result_fields(R& r, Visitor&& visit) {
+  visit("status", r.status, 1, false);
+  visit("distance", r.distance, 1, false);
+  visit("lod", r.lod, 1, false);
+  visit("significant", r.significant, 1, false);
+  visit("n1", r.n1, 1, false);
+  visit("n2", r.n2, 1, false);
+  visit("sigma1", r.sigma1, 1, false);
+  visit("sigma2", r.sigma2, 1, false);
+  visit("i1", r.i1, 1, false);
+  visit("i2", r.i2, 1, false);
+  visit("normal", r.normal, 3, false);
+  visit("normal_scale", r.normal_scale, 1, false);
+  visit("roughness", r.roughness, 1, false);
+  visit("spread1", r.spread1, 1, true);
+  visit("spread2", r.spread2, 1, true);
+  visit("covariance1", r.covariance1, 9, true);
+  visit("covariance2", r.covariance2, 9, true);
+}
+
 /// Normals of one cloud at core points (section 3.1.2, 6.3).
 struct NormalsResult {
   std::vector<double> normal;        ///< 3 per core point; NaN if not computed

@@ -1,7 +1,7 @@
 #pragma once
 // Per-point uncertainty models beside eq. (1) (section 6.2 of Lague et al. 2013 names its limit):
 // M3C2-PM, precision maps (James, Robson & Smith 2017), and M3C2-EP, error propagation
-// (Winiwarter, Anders & Hoefle 2021). docs/algorithm.md#per-point-uncertainty derives each formula.
+// (Winiwarter, Anders & Hoefle 2021). docs/algorithm.md §6.5 derives each formula.
 
 #include <cstdint>
 #include <span>

@@ -5,6 +5,7 @@
 
 #include <nanobind/nanobind.h>
 #include <nanobind/ndarray.h>
+#include <nanobind/stl/array.h>
 #include <nanobind/stl/function.h>
 #include <nanobind/stl/optional.h>
 #include <nanobind/stl/string.h>
@@ -15,6 +16,7 @@
 #include <cmath>
 #include <memory>
 #include <optional>
+#include <type_traits>
 
 namespace nb = nanobind;
 using namespace nb::literals;
@@ -132,35 +134,68 @@ auto run_engine(nb::object progress, int threads, Fn&& fn) {
   }
 }
 
+nb::ndarray<nb::numpy, std::uint8_t> column_array(std::vector<m3c2::PointStatus>&& s, std::size_t) {
+  return status_array(s);
+}
+
+/// A Result column as numpy: (n,), (n, width), or (n, 3, 3) for the 9 values of a 3x3 matrix.
+template <class T>
+nb::ndarray<nb::numpy, T> column_array(std::vector<T>&& values, std::size_t width) {
+  if (width != 9) return to_numpy(std::move(values), width);
+  auto* owned = new std::vector<T>(std::move(values));
+  nb::capsule owner(owned, [](void* p) noexcept { delete static_cast<std::vector<T>*>(p); });
+  return nb::ndarray<nb::numpy, T>(owned->data(), {owned->size() / 9, 3, 3}, owner);
+}
+
 nb::dict result_dict(m3c2::Result&& r) {
   nb::dict d;
-  d["status"] = status_array(r.status);
-  d["distance"] = to_numpy(std::move(r.distance));
-  d["lod"] = to_numpy(std::move(r.lod));
-  d["significant"] = to_numpy(std::move(r.significant));
-  d["n1"] = to_numpy(std::move(r.n1));
-  d["n2"] = to_numpy(std::move(r.n2));
-  d["sigma1"] = to_numpy(std::move(r.sigma1));
-  d["sigma2"] = to_numpy(std::move(r.sigma2));
-  d["i1"] = to_numpy(std::move(r.i1));
-  d["i2"] = to_numpy(std::move(r.i2));
-  d["normal"] = to_numpy(std::move(r.normal), 3);
-  d["normal_scale"] = to_numpy(std::move(r.normal_scale));
-  d["roughness"] = to_numpy(std::move(r.roughness));
-  if (!r.spread1.empty()) {
-    d["spread1"] = to_numpy(std::move(r.spread1));
-    d["spread2"] = to_numpy(std::move(r.spread2));
-  }
-  if (!r.covariance1.empty()) {
-    const std::size_t n = r.covariance1.size() / 9;
-    auto* c1 = new std::vector<double>(std::move(r.covariance1));
-    auto* c2 = new std::vector<double>(std::move(r.covariance2));
-    nb::capsule o1(c1, [](void* p) noexcept { delete static_cast<std::vector<double>*>(p); });
-    nb::capsule o2(c2, [](void* p) noexcept { delete static_cast<std::vector<double>*>(p); });
-    d["covariance1"] = nb::ndarray<nb::numpy, double>(c1->data(), {n, 3, 3}, o1);
-    d["covariance2"] = nb::ndarray<nb::numpy, double>(c2->data(), {n, 3, 3}, o2);
-  }
+  m3c2::visit_result_fields(r, [&](const char* name, auto& column, std::size_t width, bool optional) {
+    if (!optional || !column.empty()) d[name] = column_array(std::move(column), width);
+  });
   return d;
+}
+
+/// Names of the Result columns that are always present (`optional` false) or only with some
+/// parameters (`optional` true).
+std::vector<std::string> result_fields(bool optional) {
+  std::vector<std::string> names;
+  m3c2::Result r;
+  m3c2::visit_result_fields(r, [&](const char* name, auto&, std::size_t, bool is_optional) {
+    if (is_optional == optional) names.emplace_back(name);
+  });
+  return names;
+}
+
+/// The type of the Params field that `access` reaches.
+template <class Access>
+using FieldType = std::remove_reference_t<std::invoke_result_t<Access, m3c2::Params&>>;
+
+/// Params as a Python class whose properties and pickled state come from m3c2::visit_param_fields,
+/// so that a new field of the struct needs no edit here (docs/architecture.md).
+void bind_params(nb::module_& m) {
+  nb::class_<m3c2::Params> cls(m, "Params");
+  cls.def(nb::init<>());
+  std::vector<std::string> names;
+  m3c2::visit_param_fields([&](const char* name, auto access) {
+    using T = FieldType<decltype(access)>;
+    cls.def_prop_rw(
+        name, [access](const m3c2::Params& p) -> T { return access(p); },
+        [access](m3c2::Params& p, const T& value) { access(p) = value; });
+    names.emplace_back(name);
+  });
+  cls.def("__getstate__", [](const m3c2::Params& p) {
+    nb::dict state;
+    m3c2::visit_param_fields([&](const char* name, auto access) { state[name] = nb::cast(access(p)); });
+    return state;
+  });
+  cls.def("__setstate__", [](m3c2::Params& p, const nb::dict& state) {
+    new (&p) m3c2::Params();
+    m3c2::visit_param_fields([&](const char* name, auto access) {
+      using T = FieldType<decltype(access)>;
+      if (state.contains(name)) access(p) = nb::cast<T>(state[name]);
+    });
+  });
+  m.attr("PARAM_FIELDS") = nb::cast(names);
 }
 
 }  // namespace
@@ -187,7 +222,8 @@ NB_MODULE(_core, m) {
       .value("progressive", m3c2::DepthSearch::kProgressive);
   nb::enum_<m3c2::ScaleSelection>(m, "ScaleSelection")
       .value("most_planar", m3c2::ScaleSelection::kMostPlanar)
-      .value("cloudcompare", m3c2::ScaleSelection::kCloudCompare);
+      .value("cloudcompare", m3c2::ScaleSelection::kCloudCompare)
+      .value("py4dgeo", m3c2::ScaleSelection::kPy4dgeo);
   nb::enum_<m3c2::Lod>(m, "Lod")
       .value("z", m3c2::Lod::kZ)
       .value("t", m3c2::Lod::kT)
@@ -214,61 +250,9 @@ NB_MODULE(_core, m) {
       .value("projected", m3c2::EpLod::kProjected)
       .value("published", m3c2::EpLod::kPublished);
 
-  nb::class_<m3c2::Params>(m, "Params")
-      .def(nb::init<>())
-      .def_rw("normal_diameters", &m3c2::Params::normal_diameters)
-      .def_rw("normal_source", &m3c2::Params::normal_source)
-      .def_rw("scale_selection", &m3c2::Params::scale_selection)
-      .def_rw("min_points_normal", &m3c2::Params::min_points_normal)
-      .def_rw("min_points_multiscale", &m3c2::Params::min_points_multiscale)
-      .def_rw("normal_subsample_spacing", &m3c2::Params::normal_subsample_spacing)
-      .def_prop_rw(
-          "orientation_direction",
-          [](const m3c2::Params& p) {
-            const auto& d = p.orientation.direction;
-            return std::vector<double>{d[0], d[1], d[2]};
-          },
-          [](m3c2::Params& p, const std::vector<double>& d) {
-            if (d.size() != 3) throw m3c2::InvalidArgument("orientation_direction needs 3 values");
-            for (int a = 0; a < 3; ++a) p.orientation.direction[a] = d[a];
-          })
-      .def_prop_rw(
-          "orientation_points", [](const m3c2::Params& p) { return p.orientation.points; },
-          [](m3c2::Params& p, const std::vector<double>& pts) { p.orientation.points = pts; })
-      .def_rw("projection_diameter", &m3c2::Params::projection_diameter)
-      .def_rw("max_depth", &m3c2::Params::max_depth)
-      .def_rw("depth_search", &m3c2::Params::depth_search)
-      .def_rw("first_pass_depth", &m3c2::Params::first_pass_depth)
-      .def_rw("positive_search_only", &m3c2::Params::positive_search_only)
-      .def_rw("statistic", &m3c2::Params::statistic)
-      .def_rw("variance", &m3c2::Params::variance)
-      .def_rw("registration_error", &m3c2::Params::registration_error)
-      .def_rw("confidence", &m3c2::Params::confidence)
-      .def_rw("min_points", &m3c2::Params::min_points)
-      .def_rw("lod", &m3c2::Params::lod)
-      .def_rw("median_lod", &m3c2::Params::median_lod)
-      // The legacy switches of --t-statistic and --bootstrap N, mapped onto `lod`: t_statistic
-      // True is the paper's rule (Lod.auto), False leaves `lod` alone; bootstrap_samples > 0 also
-      // selects Lod.bootstrap (0 leaves `lod` alone).
-      .def_prop_rw(
-          "t_statistic", [](const m3c2::Params& p) { return p.lod == m3c2::Lod::kAuto; },
-          [](m3c2::Params& p, bool on) {
-            if (on) p.lod = m3c2::Lod::kAuto;
-          })
-      .def_prop_rw(
-          "bootstrap_samples", [](const m3c2::Params& p) { return p.bootstrap_samples; },
-          [](m3c2::Params& p, std::uint32_t n) {
-            p.bootstrap_samples = n;
-            if (n > 0) p.lod = m3c2::Lod::kBootstrap;
-          })
-      .def_rw("bootstrap_seed", &m3c2::Params::bootstrap_seed)
-      .def_rw("uncertainty", &m3c2::Params::uncertainty)
-      .def_rw("precision_rule", &m3c2::Params::precision_rule)
-      .def_rw("precision_scale1", &m3c2::Params::precision_scale1)
-      .def_rw("precision_scale2", &m3c2::Params::precision_scale2)
-      .def_rw("ep_covariance", &m3c2::Params::ep_covariance)
-      .def_rw("ep_lod", &m3c2::Params::ep_lod)
-      .def_rw("ep_weights", &m3c2::Params::ep_weights);
+  bind_params(m);
+  m.attr("RESULT_FIELDS") = nb::cast(result_fields(false));
+  m.attr("OPTIONAL_RESULT_FIELDS") = nb::cast(result_fields(true));
 
   nb::exception<m3c2::Cancelled>(m, "Cancelled", PyExc_RuntimeError);
 
@@ -283,6 +267,17 @@ NB_MODULE(_core, m) {
 
   m.def("max_abs_coordinate", &m3c2::max_abs_coordinate, "params"_a,
         "The largest |coordinate| of a cloud compute() indexes with these parameters.");
+  m.def("neighbourhood_reach", &m3c2::neighbourhood_reach, "params"_a,
+        "Largest distance from a core point to a point that can change its result.");
+  m.def("tile_halo", &m3c2::tile_halo, "params"_a, "The halo a tile of core points needs.");
+  m.attr("MAX_CELLS_PER_AXIS") = m3c2::kMaxCellsPerAxis;
+  m.def("index_memory", [] {
+    const m3c2::IndexMemory mem = m3c2::index_memory();
+    nb::dict d;
+    d["bytes_per_point"] = mem.bytes_per_point, d["overhead"] = mem.overhead;
+    d["bytes_per_core_point"] = mem.bytes_per_core_point;
+    return d;
+  });
 
   m.def(
       "compute",

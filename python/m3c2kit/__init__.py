@@ -8,12 +8,12 @@
 D (normal_scale) and d (projection_scale) are diameters; max_depth is a half-length.
 """
 from .api import compare, normals, subsample
-from .errors import M3C2Error, UsageError
+from .errors import Cancelled, M3C2Error, M3C2Warning, UsageError
 from .io import Cloud, info
 from .io import read_cloud as read
 from .result import COLUMNS, STATUS_NAMES, Result
 from .writing import write
 
 __all__ = ["compare", "normals", "subsample", "read", "write", "info", "Cloud", "Result", "COLUMNS",
-           "STATUS_NAMES", "M3C2Error", "UsageError"]
+           "STATUS_NAMES", "M3C2Error", "UsageError", "Cancelled", "M3C2Warning"]
 __version__ = "0.1.0"

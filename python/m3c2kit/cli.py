@@ -11,17 +11,17 @@ import numpy as np
 
 from . import api, raster
 from .analysis.cli import analysis_parsers
-from .cloudcompare_params import read_cloudcompare_params
+from .classify.cli import classify_parsers
 from .errors import M3C2Error, UsageError
 from .io import info as file_info
 from .io import read_cloud, write_cloud_table
 from .io.crs import crs_label, same_crs
 from .progress import ProgressBar
 from .report.outputs import write_compare_outputs
+from .settings import by_name, parameters_of
+from .settings.cloudcompare_params import read_cloudcompare_params
 from .summary import summary_lines
 
-SCALE_HELP = ("D, the normal scale: DIAMETER of the sphere of neighbours (as in the paper and CloudCompare). "
-              "One value, a list '0.5,1,2' or a range 'MIN:MAX:STEP' (multi-scale: the most planar scale wins)")
 
 
 class Interrupted(M3C2Error):
@@ -43,41 +43,18 @@ def _compare_parser(sub) -> None:
     p.add_argument("-o", "--output", type=Path, required=True, help="output file: .las .laz .ply .csv .txt")
     core = p.add_mutually_exclusive_group()
     core.add_argument("--core", type=Path, help="core points file (default: every reference point)")
-    core.add_argument("--core-spacing", type=float, help="core points = reference subsampled to this minimum spacing")
     core.add_argument("--grid", type=float, metavar="CELL",
                       help="2D mode (section 6.1.2): core points on a CELL grid over the reference, vertical normals, "
                            "d = 1.1 CELL unless --projection-scale; also writes GeoTIFF rasters <stem>_distance.tif, "
                            "_lod, _significant, _n1, _n2, _status beside -o (docs/report.md)")
-    p.add_argument("--normal-scale", help=SCALE_HELP)
-    p.add_argument("--projection-scale", type=float, help="d: DIAMETER of the projection cylinder")
-    p.add_argument("--max-depth", type=float, help="half-length of the cylinder along the normal, on each side")
-    p.add_argument("--registration-error", type=float, help="reg of eq. (1), same unit as the clouds (default 0)")
-    p.add_argument("--orient", help="normal orientation: +z (default) -z +x -x +y -y, a point X,Y,Z, or a FILE of "
-                                    "points (scanner positions; E57 scan positions by default)")
-    p.add_argument("--normal-source", choices=api.NORMAL_SOURCES, help="where normals come from (default reference)")
+    add_table_options(p, "compare", groups={"core_spacing": core})
     p.add_argument("--core-normals", type=Path, help="with --normal-source core: file of nx,ny,nz per core point "
                                                      "(default: the core file's normal fields)")
-    p.add_argument("--median", action="store_true", default=None, help="median and IQR instead of mean and std")
-    p.add_argument("--confidence", type=float, help="confidence level of the LOD (default 0.95)")
-    p.add_argument("--min-points", type=int, help="points needed in each cylinder for a LOD (default 4)")
-    p.add_argument("--t-statistic", action="store_true", default=None,
-                   help="Welch t instead of z when n1 or n2 < 30 (eq. 2)")
-    p.add_argument("--bootstrap", type=int, help="LOD from N bootstrap resamples (Appendix B)")
-    p.add_argument("--seed", type=int, help="bootstrap seed (default 0)")
-    p.add_argument("--first-pass-depth", type=float,
-                   help="two-pass depth search (5.3): short half-length first, --max-depth only where it finds nothing")
-    p.add_argument("--depth-search", choices=api.DEPTH_SEARCHES, help="single (default), two-pass or progressive")
-    p.add_argument("--positive-search-only", action="store_true", default=None, help="search only along +normal")
-    p.add_argument("--normal-subsample", type=float, help="compute normals on the cloud subsampled to this spacing")
-    p.add_argument("--compat", choices=["cloudcompare"], help="CloudCompare qM3C2 semantics (docs/validation.md)")
     p.add_argument("--params", type=Path, help="CloudCompare qM3C2 parameter file; command-line options win")
     p.add_argument("--projected", action="store_true", help="also write the projected positions x1..z2")
-    p.add_argument("--position", choices=["core", "reference", "compared"],
-                   help="where output rows are placed (default core)")
     p.add_argument("--drop-nonfinite", action="store_true", help="drop points with NaN/Inf coordinates")
     p.add_argument("--ignore-crs", action="store_true",
                    help="compare clouds whose CRS or units differ (default: an error naming both)")
-    p.add_argument("--threads", type=int, help="threads (default all); results are identical for any count")
     p.add_argument("--report", type=Path, metavar="HTML", help="also write a self-contained HTML report (docs/report.md)")
     p.add_argument("--report-png", type=Path, metavar="PREFIX", help="also write the report's figures as PREFIX_<figure>.png")
     p.add_argument("--tile-size", type=float, metavar="S",
@@ -93,15 +70,26 @@ def _compare_parser(sub) -> None:
     p.set_defaults(run=run_compare)
 
 
+def add_table_options(parser, command: str, groups: dict | None = None) -> None:
+    """One option per parameter of `command` in the parameter table (m3c2kit.settings.table).
+    Every default is None (not given): the table fills it in, so --params values and
+    --compat defaults can tell what the user said."""
+    for param in parameters_of(command):
+        target = (groups or {}).get(param.name, parser)
+        if param.cli_type is None:
+            target.add_argument(param.flag, dest=param.name, action="store_true", default=None,
+                                help=param.help_text())
+        else:
+            target.add_argument(param.flag, dest=param.name, type=param.cli_type, choices=param.choices,
+                                metavar=param.metavar, help=param.help_text())
+
+
 def _normals_parser(sub) -> None:
     p = sub.add_parser("normals", help="normals at the most planar scale, with roughness (section 6.3)")
     p.add_argument("input", type=Path)
     p.add_argument("-o", "--output", type=Path, required=True)
-    p.add_argument("--normal-scale", required=True, help=SCALE_HELP)
     p.add_argument("--core", type=Path, help="core points (default: every point)")
-    p.add_argument("--orient", help="+z (default) -z +x -x +y -y, X,Y,Z or a FILE of points")
-    p.add_argument("--normal-subsample", type=float)
-    p.add_argument("--threads", type=int, default=0)
+    add_table_options(p, "normals")
     p.add_argument("--quiet", action="store_true")
     p.set_defaults(run=run_normals)
 
@@ -123,14 +111,9 @@ def _info_parser(sub) -> None:
 def make_parser() -> argparse.ArgumentParser:
     parser = ArgumentParser(prog="m3c2", description="M3C2 point-cloud change detection (Lague et al. 2013)")
     sub = parser.add_subparsers(dest="command", required=True, parser_class=ArgumentParser)
-    for build in (_compare_parser, _normals_parser, _subsample_parser, _info_parser, analysis_parsers):
+    for build in (_compare_parser, _normals_parser, _subsample_parser, _info_parser, analysis_parsers, classify_parsers):
         build(sub)
     return parser
-
-
-COMPARE_OPTIONS = ("normal_scale", "projection_scale", "max_depth", "registration_error", "orient", "normal_source",
-                   "median", "confidence", "min_points", "t_statistic", "bootstrap", "seed", "first_pass_depth",
-                   "depth_search", "positive_search_only", "normal_subsample", "compat", "core_spacing")
 
 
 def compare_settings(args) -> dict:
@@ -139,14 +122,12 @@ def compare_settings(args) -> dict:
     if args.params is not None:
         settings.update(read_cloudcompare_params(args.params))
         settings.setdefault("compat", "cloudcompare")
-    for name in COMPARE_OPTIONS + ("threads", "position"):
-        value = getattr(args, name, None)
+    for param in parameters_of("compare"):
+        value = getattr(args, param.name, None)
         if value is not None:
-            settings[name] = value
+            settings[param.name] = value
     if args.core is not None:
         settings.pop("core_spacing", None)  # as CloudCompare: given core points win over subsampling
-    if "proj_dest" in settings:
-        settings.setdefault("position", settings.pop("proj_dest"))
     for required, flag in (("projection_scale", "--projection-scale"), ("max_depth", "--max-depth")):
         if required not in settings:
             raise UsageError(f"{flag} is required (or a --params file that sets it)")
@@ -250,11 +231,11 @@ def result_warnings(result, min_points: int, max_depth=None, projection_scale=No
 
 
 def _print_warnings(args, settings: dict, result, *clouds) -> None:
-    defaults = api.CLOUDCOMPARE_DEFAULTS if settings.get("compat") == "cloudcompare" else api.DEFAULTS
     min_points = settings.get("min_points")
     lines = [f"note: dropped {c.dropped_nonfinite} points with non-finite coordinates from {c.path}"
              for c in clouds if getattr(c, "dropped_nonfinite", 0)]
-    lines += result_warnings(result, defaults["min_points"] if min_points is None else int(min_points),
+    lines += result_warnings(result, by_name()["min_points"].default_for(settings.get("compat")) if min_points is None
+                             else int(min_points),
                              settings.get("max_depth"), settings.get("projection_scale"))
     for line in lines:
         if args.quiet:
@@ -279,9 +260,8 @@ def run_normals(args) -> int:
     cloud = _read(args.input, args)
     core = _read(args.core, args).xyz if args.core is not None else None
     bar = ProgressBar("normals", enabled=not args.quiet)
-    out = api.normals(cloud, core, normal_scale=args.normal_scale, orient=args.orient or "+z",
-                      normal_subsample=args.normal_subsample, threads=args.threads, progress=bar.update,
-                      read_points=lambda p: _read(p, args).xyz)
+    given = {param.name: getattr(args, param.name) for param in parameters_of("normals")}
+    out = api.normals(cloud, core, progress=bar.update, read_points=lambda p: _read(p, args).xyz, **given)
     bar.close()
     n = out["normal"]
     fields = {"nx": n[:, 0], "ny": n[:, 1], "nz": n[:, 2], "normal_scale": out["normal_scale"],

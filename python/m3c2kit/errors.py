@@ -8,8 +8,8 @@ alone tells the user which file to look at.
 """
 from __future__ import annotations
 
-__all__ = ["M3C2Error", "UsageError", "CloudReadError", "CloudWriteError", "M3C2Warning", "printable",
-           "QuantisationWarning"]
+__all__ = ["M3C2Error", "UsageError", "CloudReadError", "CloudWriteError", "Cancelled", "M3C2Warning",
+           "QuantisationWarning", "printable"]
 
 
 class M3C2Error(Exception):
@@ -31,8 +31,12 @@ class CloudWriteError(M3C2Error):
     """
 
 
+class Cancelled(M3C2Error):
+    """The progress callback stopped a run by returning False (exit status 1)."""
+
+
 class M3C2Warning(UserWarning):
-    """A legitimate but lossy or suspicious step; the command line prints ``m3c2: warning: ...``."""
+    """A run that is legitimate but likely mis-parameterised (m3c2kit.diagnostics, docs/errors.md)."""
 
 
 class QuantisationWarning(M3C2Warning):

@@ -30,9 +30,10 @@ from typing import Iterator
 
 import numpy as np
 
-from . import _core
+from . import engine
 from .errors import CloudWriteError, UsageError
 from .io.crs import looks_like_wkt
+from .optional import require
 
 __all__ = ["Grid", "RASTERS", "PROJECTION_FACTOR", "grid_core_points", "grid_mode", "grid_settings",
            "raster_paths", "rasters", "write_rasters", "staged_outputs"]
@@ -70,7 +71,7 @@ class Grid:
     @property
     def transform(self):
         """GeoTIFF geotransform: the top-left corner (x0, max y), rows going DOWN (south)."""
-        from rasterio.transform import Affine
+        Affine = require("rasterio.transform", extra="raster", purpose="GeoTIFF rasters (--grid)").Affine
         return Affine(self.cell, 0.0, self.x0, 0.0, -self.cell, self.y0 + self.rows * self.cell)
 
     def image_rows(self) -> np.ndarray:
@@ -87,10 +88,7 @@ class Grid:
 def grid_core_points(points, cell: float) -> Grid:
     """One core point per non-empty `cell`-sized cell over the XY extent of `points`."""
     xyz = np.ascontiguousarray(getattr(points, "xyz", points), dtype=np.float64)
-    try:
-        g = _core.grid_core_points(xyz, float(cell))
-    except ValueError as e:
-        raise UsageError(f"--grid: {e}") from None
+    g = engine.grid_core_points(xyz, float(cell), "--grid")
     return Grid(float(g["x0"]), float(g["y0"]), float(g["cell"]), int(g["rows"]), int(g["cols"]),
                 np.asarray(g["core_points"]).reshape(-1, 3), np.asarray(g["row"]), np.asarray(g["col"]))
 
@@ -125,7 +123,7 @@ def grid_mode(args) -> float | None:
 def _params_set(args, name: str) -> bool:
     if getattr(args, "params", None) is None:
         return False
-    from .cloudcompare_params import read_cloudcompare_params
+    from .settings.cloudcompare_params import read_cloudcompare_params
     return name in read_cloudcompare_params(args.params)
 
 
@@ -179,7 +177,7 @@ def rasterio_crs(crs: str | None):
     or GDAL cannot read it."""
     if not crs:
         return None, "the reference cloud has no CRS"
-    from rasterio.crs import CRS
+    CRS = require("rasterio.crs", extra="raster", purpose="reading a CRS for the GeoTIFF rasters").CRS
     from rasterio.errors import CRSError
     try:
         return (CRS.from_wkt(crs) if looks_like_wkt(crs) else CRS.from_string(crs)), None
@@ -193,7 +191,7 @@ def write_rasters(paths: dict[str, Path], images: dict[str, np.ndarray], grid: G
     the grid's geotransform, nodata and band description, and the CRS `crs` (Cloud.crs). Without
     a usable CRS the rasters are written without one and `warn` (default: print to stderr) is
     told, once. `targets` are the final names used in messages (paths may be temporary)."""
-    import rasterio
+    rasterio = require("rasterio", extra="raster", purpose="writing GeoTIFF rasters (--grid)")
 
     rio_crs, why = rasterio_crs(crs)
     if rio_crs is None:

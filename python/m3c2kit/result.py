@@ -1,51 +1,35 @@
 """The result of an M3C2 run as numpy arrays, and its table of output columns."""
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import field, make_dataclass
 
 import numpy as np
 
-from . import _core
+from .engine import RESULT_FIELDS, STATUS_NAMES
 
 #: Output columns in every format, in this order (a contract: see docs/cli.md).
 COLUMNS = ("x", "y", "z", "distance", "lod", "significant", "n1", "n2", "sigma1", "sigma2",
            "nx", "ny", "nz", "normal_scale", "roughness", "status")
 PROJECTED_COLUMNS = ("x1", "y1", "z1", "x2", "y2", "z2")
 
-#: Reason codes of the `status` column.
-STATUS_NAMES = tuple(_core.status_names())
+#: Reason codes of the `status` column: STATUS_NAMES (the engine's, by code).
 STATUS_OK = 0
 STATUS_TOO_FEW_POINTS_FOR_LOD = STATUS_NAMES.index("too_few_points_for_lod")
 _NORMAL_FAILURES = (STATUS_NAMES.index("too_few_normal_points"), STATUS_NAMES.index("degenerate_normal"))
 
 
-@dataclass
-class Result:
+class _ResultMethods:
     """Per-core-point M3C2 output. Index i of every array is core point i.
 
     distance = i2 - i1 along the oriented normal (NaN where not computed); lod is the level of
     detection at the requested confidence (NaN where n1 or n2 < min_points); significant is
     True iff n1, n2 >= min_points and |distance| > lod; status says why anything is NaN.
+    Its arrays are the engine's Result fields (m3c2kit.engine.RESULT_FIELDS), plus ``core`` (the
+    core points) and ``params`` (what the run was asked).
     """
 
-    core: np.ndarray
-    distance: np.ndarray
-    lod: np.ndarray
-    significant: np.ndarray
-    n1: np.ndarray
-    n2: np.ndarray
-    sigma1: np.ndarray
-    sigma2: np.ndarray
-    i1: np.ndarray
-    i2: np.ndarray
-    normal: np.ndarray
-    normal_scale: np.ndarray
-    roughness: np.ndarray
-    status: np.ndarray
-    params: dict = field(default_factory=dict)
-
     @classmethod
-    def from_engine(cls, core: np.ndarray, raw: dict, params: dict) -> "Result":
+    def from_engine(cls, core: np.ndarray, raw: dict, params: dict):
         raw = dict(raw)
         raw["significant"] = raw["significant"].astype(bool)
         return cls(core=core, params=params, **raw)
@@ -64,14 +48,22 @@ class Result:
         offset = self.i1 if which == 1 else self.i2
         return self.core + offset[:, None] * self.normal
 
-    def columns(self, projected: bool = False, position: str = "core") -> dict[str, np.ndarray]:
+    def columns(self, projected: bool = False, position: str = "core",
+                fallback: str = "nan") -> dict[str, np.ndarray]:
         """The output table: name -> column. NaN wherever a value was not computed, including
-        `significant` where there is no LOD and n1/n2 where no cylinder was searched."""
+        `significant` where there is no LOD and n1/n2 where no cylinder was searched.
+
+        position "reference" / "compared" places each row at core + i_k * normal on that cloud;
+        where there is none (no normal, or an empty cylinder: the `status` column says which) the
+        row's x, y, z are NaN (fallback "nan", the default), or its core point (fallback "core",
+        the behaviour before issue 14; the status still tells these rows apart)."""
+        if fallback not in ("nan", "core"):
+            raise ValueError(f"fallback must be 'nan' or 'core', got {fallback!r}")
         xyz = self.core
         if position != "core":
-            # Where there is no projection the row stays at its core point, never at NaN.
             proj = self.projected(1 if position == "reference" else 2)
-            xyz = np.where(np.isnan(proj), self.core, proj)
+            missing = np.isnan(proj).any(axis=1, keepdims=True)
+            xyz = np.where(missing, self.core if fallback == "core" else np.nan, proj)
         searched = ~np.isin(self.status, _NORMAL_FAILURES)
         significant = np.where(np.isnan(self.lod), np.nan, self.significant.astype(float))
         table = {
@@ -91,3 +83,10 @@ class Result:
     def status_counts(self) -> dict[str, int]:
         codes, counts = np.unique(self.status, return_counts=True)
         return {STATUS_NAMES[c]: int(n) for c, n in zip(codes, counts)}
+
+
+#: The Result class: ``core``, one array per engine Result field, ``params``.
+Result = make_dataclass("Result", [("core", np.ndarray)] + [(name, np.ndarray) for name in RESULT_FIELDS]
+                        + [("params", dict, field(default_factory=dict))], bases=(_ResultMethods,),
+                        namespace={"__module__": __name__})
+Result.__doc__ = _ResultMethods.__doc__

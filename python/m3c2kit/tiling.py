@@ -35,10 +35,13 @@ from typing import Callable
 
 import numpy as np
 
-from . import _core, api
+from . import api, engine
 from .errors import M3C2Error, UsageError
 from .io.streaming import DEFAULT_CHUNK, PointSource, TableWriter, _in_box
+from .io.fields import typed_columns
+from .optional import require
 from .result import Result
+from .settings import engine_params, resolve
 
 __all__ = ["halo", "run_tiled", "streaming_subsample", "parse_memory", "choose_tile_size", "plan_memory",
            "MemoryPlan", "compute_tile", "TileTask", "TiledReport", "BYTES_PER_POINT", "BYTES_PER_CORE",
@@ -69,37 +72,9 @@ MIN_CHUNK = 1 << 14
 #: The streaming and merge chunks take at most this share of the memory left beyond the base.
 CHUNK_SHARE = 0.25
 
-_PARAM_FIELDS = ("normal_diameters", "normal_source", "scale_selection", "min_points_normal",
-                 "min_points_multiscale", "normal_subsample_spacing", "orientation_direction",
-                 "orientation_points", "projection_diameter", "max_depth", "depth_search", "first_pass_depth",
-                 "positive_search_only", "statistic", "variance", "registration_error", "confidence",
-                 "min_points", "t_statistic", "bootstrap_samples", "bootstrap_seed")
-
-
-def params_to_dict(p) -> dict:
-    """The engine's Params as plain picklable values (to send to Dask workers)."""
-    return {name: getattr(p, name) for name in _PARAM_FIELDS}
-
-
-def params_from_dict(d: dict):
-    p = _core.Params()
-    for name, value in d.items():
-        setattr(p, name, value)
-    return p
-
-
 def halo(params) -> float:
-    """Largest distance from a core point to a point that can change its result: the normal
-    sphere (largest D / 2) or the cylinder (radius d / 2, half-length max_depth, any direction)."""
-    sphere = max(params.normal_diameters) / 2 if len(params.normal_diameters) else 0.0
-    cylinder = math.hypot(params.projection_diameter / 2, params.max_depth)
-    return max(sphere, cylinder)
-
-
-def _padded(h: float) -> float:
-    # Extra points never change a result (membership is decided by the exact predicates), so a
-    # generous hair of margin costs nothing and absorbs any rounding of the predicates.
-    return h * (1 + 1e-6) + 1e-6
+    """Largest distance from a core point to a point that can change its result (the engine's)."""
+    return engine.neighbourhood_reach(params)
 
 
 _UNITS = {"": 1, "b": 1, "k": 1e3, "kb": 1e3, "m": 1e6, "mb": 1e6, "g": 1e9, "gb": 1e9, "t": 1e12, "tb": 1e12,
@@ -203,7 +178,7 @@ def _release_memory() -> None:
 # --------------------------------------------------------------------------- core points
 
 def streaming_subsample(source: PointSource, spacing: float, chunk_size: int = DEFAULT_CHUNK) -> np.ndarray:
-    """The reference subsampled to a minimum spacing, exactly as ``_core.subsample_min_spacing``
+    """The reference subsampled to a minimum spacing, exactly as ``engine.subsample_min_spacing``
     on the whole cloud, in one streaming pass (greedy in file order).
 
     Each chunk is run through the engine after the already kept points within 2.5 spacings of
@@ -223,7 +198,7 @@ def streaming_subsample(source: PointSource, spacing: float, chunk_size: int = D
             mask[0] = False
             near = np.concatenate([first, kept[mask]])
         pts = np.ascontiguousarray(np.concatenate([near, xyz]))
-        idx = np.asarray(_core.subsample_min_spacing(pts, spacing))
+        idx = engine.subsample_min_spacing(pts, spacing, "--core-spacing")
         prefix = len(near)
         if prefix and (len(idx) < prefix or not np.array_equal(idx[:prefix], np.arange(prefix))):
             raise M3C2Error("internal error: streaming subsampling diverged from the global one")
@@ -282,7 +257,7 @@ class TileTask:
     far_point: tuple  # stands in for an empty cloud: farther than the halo from every core point
 
 
-def compute_tile(task: TileTask, params: dict, threads: int = 0) -> dict:
+def compute_tile(task: TileTask, params, threads: int = 0) -> dict:
     """Runs the engine on one tile; returns its result arrays (engine's names) plus ``tile``,
     ``n`` and ``core`` (the tile's core points, in core order)."""
     core = np.fromfile(task.core_path, dtype=np.float64).reshape(-1, 3)
@@ -303,15 +278,13 @@ def compute_tile(task: TileTask, params: dict, threads: int = 0) -> dict:
             threads = get_worker().state.nthreads
         except Exception:
             threads = 0
-    raw = api._engine_call(_core.compute, clouds[0], clouds[1], core, params_from_dict(params), normals,
-                           threads=int(threads))
+    raw = engine.compute(clouds[0], clouds[1], core, params, normals, threads=int(threads))
     out = dict(raw)
     out.update(tile=task.tile, n=len(core), core=core, n_reference=len(clouds[0]), n_compared=len(clouds[1]))
     return out
 
 
-_RESULT_KEYS = ("distance", "lod", "significant", "n1", "n2", "sigma1", "sigma2", "i1", "i2", "normal",
-                "normal_scale", "roughness", "status")
+_RESULT_KEYS = engine.RESULT_FIELDS
 
 
 def _result_dtype(out: dict) -> np.dtype:
@@ -435,22 +408,23 @@ def run_tiled(reference, compared, *, output=None, core=None, core_spacing=None,
     t_start = time.perf_counter()
     log = log or (lambda s: None)
     report = TiledReport()
-    engine = api.build_params(normal_scale=normal_scale, projection_scale=projection_scale, max_depth=max_depth,
-                              **params)
-    if engine.normal_subsample_spacing > 0:
+    read_points = params.pop("read_points", None)
+    given = dict(params, normal_scale=normal_scale, projection_scale=projection_scale, max_depth=max_depth)
+    values = resolve(given, "compare", api=True)
+    engine_p = engine_params(values, "compare", read_points)
+    if engine_p.normal_subsample_spacing > 0:
         raise UsageError("--normal-subsample cannot be combined with tiling (--tile-size, --memory-limit, "
                          "--dask-scheduler): the subsampled normal cloud depends on the whole cloud's order, "
                          "so tiles would not reproduce the untiled result")
-    if engine.bootstrap_samples > 0:
+    if values["lod"] == "bootstrap":
         raise UsageError("--bootstrap cannot be combined with tiling: the bootstrap stream is seeded by the "
                          "core point's index in the run, which a tile does not know")
     if tile_size is None and memory_limit is None:
         raise UsageError("tiling needs --tile-size or --memory-limit")
     if tile_size is not None and not (float(tile_size) > 0 and math.isfinite(float(tile_size))):
         raise UsageError(f"--tile-size must be a positive number, got {tile_size!r}")
-    pdict = params_to_dict(engine)
-    h = halo(engine)
-    hp = _padded(h)
+    h = halo(engine_p)
+    hp = engine.tile_halo(engine_p)
     report.halo = h
 
     ref_src = reference if isinstance(reference, PointSource) else PointSource(reference, drop_nonfinite=drop_nonfinite)
@@ -467,7 +441,7 @@ def run_tiled(reference, compared, *, output=None, core=None, core_spacing=None,
 
     # 1. core points
     normals_arr = None
-    if params.get("normal_source") == "core":
+    if values["normal_source"] == "core":
         if core_normals is None:
             raise UsageError("--normal-source core needs core_normals (one normal per core point)")
         normals_arr = api.as_points("core_normals", core_normals)
@@ -538,13 +512,12 @@ def run_tiled(reference, compared, *, output=None, core=None, core_spacing=None,
         work = Path(work_dir)
         work.mkdir(parents=True, exist_ok=True)
     try:
-        return _run_in(work, report, ref_src, cmp_src, cores, normals_arr is not None, size, hp, pdict,
+        return _run_in(work, report, ref_src, cmp_src, cores, normals_arr is not None, size, hp, engine_p,
                        output=output, dask_scheduler=dask_scheduler, client=client, threads=threads,
                        projected=projected, position=position, return_result=return_result,
                        origin=origin, stream_rows=stream_rows, merge_rows=merge_rows, retries=retries,
                        task_fn=task_fn or compute_tile, log=log,
-                       record=dict(params, normal_scale=list(engine.normal_diameters),
-                                   projection_scale=projection_scale, max_depth=max_depth), t_start=t_start)
+                       record=api.run_record(given, engine_p), t_start=t_start)
     finally:
         if own_dir:
             shutil.rmtree(work, ignore_errors=True)
@@ -633,7 +606,7 @@ def _distribute(src: PointSource, spill: "_Spills", ids: dict, lo, hi, origin, s
 
 
 def _run_in(work: Path, report: TiledReport, ref_src, cmp_src, cores: _CoreStream, with_normals: bool, size: float,
-            hp: float, pdict: dict, *, output, dask_scheduler, client, threads, projected, position,
+            hp: float, engine_p, *, output, dask_scheduler, client, threads, projected, position,
             return_result, origin, stream_rows, merge_rows, retries, task_fn, log, record, t_start) -> TiledReport:
     # Each phase runs in its own function, so that its buffers are gone (and handed back to the
     # system, _release_memory) before the next phase's peak.
@@ -700,10 +673,10 @@ def _run_in(work: Path, report: TiledReport, ref_src, cmp_src, cores: _CoreStrea
 
     if dask_scheduler is not None or client is not None:
         report.dask = True
-        _run_dask(tasks, pdict, threads, retries, task_fn, accept, dask_scheduler, client, report, log)
+        _run_dask(tasks, engine_p, threads, retries, task_fn, accept, dask_scheduler, client, report, log)
     else:
         for i, task in enumerate(tasks):
-            accept(task_fn(task, pdict, threads))
+            accept(task_fn(task, engine_p, threads))
             _release_memory()
             if (i + 1) % max(1, n_tiles // 20) == 0:
                 log(f"tile {i + 1}/{n_tiles}")
@@ -727,8 +700,9 @@ def _run_in(work: Path, report: TiledReport, ref_src, cmp_src, cores: _CoreStrea
     return report
 
 
-def _run_dask(tasks, pdict, threads, retries, task_fn, accept, address, client, report, log) -> None:
-    from distributed import Client, as_completed
+def _run_dask(tasks, engine_p, threads, retries, task_fn, accept, address, client, report, log) -> None:
+    distributed = require("distributed", extra="dask", purpose="running on a Dask cluster (--dask-scheduler)")
+    Client, as_completed = distributed.Client, distributed.as_completed
     own = client is None
     if own:
         try:
@@ -746,7 +720,7 @@ def _run_dask(tasks, pdict, threads, retries, task_fn, accept, address, client, 
             task = next(pending, None)
             if task is None:
                 return False
-            futures.add(client.submit(task_fn, task, pdict, threads, key=f"m3c2-tile-{run_id}-{task.tile}",
+            futures.add(client.submit(task_fn, task, engine_p, threads, key=f"m3c2-tile-{run_id}-{task.tile}",
                                       retries=retries, pure=False))
             return True
 
@@ -820,7 +794,7 @@ def _merge(work: Path, result_spill: _Spills, dtype: np.dtype, counts, n_core: i
         if writer is not None:
             table = chunk.columns(projected=projected, position=position)
             xyz = np.column_stack([table.pop("x"), table.pop("y"), table.pop("z")])
-            writer.write(xyz, table)
+            writer.write(xyz, typed_columns(table))  # the stored types of m3c2kit.write
             del xyz, table
         if return_result:
             gathered.append(chunk)

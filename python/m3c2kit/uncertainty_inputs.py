@@ -1,5 +1,5 @@
 """Inputs of the per-point uncertainty models (``uncertainty`` = ``pm`` or ``ep``) and the one
-call into the engine that takes them (docs/algorithm.md#per-point-uncertainty).
+call into the engine that takes them (docs/algorithm.md §6.5).
 
 M3C2-PM (James et al. 2017) reads three precision fields per cloud (``--precision-fields``,
 default ``sx,sy,sz``: LAS extra bytes, PLY properties or ASCII columns, through the readers'
@@ -9,8 +9,7 @@ default ``sx,sy,sz``: LAS extra bytes, PLY properties or ASCII columns, through 
 (``--transform``), its 12x12 alignment covariance (``--alignment-covariance``) and the reduction
 point (``--reduction-point``).
 
-This module is the only one here that calls ``_core`` for them, so that it moves to the engine
-facade (issue 12) in one piece.
+The engine call goes through the facade (m3c2kit.engine), which translates its errors.
 """
 from __future__ import annotations
 
@@ -21,7 +20,7 @@ from pathlib import Path
 
 import numpy as np
 
-from . import _core
+from . import engine
 from .errors import UsageError
 
 __all__ = ["UNCERTAINTIES", "EpInputs", "precision_array", "scan_position_ids", "load_scan_positions",
@@ -54,7 +53,9 @@ def scan_position_ids(fields: dict, name: str = "point_source_id", *, what: str 
     return np.ascontiguousarray(values.astype(np.uint32))
 
 
-def _row(sid, entry: dict, source: str) -> list[float]:
+def _row(sid, entry: dict, source: str, poses=None) -> list[float]:
+    if "origin" not in entry and poses is not None and 1 <= int(sid) <= len(poses):
+        entry = {**entry, "origin": list(poses[int(sid) - 1])}  # the E57 scan's pose
     for key in ("origin", *_TABLE_KEYS):
         if key not in entry:
             raise UsageError(f"{source}: scan position {sid} has no {key!r}")
@@ -68,11 +69,15 @@ def _row(sid, entry: dict, source: str) -> list[float]:
         raise UsageError(f"{source}: scan position {sid}: {e}") from None
 
 
-def load_scan_positions(path) -> np.ndarray:
+def load_scan_positions(path, poses=None) -> np.ndarray:
     """The scan-position table (K, 8): id, origin x, y, z, sigma_range, sigma_range_ppm, sigma_scan,
     sigma_yaw. JSON as py4dgeo's sps.json ``{"1": {"origin": [x, y, z], "sigma_range": ..,
     "sigma_scan": .., "sigma_yaw": ..}, ...}`` (optional "sigma_range_ppm"), or CSV with a header
-    ``id,x,y,z,sigma_range,sigma_scan,sigma_yaw[,sigma_range_ppm]``. Angles in radians."""
+    ``id,x,y,z,sigma_range,sigma_scan,sigma_yaw[,sigma_range_ppm]``. Angles in radians.
+
+    ``poses`` (an E57 cloud's ``scan_positions``, one row per scan): an entry without an origin
+    (JSON: no "origin"; CSV: x, y, z empty) takes the pose of scan `id` (E57 scans counted from 1,
+    as the reader's ``scan_index`` field), so that the file only gives the sigmas."""
     source = str(path)
     try:
         text = Path(path).read_text()
@@ -87,7 +92,7 @@ def load_scan_positions(path) -> np.ndarray:
         for sid, entry in table.items():
             if not str(sid).isdigit() or not isinstance(entry, dict):
                 raise UsageError(f"--scan-positions {source}: keys must be integer ids and values objects, got {sid!r}")
-            rows.append(_row(sid, entry, source))
+            rows.append(_row(sid, entry, source, poses))
     else:
         reader = csv.DictReader(text.splitlines())
         need = {"id", "x", "y", "z", *_TABLE_KEYS}
@@ -98,9 +103,10 @@ def load_scan_positions(path) -> np.ndarray:
             rec = {k.strip(): v for k, v in rec.items()}
             if not str(rec["id"]).strip().isdigit():
                 raise UsageError(f"--scan-positions {source}: ids must be integers, got {rec['id']!r}")
-            rows.append(_row(rec["id"].strip(), {"origin": [rec["x"], rec["y"], rec["z"]],
-                                                 **{k: rec[k] for k in _TABLE_KEYS},
-                                                 "sigma_range_ppm": rec.get("sigma_range_ppm") or 0.0}, source))
+            entry = {**{k: rec[k] for k in _TABLE_KEYS}, "sigma_range_ppm": rec.get("sigma_range_ppm") or 0.0}
+            if any(str(rec[c] or "").strip() for c in "xyz") or poses is None:
+                entry["origin"] = [rec["x"], rec["y"], rec["z"]]
+            rows.append(_row(rec["id"].strip(), entry, source, poses))
     if not rows:
         raise UsageError(f"--scan-positions {source}: no scan position")
     return np.ascontiguousarray(np.array(rows, dtype=np.float64).reshape(-1, 8))
@@ -174,11 +180,8 @@ def compute(reference, compared, core_points, params, *, core_normals=None, thre
                   transform_applied=bool(ep.transform_applied))
         if ep.alignment_covariance is not None:
             kw["alignment_covariance"] = np.ascontiguousarray(ep.alignment_covariance, dtype=np.float64)
-    try:
-        return _core.compute(np.ascontiguousarray(reference, dtype=np.float64),
-                             np.ascontiguousarray(compared, dtype=np.float64),
-                             np.ascontiguousarray(core_points, dtype=np.float64), params,
-                             None if core_normals is None else np.ascontiguousarray(core_normals, dtype=np.float64),
-                             threads=threads, progress=progress, covariances=covariances, **kw)
-    except ValueError as e:  # the engine's InvalidArgument
-        raise UsageError(str(e)) from None
+    return engine.compute(np.ascontiguousarray(reference, dtype=np.float64),
+                          np.ascontiguousarray(compared, dtype=np.float64),
+                          np.ascontiguousarray(core_points, dtype=np.float64), params,
+                          None if core_normals is None else np.ascontiguousarray(core_normals, dtype=np.float64),
+                          threads=threads, progress=progress, covariances=covariances, **kw)

@@ -7,8 +7,8 @@ re-raises it and the fuzzer reports the input.
 
     ascii_reader   m3c2kit.io.read_cloud on a .xyz/.csv/.txt/.pts file  -> CloudReadError only
     ply_reader     m3c2kit.io.read_cloud on a .ply file                  -> CloudReadError only
-    cc_params      m3c2kit.cloudcompare_params.read_cloudcompare_params  -> UsageError only
-    cli_args       cli.make_parser().parse_args + cli.compare_settings + api.build_params and the
+    cc_params      m3c2kit.settings.cloudcompare_params.read_cloudcompare_params  -> UsageError only
+    cli_args       cli.make_parser().parse_args + cli.compare_settings + settings.build_params and the
                    option parsers of m3c2kit.options                      -> M3C2Error (UsageError:
                    exit 2), or SystemExit(0) for --help
 
@@ -33,8 +33,10 @@ except ImportError:  # pragma: no cover
 
 import numpy as np  # noqa: E402
 
-from m3c2kit import api, cli, options  # noqa: E402
-from m3c2kit.cloudcompare_params import read_cloudcompare_params  # noqa: E402
+from m3c2kit import api, cli  # noqa: E402
+from m3c2kit.settings import build_params, parameters_of  # noqa: E402
+from m3c2kit.settings.parsers import positive  # noqa: E402
+from m3c2kit.settings.cloudcompare_params import read_cloudcompare_params  # noqa: E402
 from m3c2kit.errors import CloudReadError, M3C2Error, UsageError  # noqa: E402
 from m3c2kit.io import read_cloud  # noqa: E402
 
@@ -82,7 +84,7 @@ def ply_reader(data: bytes) -> None:
 
 _CC_TYPES = {"normal_source": str, "projection_scale": float, "max_depth": float, "registration_error": float,
              "median": bool, "min_points": int, "depth_search": str, "positive_search_only": bool,
-             "proj_dest": str, "threads": int}
+             "position": str, "threads": int}
 
 
 def cc_params(data: bytes) -> None:
@@ -114,7 +116,6 @@ VOCAB = ("compare", "normals", "subsample", "info", "-o", "--output", "--core", 
          "1:2:0.5", "0.5,1,2", "+z", "-x", "1,2,3", "two-pass", "progressive", "single", "vertical", "core",
          "mean", "cloudcompare", "ref.xyz", "cmp.xyz", "out.csv", "18446744073709551616", "-9999999999999")
 
-_BUILD_PARAMS = set(cli.COMPARE_OPTIONS) - {"core_spacing"}
 
 
 def argv_from_bytes(data: bytes) -> list[str]:
@@ -153,19 +154,13 @@ def _check_command(args) -> None:
     try:
         if args.command == "compare":
             settings = cli.compare_settings(args)
-            api.threads_count(settings.get("threads"))
-            if settings.get("core_spacing") is not None:
-                options.positive("--core-spacing", settings["core_spacing"])
-            params = {k: v for k, v in settings.items() if k in _BUILD_PARAMS}
-            api.build_params(read_points=_no_files, **params)
+            settings.pop("position", None)
+            build_params(read_points=_no_files, **settings)
         elif args.command == "normals":
-            options.normal_scales(args.normal_scale)
-            options.orientation(args.orient or "+z", _no_files)
-            if args.normal_subsample is not None:
-                options.positive("--normal-subsample", args.normal_subsample)
-            api.threads_count(args.threads)
+            given = {p.name: getattr(args, p.name) for p in parameters_of("normals")}
+            build_params("normals", read_points=_no_files, **given)
         elif args.command == "subsample":
-            options.positive("--spacing", args.spacing)
+            positive("--spacing", args.spacing)
     finally:
         os.chdir(cwd)
 

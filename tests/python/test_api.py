@@ -4,7 +4,7 @@ import pytest
 
 import m3c2kit
 from m3c2kit import _core
-from m3c2kit.api import build_params
+from m3c2kit.settings import build_params
 
 from synthetic import noisy_plane_pair
 
@@ -107,8 +107,10 @@ def test_core_normals_are_used_as_given():
 
 def test_progress_callback_can_cancel():
     ref, cmp = noisy_plane_pair(n=60)
-    with pytest.raises(RuntimeError, match="cancel"):
+    # The package's own exception (an M3C2Error), not the binding's RuntimeError.
+    with pytest.raises(m3c2kit.Cancelled, match="cancel") as caught:
         m3c2kit.compare(ref, cmp, progress=lambda done, total: False, **PARAMS)
+    assert isinstance(caught.value, m3c2kit.M3C2Error)
 
 
 def test_exception_in_progress_callback_propagates():

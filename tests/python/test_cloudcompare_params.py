@@ -5,7 +5,7 @@ import re
 
 import pytest
 
-from m3c2kit.cloudcompare_params import read_cloudcompare_params
+from m3c2kit.settings.cloudcompare_params import read_cloudcompare_params
 from m3c2kit.errors import UsageError
 
 # The parameter file behind /work/shared/data/pairs/autzen-bmx/autzen-bmx-cc.txt, in the key
@@ -55,7 +55,7 @@ AUTZEN_BMX_OPTIONS = {
     "depth_search": "single",
     "positive_search_only": False,
     "threads": 8,
-    "proj_dest": "core",
+    "position": "core",
 }
 
 MINIMAL = {"M3C2VER": "1", "NormalScale": "2", "SearchScale": "1", "SearchDepth": "3"}
@@ -114,7 +114,7 @@ def test_minimal_file_gets_qm3c2_factory_defaults(tmp_path):
         "core_spacing": None,
         "depth_search": "progressive",
         "positive_search_only": False,
-        "proj_dest": "compared",
+        "position": "compared",
     }
 
 
@@ -262,7 +262,7 @@ def test_max_thread_count_absent_leaves_threads_to_the_caller(tmp_path):
 
 @pytest.mark.parametrize("index, dest", [("0", "reference"), ("1", "compared"), ("2", "core")])
 def test_proj_dest_index(tmp_path, index, dest):
-    assert read(tmp_path, ProjDestIndex=index)["proj_dest"] == dest
+    assert read(tmp_path, ProjDestIndex=index)["position"] == dest
 
 
 def test_precision_maps_off_accepts_and_ignores_pm_scales(tmp_path):

@@ -17,6 +17,7 @@ import random_fuzz  # noqa: E402
 import targets  # noqa: E402
 
 from m3c2kit import api  # noqa: E402
+from m3c2kit.settings import build_params  # noqa: E402
 from m3c2kit.cli import main  # noqa: E402
 from m3c2kit.errors import CloudReadError, UsageError  # noqa: E402
 from m3c2kit.io import read_cloud, write_cloud_table  # noqa: E402
@@ -65,7 +66,7 @@ def test_regression_integer_options_are_checked(tmp_path, capsys, argv, message)
 def test_regression_api_integer_fields():
     for kwargs in ({"seed": -5}, {"min_points": 2.5}, {"bootstrap": "x"}, {"min_points": float("nan")}):
         with pytest.raises(UsageError):
-            api.build_params(normal_scale=1, projection_scale=1, max_depth=1, **kwargs)
+            build_params(normal_scale=1, projection_scale=1, max_depth=1, **kwargs)
     with pytest.raises(UsageError):
         api.threads_count(-2)
 

@@ -261,7 +261,7 @@ def test_far_outlier_in_a_file_is_refused_naming_it(pair, capsys):
 
 def test_far_outlier_in_an_array_is_a_usage_error():
     from m3c2kit import _core
-    from m3c2kit.api import build_params
+    from m3c2kit.settings import build_params
     assert _core.max_abs_coordinate(build_params(normal_scale=0.5, projection_scale=0.3, max_depth=0.5)) == 2.0**36
     far = np.vstack([grid(), [[0.0, -2.0**36, 0.0]]])  # exactly at the limit: outside
     with pytest.raises(UsageError, match=r"^the reference cloud: a coordinate \(6\.87195e\+10\) lies beyond"):
@@ -412,6 +412,22 @@ def test_core_points_far_outside_get_statuses_not_a_crash(pair, capsys, far):
     assert np.isnan(cols["distance"][[0, 2]]).all()
 
 
+@pytest.mark.parametrize("option", ["--core-spacing", "--normal-subsample"])
+def test_spacing_between_the_engine_and_the_old_python_limits_is_refused(tmp_path, capsys, option):
+    # extent / spacing = 1e13: above the engine's 2**40 cells, below the 2**62 Python used to
+    # check, so the engine's ValueError escaped as a traceback (issue 12). One rule now, the engine's.
+    write_xyz(tmp_path / "ref.xyz", np.vstack([grid(), [[1e12, 0.0, 0.0]]]))
+    write_xyz(tmp_path / "cmp.xyz", grid(z=0.1))
+    code, _, err = run(capsys, "compare", tmp_path / "ref.xyz", tmp_path / "cmp.xyz", "-o", tmp_path / "out.csv",
+                       option, "0.1", *BASE)
+    assert code == 2
+    assert err.startswith(f"m3c2: error: {option} 0.1 is too small for clouds spanning 1e+12 on an axis")
+    code, _, err = run(capsys, "subsample", tmp_path / "ref.xyz", "-o", tmp_path / "out.csv", "--spacing", "0.1")
+    assert code == 2 and err.startswith("m3c2: error: --spacing 0.1 is too small")
+    with pytest.raises(m3c2kit.UsageError, match="--spacing"):
+        m3c2kit.subsample(np.array([[0.0, 0, 0], [1e12, 0, 0]]), 0.1)
+
+
 def test_read_cloud_error_types_are_documented(tmp_path):
     with pytest.raises(CloudReadError):
         m3c2kit.read(tmp_path / "nothing.las")
@@ -426,7 +442,7 @@ def test_spacing_too_small_for_the_extent_is_refused(tmp_path, capsys, option):
     code, _, err = run(capsys, "compare", tmp_path / "ref.xyz", tmp_path / "cmp.xyz", "-o", tmp_path / "out.csv",
                        option, "0.1", *BASE)
     assert code == 2
-    assert err == (f"m3c2: error: {option} 0.1 is too small for clouds spanning 1e+300 on an axis (at most 2**62 "
+    assert err == (f"m3c2: error: {option} 0.1 is too small for clouds spanning 1e+300 on an axis (at most 2**40 "
                    f"spacings); remove far outliers or use a larger spacing\n")
     code, _, err = run(capsys, "subsample", tmp_path / "ref.xyz", "-o", tmp_path / "out.csv", "--spacing", "0.1")
     assert code == 2 and "--spacing 0.1 is too small" in err

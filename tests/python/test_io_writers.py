@@ -51,7 +51,8 @@ def test_las_round_trip(tmp_path, ext):
     assert str(las.header.version) == "1.4" and las.header.point_format.id == 6
     assert las.header.are_points_compressed == (ext == ".laz")
     types = {d.name: d.dtype for d in las.point_format.extra_dimensions}
-    assert types == {"distance": np.float64, "lod": np.float64, "significant": np.uint8, "n1": np.float64,
+    # Each field keeps its own numeric type (bool as uint8): io/las.py _extra_type.
+    assert types == {"distance": np.float64, "lod": np.float32, "significant": np.uint8, "n1": np.int64,
                      "sigma1": np.float64, "status": np.uint8}
     # Spans of at most 301 from floor(min): 1e-6 is the finest decimal scale int32 holds.
     np.testing.assert_allclose(las.header.scales, 1e-6)

@@ -220,3 +220,23 @@ def test_input_files(tmp_path):
     assert ui.parse_reduction_point("1,2,3").tolist() == [1, 2, 3]
     with pytest.raises(UsageError, match="--reduction-point"):
         ui.parse_reduction_point("1,2")
+
+
+def test_e57_scan_index_and_poses(tmp_path):
+    """E57: every point carries its scan's number (from 1) and a table without origins takes the
+    scans' poses."""
+    pye57 = pytest.importorskip("pye57")
+    from m3c2kit.io import read_cloud
+    path = tmp_path / "two.e57"
+    with pye57.E57(str(path), mode="w") as out:
+        for k, (n, t) in enumerate(((3, (1.0, 2.0, 3.0)), (2, (-4.0, 0.5, 1.0)))):
+            xyz = np.arange(3 * n, dtype=np.float64).reshape(n, 3) + k
+            out.write_scan_raw({"cartesianX": xyz[:, 0], "cartesianY": xyz[:, 1], "cartesianZ": xyz[:, 2]},
+                               translation=np.array(t), rotation=np.array([1.0, 0, 0, 0]))
+    cloud = read_cloud(path)
+    assert cloud.fields["scan_index"].tolist() == [1, 1, 1, 2, 2]
+    (tmp_path / "sps.json").write_text('{"1": {"sigma_range": 0.005, "sigma_scan": 0.0003, "sigma_yaw": 0.0004},'
+                                       ' "2": {"sigma_range": 0.004, "sigma_scan": 0.0001, "sigma_yaw": 0.0002}}')
+    t = ui.load_scan_positions(tmp_path / "sps.json", poses=cloud.scan_positions)
+    np.testing.assert_array_equal(t[:, 1:4], [[1, 2, 3], [-4, 0.5, 1]])
+    np.testing.assert_array_equal(ui.scan_position_ids(cloud.fields, "scan_index"), [1, 1, 1, 2, 2])

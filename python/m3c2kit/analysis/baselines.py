@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .. import _core
+from .. import engine
 from ..api import as_points
 from ..errors import UsageError
 
@@ -32,8 +32,5 @@ def c2c(reference, compared, *, model: str = "none", model_radius: float | None 
     if model_radius is not None and not (np.isfinite(model_radius) and model_radius > 0):
         raise UsageError(f"--model-radius must be finite and > 0, got {model_radius!r}")
     ref, cmp_ = as_points("reference", reference), as_points("compared", compared)
-    try:
-        return _core.c2c(ref, cmp_, model, float(model_radius or 0.0), int(model_neighbours), rule, int(threads),
-                         progress)
-    except ValueError as e:
-        raise UsageError(str(e)) from None
+    return engine.c2c(ref, cmp_, model=model, model_radius=float(model_radius or 0.0),
+                      model_neighbours=int(model_neighbours), rule=rule, threads=int(threads), progress=progress)

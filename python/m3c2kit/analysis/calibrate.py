@@ -7,6 +7,11 @@ raw vs 10 cm, and 4.5 vs 5 cm) with three LODs: eq. (1) with z, eq. (1) with Wel
 of eq. (2) when n1 or n2 < 30, and the bootstrap of Appendix B. Like the paper ("We impose a fixed
 normal direction"), normals are vertical unless a normal scale D is given.
 
+Every LOD statistic of the engine is measured as well (issue 14): the share of core points each of
+mean / median x z / t / auto / bootstrap flags (`fp_<statistic>_<lod>`, nominal 1 - confidence),
+and, per d, the one whose rate is closest to the nominal (`recommended`; ties to the cheaper:
+z, auto, t, bootstrap); `recommend()` sums this up over the scales.
+
 The mean LOD95 (z) is then fitted as LOD95 ~ d^alpha and compared with eq. (7), alpha = beta - 0.95,
 where beta is the roughness exponent of eq. (3) measured on the same cloud and core points over
 the same scales (and with beta - gamma / 2, gamma the measured exponent of n ~ d^gamma: the paper's
@@ -19,6 +24,7 @@ import math
 import numpy as np
 
 from .. import api
+from . import lod_engine
 from ..errors import UsageError
 from .common import format_table, loglog_fit, median_spacing, pyplot, sample_indices, save_figure
 from .roughness import L0, fit_scaling, roughness_by_scale, roughness_table
@@ -91,6 +97,7 @@ def calibrate(cloud, projection_scales, *, spacings=("raw", "3x"), normal_scale=
         rows["mean_n1"].append(float(np.mean(r.n1[searched])) if searched.any() else math.nan)
         rows["mean_n2"].append(float(np.mean(r.n2[searched])) if searched.any() else math.nan)
     table = {k: np.asarray(v) for k, v in rows.items()}
+    table.update(_every_statistic(cloud1, cloud2, core_pts, d_list, common, bootstrap, seed, confidence))
 
     # Roughness of the same cloud at the same core points, D = each d (eq. 3), for eq. (7).
     sigma = roughness_by_scale(pts, core_pts, d_list, min_points=10, threads=threads)
@@ -107,8 +114,62 @@ def calibrate(cloud, projection_scales, *, spacings=("raw", "3x"), normal_scale=
     info = {"spacing": spacing, "spacing1": s1, "spacing2": s2, "points1": len(cloud1), "points2": len(cloud2),
             "core_points": len(core_pts), "max_depth": depth,
             "normals": "vertical (imposed)" if normal_scale is None else f"reference, D = {normal_scale}",
-            "bootstrap": int(bootstrap), "seed": int(seed)}
-    return {"table": table, "fit": fit, "info": info}
+            "bootstrap": int(bootstrap), "seed": int(seed), "confidence": float(confidence)}
+    return {"table": table, "fit": fit, "info": info, "recommendation": recommend(table, confidence)}
+
+
+#: The LOD statistics compared, cheapest first (the order that breaks ties).
+COMBINATIONS = tuple((s, lod) for s in lod_engine.STATISTICS for lod in ("z", "auto", "t", "bootstrap"))
+
+
+def _every_statistic(cloud1, cloud2, core_pts, d_list, common, bootstrap, seed, confidence) -> dict:
+    """fp_<statistic>_<lod> per d: the share of core points with a LOD flagged significant."""
+    cols = {f"fp_{s}_{lod}": [] for s, lod in COMBINATIONS}
+    cols["recommended"] = []
+    threads = common.get("threads", 0)
+    for d in d_list:
+        kwargs = {k: v for k, v in common.items() if k != "threads"}
+        kwargs["projection_scale"] = float(d)
+        for statistic, lod in COMBINATIONS:
+            if lod == "bootstrap" and not bootstrap:
+                cols[f"fp_{statistic}_{lod}"].append(math.nan)
+                continue
+            p = api.build_params(median=statistic == "median", **kwargs)
+            p = lod_engine.with_lod(p, lod, bootstrap_samples=int(bootstrap), seed=int(seed))
+            r = lod_engine.run(cloud1, cloud2, core_pts, p, threads=api.threads_count(threads))
+            ok = r["status"] == 0
+            cols[f"fp_{statistic}_{lod}"].append(float(np.mean(r["significant"][ok])) if ok.any() else math.nan)
+        rates = {k: cols[f"fp_{k[0]}_{k[1]}"][-1] for k in COMBINATIONS}
+        cols["recommended"].append(_closest(rates, 1 - confidence))
+    return {k: np.asarray(v) for k, v in cols.items()}
+
+
+def _closest(rates: dict, nominal: float) -> str:
+    finite = [(abs(r - nominal), i, k) for i, (k, r) in enumerate(rates.items()) if math.isfinite(r)]
+    if not finite:
+        return ""
+    return "/".join(min(finite)[2])
+
+
+def recommend(table: dict, confidence: float) -> dict:
+    """Per statistic (mean, median): the LOD whose no-change false-positive rate, averaged over
+    the scales, is closest to the nominal 1 - confidence; {'mean': (lod, rate), 'median': ...}."""
+    out = {}
+    for statistic in lod_engine.STATISTICS:
+        best = None
+        for rank, (s, lod) in enumerate(COMBINATIONS):
+            if s != statistic:
+                continue
+            v = np.asarray(table[f"fp_{s}_{lod}"], float)
+            if not np.isfinite(v).any():
+                continue
+            rate = float(np.nanmean(v))
+            key = (abs(rate - (1 - confidence)), rank)
+            if best is None or key < best[0]:
+                best = (key, lod, rate)
+        if best:
+            out[statistic] = (best[1], best[2])
+    return out
 
 
 def report_lines(res: dict) -> list[str]:
@@ -126,6 +187,14 @@ def report_lines(res: dict) -> list[str]:
                           {"d": ".4g", "n_lod": "d", "%ns z": ".1f", "%ns t": ".1f", "%ns boot": ".1f",
                            "mean LOD95": ".4g", "<n1>": ".1f", "<n2>": ".1f", "<sigma(D=d)>": ".4g"})
     lines.append("%ns = percentage of core points with a LOD correctly found NOT significant (95 % expected)")
+    fp_cols = {f"{s[:3]} {lod}": t[f"fp_{s}_{lod}"] * 100 for s, lod in COMBINATIONS}
+    lines.append("no-change false positives (%) of every LOD statistic (nominal "
+                 f"{100 * (1 - i.get('confidence', 0.95)):g} %):")
+    lines += format_table({"d": t["d"], **fp_cols, "closest": t["recommended"]},
+                          {"d": ".4g", **{k: ".1f" for k in fp_cols}, "closest": "s"})
+    for statistic, (lod, rate) in res.get("recommendation", {}).items():
+        lines.append(f"recommended with the {statistic}: --lod {lod} ({100 * rate:.1f} % false positives over "
+                     "these scales)")
     lines.append(f"LOD95 ~ d^alpha: alpha = {f['alpha']:.3f} +/- {f['alpha_se']:.3f} over {f['n_scales']} scales; "
                  f"roughness beta = {f['beta']:.3f} +/- {f['beta_se']:.3f}: eq. (7) predicts beta - 0.95 = "
                  f"{f['alpha_predicted']:.3f}; with the measured n ~ d^{f['gamma']:.2f}, beta - gamma/2 = "

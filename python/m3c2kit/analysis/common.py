@@ -6,10 +6,11 @@ from pathlib import Path
 
 import numpy as np
 
-from .. import _core
+from .. import engine
 from ..errors import UsageError
 from ..io.atomic import atomic_output
-from ..options import normal_scales, positive
+from ..optional import require
+from ..settings.parsers import normal_scales, positive
 
 
 def scales(name: str, spec) -> np.ndarray:
@@ -112,7 +113,7 @@ def median_spacing(points: np.ndarray, sample: int = 2000, seed: int = 0) -> flo
     others = points[keep]
     if len(others) == 0:
         return math.nan
-    d = _core.c2c(others, np.ascontiguousarray(points[idx]))["distance"]
+    d = engine.c2c(others, np.ascontiguousarray(points[idx]))["distance"]
     d = d[d > 0]
     return float(np.median(d)) if d.size else math.nan
 
@@ -126,7 +127,7 @@ def save_figure(fig, path) -> None:
 
 def pyplot():
     """matplotlib.pyplot with the non-interactive Agg backend."""
-    import matplotlib
+    matplotlib = require("matplotlib", extra="report", purpose="plots")
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
     return plt

@@ -14,7 +14,7 @@ import math
 
 import numpy as np
 
-from .. import _core
+from .. import engine
 from ..api import as_points
 from ..errors import UsageError
 from .common import format_table, loglog_fit, pyplot, save_figure
@@ -26,12 +26,10 @@ def roughness_by_scale(cloud, core, diameters, *, variance: str = "sample", min_
                        threads: int = 0, progress=None) -> np.ndarray:
     """sigma(D) at each core point (rows) for each diameter (columns); NaN below `min_points`."""
     pts, core_pts = as_points("cloud", cloud), as_points("core", core)
-    var = getattr(_core.Variance, variance)
-    try:
-        return _core.roughness_by_scale(pts, core_pts, [float(d) for d in diameters], var, int(min_points),
-                                        int(threads), progress)
-    except ValueError as e:
-        raise UsageError(str(e)) from None
+    if variance not in ("sample", "population"):
+        raise UsageError(f"variance must be sample or population, got {variance!r}")
+    return engine.roughness_by_scale(pts, core_pts, [float(d) for d in diameters], variance, int(min_points),
+                                     threads=int(threads), progress=progress)
 
 
 def roughness_table(sigma: np.ndarray, diameters) -> dict[str, np.ndarray]:

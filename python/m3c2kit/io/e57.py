@@ -6,18 +6,22 @@ to cartesian by pye57 first. Points flagged invalid (``cartesianInvalidState`` o
 ``sphericalInvalidState`` != 0) are skipped. ``scan_positions`` holds one row per scan: the
 pose translation, i.e. the scanner origin in file coordinates (the origin itself for a scan
 without a pose, which E57 defines as the identity). E57 coordinates are metres by definition.
+The field ``scan_index`` gives each point its scan's number, counted from 1 (the row of
+``scan_positions`` plus one): M3C2-EP's scan-position id (``--scan-position-field scan_index``).
 """
 from __future__ import annotations
 
 from pathlib import Path
 
 import numpy as np
-import pye57
 
 from ..errors import CloudReadError
+from ..optional import lazy_module
 from .cloud import Cloud
 from .crs import looks_like_wkt
 from .guard import read_errors
+
+pye57 = lazy_module("pye57", extra="e57", purpose="reading .e57 files")
 
 __all__ = ["read"]
 
@@ -41,6 +45,7 @@ def read(path: Path) -> Cloud:
 
 def _read_all(path: Path, e57: pye57.E57) -> Cloud:
     parts: list[np.ndarray] = []
+    scan_index: list[np.ndarray] = []
     positions = np.zeros((e57.scan_count, 3))
     for i in range(e57.scan_count):
         header = e57.get_header(i)
@@ -55,8 +60,10 @@ def _read_all(path: Path, e57: pye57.E57) -> Cloud:
         data = e57.read_scan(i, ignore_missing_fields=True, intensity=False, colors=False,
                              row_column=False, transform=True)
         parts.append(np.column_stack([data[c] for c in _CARTESIAN]).astype(np.float64, copy=False))
+        scan_index.append(np.full(len(parts[-1]), i + 1, dtype=np.uint32))
     xyz = np.concatenate(parts) if parts else np.empty((0, 3))
     root = e57.root
     metadata = root["coordinateMetadata"].value() if root.isDefined("coordinateMetadata") else ""
-    return Cloud(xyz, {}, crs=metadata if looks_like_wkt(metadata) else None, scan_positions=positions,
+    fields = {"scan_index": np.concatenate(scan_index) if scan_index else np.empty(0, np.uint32)}
+    return Cloud(xyz, fields, crs=metadata if looks_like_wkt(metadata) else None, scan_positions=positions,
                  path=Path(path), units_hint="metre", format="E57", meta={"scan_count": e57.scan_count})

@@ -6,7 +6,8 @@ Reading: every LAS 1.0-1.4 point format; coordinates are the scaled doubles (las
 
 Writing: LAS 1.4, point format 6 (7 when the fields hold red, green and blue). A field whose
 name is a standard dimension of that format goes into it (its values must fit exactly);
-every other field becomes an extra-bytes dimension, uint8/bool as uint8, the rest float64.
+every other field becomes an extra-bytes dimension of its own numeric type (bool as uint8,
+other types as float64).
 """
 from __future__ import annotations
 
@@ -169,9 +170,20 @@ def _plan_extra_dims(path, fields: dict[str, np.ndarray], standard: set[str]) ->
             raise CloudWriteError(f"{path}: LAS extra-bytes names must be ASCII, got {name!r}") from None
         if not 0 < len(encoded) <= 32:
             raise CloudWriteError(f"{path}: LAS extra-bytes names must be 1 to 32 characters, got {name!r}")
-        dtype = np.asarray(values).dtype
-        plan.append((name, np.uint8 if dtype in (np.uint8, np.bool_) else np.float64))
+        plan.append((name, _extra_type(np.asarray(values).dtype)))
     return plan
+
+
+#: Extra-bytes types LAS defines (LAS 1.4 R15, Table 24): a field keeps its own numeric type
+#: (m3c2kit.io.fields chooses float32 / uint32 / uint8 for the M3C2 columns); bool is uint8.
+_EXTRA_TYPES = {np.dtype(t) for t in (np.uint8, np.int8, np.uint16, np.int16, np.uint32, np.int32,
+                                      np.uint64, np.int64, np.float32, np.float64)}
+
+
+def _extra_type(dtype: np.dtype) -> np.dtype:
+    if dtype == np.bool_:
+        return np.dtype(np.uint8)
+    return dtype if dtype in _EXTRA_TYPES else np.dtype(np.float64)
 
 
 def _has_scale(like: Cloud | None) -> bool:

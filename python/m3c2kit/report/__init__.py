@@ -23,6 +23,7 @@ from pathlib import Path
 import numpy as np
 
 from ..result import STATUS_NAMES, Result
+from ..lod_rates import expectation_text, run_expectation
 from ..summary import normal_accuracy
 
 __all__ = ["Report", "build_report", "render_html", "write_report", "png_paths", "FIGURES", "MAX_PLOT_POINTS"]
@@ -87,9 +88,14 @@ def _summary(result: Result, linthresh: float) -> list:
         a = np.asarray(arr, dtype=float)[ok]
         if a.size:
             rows.append((name, _fmt(float(np.median(a)))))
+    expected = run_expectation(result)
+    if expected:
+        rows.append(("expected false positives on unchanged surfaces", expectation_text(expected)))
     acc = normal_accuracy(result)
     if acc:
-        rows += [("xi = D / sigma(D) > 20", f"{100 * acc['xi_over_20']:.1f}%"),
+        rows += [("core points with a roughness sigma(D) (exactly planar: xi = inf)",
+                  f"{acc['core_points']} ({acc['planar']})"),
+                 ("xi = D / sigma(D) > 20", f"{100 * acc['xi_over_20']:.1f}%"),
                  ("xi > 25", f"{100 * acc['xi_over_25']:.1f}%"),
                  ("median predicted normal error E_norm (eq. 5)", f"{acc['median_e_norm_percent']:.3g}%")]
     return rows

@@ -7,9 +7,13 @@ from __future__ import annotations
 import io
 
 import numpy as np
-from matplotlib import colors
-from matplotlib.backends.backend_agg import FigureCanvasAgg
-from matplotlib.figure import Figure
+
+from ..optional import require
+
+require("matplotlib", extra="report", purpose="drawing the report's figures")
+from matplotlib import colors  # noqa: E402
+from matplotlib.backends.backend_agg import FigureCanvasAgg  # noqa: E402
+from matplotlib.figure import Figure  # noqa: E402
 
 from ..result import STATUS_NAMES
 
@@ -237,13 +241,13 @@ def normals(normal_scale, xi, vertical: bool) -> Figure:
         _empty(ax1, "normals imposed (vertical): no normal scale" if vertical else "no normal computed")
     ax1.set_xlabel("normal scale D (diameter)")
     ax1.set_title("normal scale", fontsize=11)
-    x = _finite(xi)
-    x = x[x > 0]
+    x = np.asarray(xi, dtype=float)
+    x = x[~np.isnan(x) & (x > 0)]  # xi = inf (sigma(D) = 0, exactly planar) stays: it is > 25
     if x.size:
         # Near-perfect planes (water, flat roofs) have sigma(D) ~ 0 and xi up to 1e10: draw
         # xi > XI_MAX in the last bin so that the thresholds stay readable.
         top = min(max(x.max(), 40.0), XI_MAX)
-        bins = np.geomspace(min(x.min(), 10.0), top, 81)
+        bins = np.geomspace(min(x[np.isfinite(x)].min(initial=10.0), 10.0), top, 81)
         ax2.hist(np.minimum(x, top), bins=bins, color="#7f7f7f")
         if x.max() > XI_MAX:
             ax2.text(0.99, 0.6, f"{100 * np.mean(x > XI_MAX):.1f}% above {XI_MAX:g}\n(last bin)", ha="right",

@@ -25,15 +25,15 @@ import os
 import re
 import stat
 
-from m3c2kit.errors import UsageError
-from m3c2kit.options import scale_range
+from ..errors import UsageError
+from .parsers import scale_range
+from .table import by_cloudcompare_key, by_name
 
 __all__ = ["read_cloudcompare_params"]
 
 _log = logging.getLogger(__name__)
 
 _MAX_BYTES = 1 << 20  # a real parameter file is under 1 KiB
-_DEFAULT_MIN_POINTS = 5  # what qM3C2 uses when UseMinPoints4Stat is false
 
 _FLOAT_RE = re.compile(r"[+-]?(?:\d+\.?\d*|\.\d+)(?:[eE][+-]?\d+)?", re.ASCII)
 _INT_RE = re.compile(r"[+-]?\d+", re.ASCII)
@@ -71,6 +71,13 @@ _KEY_TYPES = {
 }
 _CANONICAL = {key.lower(): key for key in _KEY_TYPES}
 _OUTPUT_ONLY_KEYS = ("UseOriginalCloud", "ExportStdDevInfo", "ExportDensityAtProjScale")
+#: Keys that set no parameter: the file's version, and options m3c2 refuses with a reason.
+NON_PARAMETER_KEYS = ("M3C2VER", "NormalUseCorePoints", "UsePrecisionMaps", "PM1Scale", "PM2Scale") + _OUTPUT_ONLY_KEYS
+
+
+def _name(key: str) -> str:
+    """The parameter (Python name, m3c2kit.settings.table) that CloudCompare's `key` sets."""
+    return by_cloudcompare_key()[key].name
 
 _ORIENT = {0: "+x", 1: "-x", 2: "+y", 3: "-y", 4: "+z", 5: "-z", 9: (0.0, 0.0, 0.0)}
 _ORIENT_UNSUPPORTED = {
@@ -92,7 +99,8 @@ def read_cloudcompare_params(path: str | os.PathLike) -> dict[str, object]:
     parameter file, holds an unknown or misspelt key or a malformed value, or asks for something
     m3c2 does not support.  An optional key that is absent (CloudCompare would take it from its
     last GUI state, which a file cannot reproduce) defaults to NormalMode 0, NormalPreferedOri 4,
-    ProjDestIndex 1 and every flag false; ``threads`` is only returned when ``MaxThreadCount`` is.
+    ProjDestIndex 1 and every flag false; ``threads`` is only returned when ``MaxThreadCount`` is. The keys' parameters come from the
+    parameter table (its ``cloudcompare_keys``).
     """
     name = os.fsdecode(path)
     values = _parse_values(name, _read_general_section(name, path))
@@ -125,11 +133,11 @@ def read_cloudcompare_params(path: str | os.PathLike) -> dict[str, object]:
         )
     if mode not in _NORMAL_SOURCE:
         raise fail(f"NormalMode={mode} is not a CloudCompare normal mode (0 to 5)")
-    options["normal_source"] = _NORMAL_SOURCE[mode]
+    options[_name("NormalMode")] = _NORMAL_SOURCE[mode]
     if mode in (0, 4):
-        options["normal_scale"] = positive("NormalScale")
+        options[_name("NormalScale")] = positive("NormalScale")
     elif mode == 2:
-        options["normal_scale"] = _multi_scales(
+        options[_name("NormalScale")] = _multi_scales(
             fail, positive("NormalMinScale"), positive("NormalStep"), positive("NormalMaxScale")
         )
 
@@ -149,45 +157,45 @@ def read_cloudcompare_params(path: str | os.PathLike) -> dict[str, object]:
             )
         if ori not in _ORIENT:
             raise fail(f"NormalPreferedOri={ori} is not a CloudCompare orientation (0 to 12)")
-        options["orient"] = _ORIENT[ori]
+        options[_name("NormalPreferedOri")] = _ORIENT[ori]
 
-    options["projection_scale"] = positive("SearchScale")
-    options["max_depth"] = positive("SearchDepth")
+    options[_name("SearchScale")] = positive("SearchScale")
+    options[_name("SearchDepth")] = positive("SearchDepth")
 
     if values.get("RegistrationErrorEnabled", False):
         reg = require("RegistrationError")
         if reg < 0.0:
             raise fail(f"RegistrationError={reg!r} must be >= 0")
-        options["registration_error"] = reg
+        options[_name("RegistrationError")] = reg
     else:
-        options["registration_error"] = 0.0
+        options[_name("RegistrationError")] = 0.0
 
-    options["median"] = values.get("UseMedian", False)
+    options[_name("UseMedian")] = values.get("UseMedian", False)
     if values.get("UseMinPoints4Stat", False):
         min_points = require("MinPoints4Stat")
         if min_points < 1:
             raise fail(f"MinPoints4Stat={min_points} must be >= 1")
-        options["min_points"] = min_points
+        options[_name("MinPoints4Stat")] = min_points
     else:
-        options["min_points"] = _DEFAULT_MIN_POINTS
+        options[_name("MinPoints4Stat")] = by_name()["min_points"].cloudcompare
 
-    options["core_spacing"] = (
+    options[_name("SubsampleRadius")] = (
         positive("SubsampleRadius") if values.get("SubsampleEnabled", False) else None
     )
     single_pass = values.get("UseSinglePass4Depth", False)
-    options["depth_search"] = "single" if single_pass else "progressive"
-    options["positive_search_only"] = values.get("PositiveSearchOnly", False)
+    options[_name("UseSinglePass4Depth")] = "single" if single_pass else "progressive"
+    options[_name("PositiveSearchOnly")] = values.get("PositiveSearchOnly", False)
 
     if "MaxThreadCount" in values:
         threads = values["MaxThreadCount"]
         if threads < 0:
             raise fail(f"MaxThreadCount={threads} must be >= 0")
-        options["threads"] = max(threads, 1)  # qM3C2's thread spin box clamps 0 to 1
+        options[_name("MaxThreadCount")] = max(threads, 1)  # qM3C2's thread spin box clamps 0 to 1
 
     dest = values.get("ProjDestIndex", 1)
     if dest not in _PROJ_DEST:
         raise fail(f"ProjDestIndex={dest} is not a CloudCompare output placement (0, 1 or 2)")
-    options["proj_dest"] = _PROJ_DEST[dest]
+    options[_name("ProjDestIndex")] = _PROJ_DEST[dest]
 
     if values.get("UsePrecisionMaps", False):
         raise fail(

@@ -1,4 +1,7 @@
-"""Parsing of the user-facing parameter syntax shared by the command line and the Python API.
+"""Parsing and checking of the user-facing parameter values shared by the command line, the
+Python API and the params file: each parser takes (option name, value) and returns the checked
+value or raises a UsageError naming the option. The typed parsers describe their range for the
+docs' option table (m3c2kit.settings.docs).
 
 D (``normal_scale``) and d (``projection_scale``) are DIAMETERS, as in Lague et al. (2013) and
 CloudCompare; ``max_depth`` is the cylinder's half-length along the normal.
@@ -11,7 +14,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .errors import UsageError
+from ..errors import UsageError
 
 AXES = {"+x": (1.0, 0.0, 0.0), "-x": (-1.0, 0.0, 0.0), "+y": (0.0, 1.0, 0.0),
         "-y": (0.0, -1.0, 0.0), "+z": (0.0, 0.0, 1.0), "-z": (0.0, 0.0, -1.0)}
@@ -111,3 +114,126 @@ def orientation(spec, read_points=None) -> tuple[tuple[float, float, float], np.
     if arr.ndim != 2 or arr.shape[1] != 3 or not np.isfinite(arr).all():
         raise UsageError("orient must be an axis name, a point or a finite (K, 3) array of points")
     return AXES["+z"], arr
+
+
+UINT32_MAX = 2**32 - 1
+UINT64_MAX = 2**64 - 1
+
+
+def integer(name: str, value, lo: int, hi: int, rule: str) -> int:
+    """`value` as an int in [lo, hi] (the engine's field width), or a UsageError naming the option."""
+    try:
+        v = int(value)
+        # An int is exact as it is (float() would round 2**64 - 1 up); other values must be whole.
+        exact = isinstance(value, (int, np.integer)) or v == float(value)
+    except (TypeError, ValueError, OverflowError):
+        raise UsageError(f"{name} must be {rule}, got {value!r}") from None
+    if not exact or not lo <= v <= hi:
+        if exact and v > hi:
+            rule = f"{rule}, at most {hi}"
+        raise UsageError(f"{name} must be {rule}, got {value!r}")
+    return v
+
+
+class Integer:
+    """An integer in [lo, hi], except the values in `excluded`; `rule` says it in words."""
+
+    def __init__(self, lo: int, hi: int, rule: str, excluded: tuple = ()):
+        self.lo, self.hi, self.rule, self.excluded = lo, hi, rule, excluded
+
+    def __call__(self, name: str, value) -> int:
+        v = integer(name, value, self.lo, self.hi, self.rule)
+        if v in self.excluded:
+            raise UsageError(f"{name} must be {self.rule}, got {value!r}")
+        return v
+
+    def describe(self) -> str:
+        return f"{self.rule}, at most {self.hi}"
+
+
+class Real:
+    """A finite float > lo (or >= lo with `closed`), below `below` when given."""
+
+    def __init__(self, lo: float = 0.0, closed: bool = False, below: float | None = None):
+        self.lo, self.closed, self.below = lo, closed, below
+
+    def __call__(self, name: str, value) -> float:
+        if self.below is not None:
+            return self._interval(name, value)
+        return (non_negative if self.closed else positive)(name, value)
+
+    def _interval(self, name: str, value) -> float:
+        try:
+            v = float(value)
+        except (TypeError, ValueError):
+            raise UsageError(f"{name} must be a number, got {value!r}") from None
+        if not self.lo < v < self.below:
+            raise UsageError(f"{name} must be in ({self.lo:g}, {self.below:g}), got {value!r}")
+        return v
+
+    def describe(self) -> str:
+        if self.below is not None:
+            return f"in ({self.lo:g}, {self.below:g})"
+        return f"finite, {'>=' if self.closed else '>'} {self.lo:g}"
+
+
+class Choice:
+    """One of `values`."""
+
+    def __init__(self, *values: str):
+        self.values = values
+
+    def __call__(self, name: str, value) -> str:
+        if value not in self.values:
+            raise UsageError(f"{name} must be one of {', '.join(self.values)}, got {value!r}")
+        return value
+
+    def describe(self) -> str:
+        return " | ".join(self.values)
+
+
+class Positives:
+    """`count` finite numbers > 0, as a sequence or 'A,B'."""
+
+    def __init__(self, count: int):
+        self.count = count
+
+    def __call__(self, name: str, value) -> list[float]:
+        parts = value.split(",") if isinstance(value, str) else list(np.atleast_1d(value))
+        if len(parts) != self.count:
+            raise UsageError(f"{name} needs {self.count} comma-separated values, got {value!r}")
+        return [positive(name, v) for v in parts]
+
+    def describe(self) -> str:
+        return f"{self.count} values > 0, comma-separated"
+
+
+class Flag:
+    """On or off."""
+
+    def __call__(self, name: str, value) -> bool:
+        return bool(value)
+
+    def describe(self) -> str:
+        return "on / off"
+
+
+class Scales:
+    """Diameters: one value, a list or MIN:MAX:STEP (:func:`normal_scales`)."""
+
+    def __call__(self, name: str, value) -> list[float]:
+        return normal_scales(value, name)
+
+    def describe(self) -> str:
+        return f"> 0; D, list or MIN:MAX:STEP (at most {MAX_SCALES})"
+
+
+class Orientation:
+    """+z / -z / +x / -x / +y / -y, a point X,Y,Z, a file of points or an array; kept as given
+    (a file is read when the engine parameters are built)."""
+
+    def __call__(self, name: str, value):
+        return value
+
+    def describe(self) -> str:
+        return "+x -x +y -y +z -z, X,Y,Z, FILE"

@@ -1,0 +1,144 @@
+"""The engine facade: the ONLY module that imports the C++ binding ``m3c2kit._core``.
+
+Every engine call goes through a function here, and every engine error is translated once
+(:func:`translated`): the engine's InvalidArgument (a ValueError in Python) and nanobind's
+TypeError for a value its C++ type cannot hold become :class:`~m3c2kit.errors.UsageError`, a run
+stopped by the progress callback becomes :class:`~m3c2kit.errors.Cancelled`. Geometry the front
+end needs before a run (a tile's halo, the index memory per point, the coordinate range of the
+spatial index, the largest subsampling grid) comes from the engine, never re-derived in Python.
+
+Engine parameters travel as plain values keyed by the C++ field names (:data:`PARAM_FIELDS`);
+enum fields take the enum member's name (``"two_pass"``). See docs/architecture.md.
+"""
+from __future__ import annotations
+
+import enum
+from contextlib import contextmanager
+from typing import Callable, Iterator
+
+import numpy as np
+
+from . import _core
+from .errors import Cancelled, UsageError
+
+__all__ = ["PARAM_FIELDS", "RESULT_FIELDS", "OPTIONAL_RESULT_FIELDS", "STATUS_NAMES", "MAX_CELLS_PER_AXIS", "INDEX_MEMORY", "Params",
+           "translated", "make_params", "default_fields", "params_fields", "compute", "compute_normals",
+           "subsample_min_spacing", "grid_core_points", "roughness_by_scale", "c2c", "max_abs_coordinate",
+           "neighbourhood_reach", "tile_halo"]
+
+Params = _core.Params
+#: Fields of the engine's Params, in the struct's order (include/m3c2/params.hpp visit_param_fields).
+PARAM_FIELDS: tuple[str, ...] = tuple(_core.PARAM_FIELDS)
+#: Per-core-point arrays of the engine's Result (include/m3c2/result.hpp visit_result_fields),
+#: always present, and those present only when a parameter asks for them (uncertainty models).
+RESULT_FIELDS: tuple[str, ...] = tuple(_core.RESULT_FIELDS)
+OPTIONAL_RESULT_FIELDS: tuple[str, ...] = tuple(_core.OPTIONAL_RESULT_FIELDS)
+#: Reason codes of the `status` column, by code.
+STATUS_NAMES: tuple[str, ...] = tuple(_core.status_names())
+#: Most cells along an axis of the subsampling and 2D grids (extent / cell).
+MAX_CELLS_PER_AXIS: float = float(_core.MAX_CELLS_PER_AXIS)
+#: What compute() allocates beyond its inputs: bytes_per_point (each cloud), overhead, bytes_per_core_point.
+INDEX_MEMORY: dict = dict(_core.index_memory())
+
+
+@contextmanager
+def translated(option: str | None = None) -> Iterator[None]:
+    """Runs an engine call, turning its errors into the package's: a bad argument is a
+    UsageError (prefixed by `option`, the user's name for the value, when given), a cancelled run
+    Cancelled. Python errors raised by a progress callback pass through unchanged."""
+    try:
+        yield
+    except _core.Cancelled:
+        raise Cancelled("computation cancelled by the progress callback") from None
+    except (ValueError, TypeError) as e:
+        message = str(e)
+        raise UsageError(f"{option}: {message}" if option else message) from None
+
+
+def _enum_type(name: str):
+    value = getattr(_DEFAULT, name)
+    return type(value) if isinstance(value, enum.Enum) else None
+
+
+def make_params(fields: dict) -> _core.Params:
+    """Engine Params from plain values keyed by field name (unknown names are a UsageError)."""
+    p = _core.Params()
+    for name, value in fields.items():
+        if name not in PARAM_FIELDS:
+            raise UsageError(f"the engine has no parameter {name!r}")
+        kind = _enum_type(name)
+        with translated(name):
+            setattr(p, name, kind[value] if kind is not None and isinstance(value, str) else value)
+    return p
+
+
+def params_fields(p: _core.Params) -> dict:
+    """Plain values of every field of `p` (enum fields by member name)."""
+    out = {}
+    for name in PARAM_FIELDS:
+        value = getattr(p, name)
+        out[name] = value.name if isinstance(value, enum.Enum) else value
+    return out
+
+
+def default_fields() -> dict:
+    """The engine's defaults (params.hpp), the one place every default of the front end comes from."""
+    return params_fields(_core.Params())
+
+
+def compute(reference: np.ndarray, compared: np.ndarray, core: np.ndarray, params: _core.Params,
+            core_normals: np.ndarray | None = None, *, threads: int = 0,
+            progress: Callable[[int, int], object] | None = None, **uncertainty_inputs) -> dict:
+    """M3C2 at each core point: a dict of RESULT_FIELDS arrays (and OPTIONAL_RESULT_FIELDS ones).
+    `uncertainty_inputs`: the per-point inputs of params.uncertainty (m3c2kit.uncertainty_inputs)."""
+    with translated():
+        return _core.compute(reference, compared, core, params, core_normals, threads=threads, progress=progress,
+                             **uncertainty_inputs)
+
+
+def compute_normals(cloud: np.ndarray, core: np.ndarray, params: _core.Params, *, threads: int = 0,
+                    progress=None) -> dict:
+    with translated():
+        return _core.compute_normals(cloud, core, params, threads=threads, progress=progress)
+
+
+def subsample_min_spacing(points: np.ndarray, spacing: float, option: str = "min_spacing") -> np.ndarray:
+    """Indices of the points kept with no two closer than `spacing` (greedy in input order)."""
+    with translated(option):
+        return np.asarray(_core.subsample_min_spacing(points, spacing))
+
+
+def grid_core_points(points: np.ndarray, cell: float, option: str = "cell") -> dict:
+    with translated(option):
+        return _core.grid_core_points(points, cell)
+
+
+def roughness_by_scale(cloud, core, diameters, variance: str = "sample", min_points: int = 3, *, threads: int = 0,
+                       progress=None) -> np.ndarray:
+    with translated():
+        return _core.roughness_by_scale(cloud, core, list(diameters), _core.Variance[variance], min_points,
+                                        threads=threads, progress=progress)
+
+
+def c2c(reference, compared, **kwargs) -> dict:
+    """Closest-point distances (include/m3c2/baselines.hpp); keywords as the binding's."""
+    with translated():
+        return _core.c2c(reference, compared, **kwargs)
+
+
+def max_abs_coordinate(params: _core.Params) -> float:
+    """The largest |coordinate| compute() accepts with these parameters (its spatial index)."""
+    return float(_core.max_abs_coordinate(params))
+
+
+def neighbourhood_reach(params: _core.Params) -> float:
+    """Largest distance from a core point to a point that can change its result."""
+    return float(_core.neighbourhood_reach(params))
+
+
+def tile_halo(params: _core.Params) -> float:
+    """The halo a tile of core points needs: the reach plus a hair of margin."""
+    return float(_core.tile_halo(params))
+
+
+_DEFAULT = _core.Params()

@@ -1,0 +1,157 @@
+"""The output fields of a compare run: their names (m3c2kit's, CloudCompare's or PDAL's), their
+stored types, and the core points' own attributes carried beside them.
+
+One table, :data:`FIELDS`, holds every output column once with its three names and its type;
+docs/python.md's field table is generated from it (:func:`markdown_table`, checked by
+tests/python/test_io_fields.py).
+
+Stored types (``float64=False``, the default): values a survey measures (distance, LOD, spreads,
+normal scale, roughness, normal components) as float32, whose relative precision is
+2**-24 = 6e-8: below 1 km that is under 0.06 mm, far below any lidar or photogrammetric
+precision; counts as uint32 (0 where no cylinder was searched: ``status`` 1 or 2 says so);
+``status`` as uint8; ``significant`` as float32 (0 or 1, NaN where there is no LOD: unknown is
+not "no change"). Projected positions (x1 ... z2) stay float64: they are coordinates, and
+float32 would lose centimetres at UTM magnitudes. ``float64=True`` (--float64) stores every
+float column as float64.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Literal
+
+import numpy as np
+
+__all__ = ["Field", "FIELDS", "FIELD_NAME_SETS", "FieldNames", "output_name", "typed_columns",
+           "core_attributes", "markdown_table", "FLOAT32_RELATIVE_PRECISION"]
+
+FieldNames = Literal["m3c2", "cloudcompare", "pdal"]
+FIELD_NAME_SETS = ("m3c2", "cloudcompare", "pdal")
+
+#: float32's unit roundoff, 2**-24: the relative error of a value stored as float32.
+FLOAT32_RELATIVE_PRECISION = 2.0**-24
+
+
+@dataclass(frozen=True)
+class Field:
+    """One output column: m3c2kit's name, CloudCompare's (qM3C2 scalar field), PDAL's
+    (filters.m3c2 dimension; None where the tool has no such output: m3c2kit's name is used),
+    its stored type and what it is."""
+
+    name: str
+    cloudcompare: str | None
+    pdal: str | None
+    dtype: str  # "measure" (float32, float64 on request), "coordinate" (float64), "uint32", "uint8"
+    meaning: str
+
+
+FIELDS: tuple[Field, ...] = (
+    Field("distance", "M3C2 distance", "m3c2_distance", "measure", "M3C2 distance i2 - i1 along the normal (eq. 1)"),
+    Field("lod", "distance uncertainty", "m3c2_uncertainty", "measure", "level of detection at --confidence (eq. 1)"),
+    Field("significant", "significant change", "m3c2_significant", "measure", "1 when |distance| > lod, 0 when not, NaN without LOD"),
+    Field("n1", "Npoints_cloud1", "m3c2_count1", "uint32", "reference points in the cylinder"),
+    Field("n2", "Npoints_cloud2", "m3c2_count2", "uint32", "compared points in the cylinder"),
+    Field("sigma1", "STD_cloud1", "m3c2_std_dev1", "measure", "spread of the reference points along the normal"),
+    Field("sigma2", "STD_cloud2", "m3c2_std_dev2", "measure", "spread of the compared points along the normal"),
+    Field("nx", "NormalX", None, "measure", "normal, x component"),
+    Field("ny", "NormalY", None, "measure", "normal, y component"),
+    Field("nz", "NormalZ", None, "measure", "normal, z component"),
+    Field("normal_scale", "normal scale", None, "measure", "the diameter D the normal was fitted at"),
+    Field("roughness", None, None, "measure", "sigma(D), the spread of the normal neighbourhood about its plane"),
+    Field("status", None, None, "uint8", "reason code: 0 ok, 1-5 why a value is NaN (README)"),
+    Field("x1", None, None, "coordinate", "projection on the reference, x (--projected)"),
+    Field("y1", None, None, "coordinate", "projection on the reference, y"),
+    Field("z1", None, None, "coordinate", "projection on the reference, z"),
+    Field("x2", None, None, "coordinate", "projection on the compared cloud, x"),
+    Field("y2", None, None, "coordinate", "projection on the compared cloud, y"),
+    Field("z2", None, None, "coordinate", "projection on the compared cloud, z"),
+)
+_BY_NAME = {f.name: f for f in FIELDS}
+
+
+def _check_names(field_names: str) -> str:
+    if field_names not in FIELD_NAME_SETS:
+        from ..errors import UsageError
+        raise UsageError(f"--field-names must be one of {', '.join(FIELD_NAME_SETS)}, got {field_names!r}")
+    return field_names
+
+
+def output_name(name: str, field_names: str = "m3c2", *, spaces: bool = True) -> str:
+    """The name column `name` gets under `field_names`; with ``spaces=False`` (text and PLY
+    files, whose column names cannot hold spaces) spaces become ``_``, as in CloudCompare's own
+    ASCII export."""
+    f = _BY_NAME.get(name)
+    out = name
+    if f is not None and field_names != "m3c2":
+        out = getattr(f, _check_names(field_names)) or name
+    return out if spaces else out.replace(" ", "_")
+
+
+def _stored(name: str, values: np.ndarray, float64: bool) -> np.ndarray:
+    kind = _BY_NAME[name].dtype if name in _BY_NAME else None
+    values = np.asarray(values)
+    if kind == "uint32":
+        # NaN (no cylinder searched) becomes 0; status tells why.
+        return np.nan_to_num(values.astype(np.float64), nan=0.0).astype(np.uint32)
+    if kind == "uint8":
+        return values.astype(np.uint8)
+    if kind == "measure":
+        return values.astype(np.float64 if float64 else np.float32)
+    return values.astype(np.float64) if values.dtype.kind == "f" else values
+
+
+def typed_columns(table: dict[str, np.ndarray], *, field_names: str = "m3c2", float64: bool = False,
+                  spaces: bool = True) -> dict[str, np.ndarray]:
+    """The result table (Result.columns() without x, y, z) renamed and cast for storage."""
+    _check_names(field_names)
+    return {output_name(k, field_names, spaces=spaces): _stored(k, v, float64) for k, v in table.items()}
+
+
+def core_attributes(source, core: np.ndarray, taken: set[str]) -> dict[str, np.ndarray]:
+    """The attributes (intensity, classification, GPS time, RGB, ...) of the points of `source`
+    (a Cloud) that the core points are, in core-point order, with their own types.
+
+    Core points are matched to `source` points by identical coordinates (they are the reference
+    itself, a subsample of it, or the --core file's points); when some core point is not among
+    them, or `source` has no fields, nothing is carried. A name already in `taken` (an M3C2
+    column) is prefixed ``core_``."""
+    fields = getattr(source, "fields", None) or {}
+    xyz = getattr(source, "xyz", None)
+    if not fields or xyz is None or len(core) == 0:
+        return {}
+    index = _match_rows(np.asarray(xyz, dtype=np.float64), np.asarray(core, dtype=np.float64))
+    if index is None:
+        return {}
+    out = {}
+    for name, values in fields.items():
+        key = name if name not in taken else f"core_{name}"
+        out[key] = np.asarray(values)[index]
+    return out
+
+
+def _match_rows(points: np.ndarray, queries: np.ndarray) -> np.ndarray | None:
+    """For each query row, the index of an identical row of `points` (the first in input
+    order), or None when one has none."""
+    if len(points) == len(queries) and np.array_equal(points, queries):
+        return np.arange(len(points))
+    row = np.dtype([("x", "<f8"), ("y", "<f8"), ("z", "<f8")])
+    p = np.ascontiguousarray(points).view(row).ravel()
+    q = np.ascontiguousarray(queries).view(row).ravel()
+    order = np.argsort(p, kind="stable")
+    pos = np.searchsorted(p[order], q)
+    pos = np.minimum(pos, len(p) - 1)
+    found = order[pos]
+    if not np.array_equal(points[found], queries):
+        return None
+    return found
+
+
+def markdown_table() -> str:
+    """docs/python.md's table of output names and stored types, from :data:`FIELDS`."""
+    types = {"measure": "float32 (float64 with --float64)", "coordinate": "float64", "uint32": "uint32", "uint8": "uint8"}
+    lines = ["| m3c2kit | CloudCompare (`--field-names cloudcompare`) | PDAL (`--field-names pdal`) | stored as | meaning |",
+             "|---|---|---|---|---|"]
+    for f in FIELDS:
+        cc = f"`{f.cloudcompare}`" if f.cloudcompare else f"(`{f.name}`)"
+        pdal = f"`{f.pdal}`" if f.pdal else f"(`{f.name}`)"
+        lines.append(f"| `{f.name}` | {cc} | {pdal} | {types[f.dtype]} | {f.meaning} |")
+    return "\n".join(lines)

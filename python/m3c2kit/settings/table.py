@@ -1,0 +1,243 @@
+"""THE parameter table: every parameter of `m3c2 compare` (and the ones `m3c2 normals` shares)
+once, with its flag, type and range, default, CloudCompare-compatible default, engine field(s),
+help text, paper section, CloudCompare params-file key(s) and py4dgeo name.
+
+Derived from it: the command line's options (m3c2kit.cli), the API's keyword check and defaults
+(:mod:`m3c2kit.settings.resolve`), the building of the engine's Params, the params-file mapping
+(:mod:`m3c2kit.settings.cloudcompare_params`) and the docs' option table
+(:mod:`m3c2kit.settings.docs`, docs/cli.md). Defaults of engine parameters are the engine's own
+(include/m3c2/params.hpp), read through :func:`m3c2kit.engine.default_fields`: they are written
+nowhere else. How to add a parameter: docs/architecture.md.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any, Callable
+
+from .. import engine
+from . import parsers
+from .parsers import UINT32_MAX, UINT64_MAX, Choice, Flag, Integer, Positives, Real, Scales
+
+__all__ = ["Parameter", "EngineField", "PARAMETERS", "FROM_ENGINE", "SAME", "by_name", "parameters_of"]
+
+FROM_ENGINE = "<the engine's default>"
+SAME = "<the same>"
+
+
+@dataclass(frozen=True)
+class EngineField:
+    """How a parameter's value becomes engine Params fields, and back (for its default)."""
+
+    fields: tuple[str, ...]
+    to_engine: Callable[..., dict]
+    from_engine: Callable[[dict], Any]
+
+
+def same(field: str) -> EngineField:
+    """The value is the engine field's."""
+    return EngineField((field,), lambda v, **_: {field: v}, lambda f: f[field])
+
+
+def enum(field: str) -> EngineField:
+    """A choice spelled with '-' for the engine enum member spelled with '_'."""
+    return EngineField((field,), lambda v, **_: {field: v.replace("-", "_")},
+                       lambda f: f[field].replace("_", "-"))
+
+
+def unset_is_zero(field: str, zero: Any = 0.0) -> EngineField:
+    """None (not given) is the engine's `zero`, which means off."""
+    return EngineField((field,), lambda v, **_: {field: zero if v is None else v},
+                       lambda f: f[field] or None)
+
+
+def _orientation_fields(spec, read_points=None, **_) -> dict:
+    direction, points = parsers.orientation(spec, read_points)
+    return {"orientation_direction": list(direction), "orientation_points": points.ravel().tolist()}
+
+
+def _orientation_name(f: dict) -> str:
+    axes = {tuple(v): k for k, v in parsers.AXES.items()}
+    return axes.get(tuple(f["orientation_direction"]), "+z") if not f["orientation_points"] else "points"
+
+
+ORIENTATION = EngineField(("orientation_direction", "orientation_points"), _orientation_fields, _orientation_name)
+PRECISION_SCALES = EngineField(("precision_scale1", "precision_scale2"),
+                               lambda v, **_: {"precision_scale1": v[0], "precision_scale2": v[1]},
+                               lambda f: [f["precision_scale1"], f["precision_scale2"]])
+STATISTIC = EngineField(("statistic",), lambda v, **_: {"statistic": "median" if v else "mean"},
+                        lambda f: f["statistic"] == "median")
+
+
+@dataclass(frozen=True)
+class Parameter:
+    """One user-facing parameter. `kind(flag, value)` checks a value (its range: kind.describe());
+    `cli_type` is argparse's type (None: an on/off flag); `commands` the subcommands that take it."""
+
+    name: str
+    flag: str
+    kind: Callable
+    help: str
+    section: str
+    engine: EngineField | None = None
+    default: Any = FROM_ENGINE
+    cloudcompare: Any = SAME
+    cloudcompare_keys: tuple[str, ...] = ()
+    py4dgeo: str = ""
+    cli_type: Callable | None = float
+    metavar: str | None = None
+    commands: tuple[str, ...] = ("compare",)
+    scope: str = "engine"  # "engine": sets engine fields; "run": how the run is made; "output": how it is written
+
+    def default_for(self, compat: str | None = None):
+        """The default, under --compat cloudcompare when `compat` says so."""
+        if compat == "cloudcompare" and self.cloudcompare is not SAME:
+            return self.cloudcompare
+        if self.default is FROM_ENGINE:
+            return self.engine.from_engine(engine.default_fields())
+        return self.default
+
+    @property
+    def choices(self):
+        return self.kind.values if isinstance(self.kind, Choice) else None
+
+    def help_text(self) -> str:
+        """The help with the default shown (and the CloudCompare-compatible one where it differs)."""
+        default = self.default_for()
+        text = f"{self.help} (default {_shown(default)}"
+        if self.cloudcompare is not SAME:
+            text += f"; {_shown(self.cloudcompare)} with --compat cloudcompare"
+        return text + ")"
+
+
+def _shown(value) -> str:
+    if value is None:
+        return "none"
+    if value is True or value is False:
+        return "on" if value else "off"
+    return str(value)
+
+
+COUNT = Integer(1, UINT32_MAX, "an integer >= 1")
+PLANE_POINTS = Integer(3, UINT32_MAX, "an integer >= 3 (a plane needs 3 points)")
+NORMAL_SOURCES = ("reference", "compared", "mean", "vertical", "horizontal", "core")
+DEPTH_SEARCHES = ("single", "two-pass", "progressive")
+BOTH = ("compare", "normals")
+
+PARAMETERS: tuple[Parameter, ...] = (
+    # Normals (section 3.1.2, 3.2)
+    Parameter("normal_scale", "--normal-scale", Scales(), section="3.1.2, 3.2", engine=unset_is_zero(
+        "normal_diameters", []), cli_type=str, cloudcompare_keys=("NormalScale", "NormalMinScale", "NormalStep",
+                                                                   "NormalMaxScale"),
+              py4dgeo="normal_radii (radii: D / 2)", commands=BOTH,
+              help="D, the normal scale: DIAMETER of the sphere of neighbours (as in the paper and CloudCompare). "
+                   "One value, a list '0.5,1,2' or a range 'MIN:MAX:STEP' (multi-scale: the most planar scale "
+                   "wins); required unless --normal-source is vertical or core"),
+    Parameter("normal_source", "--normal-source", Choice(*NORMAL_SOURCES), section="3.1.2",
+              engine=enum("normal_source"), cli_type=str, cloudcompare_keys=("NormalMode",),
+              help="where normals come from"),
+    Parameter("scale_selection", "--scale-selection", Choice("most-planar", "cloudcompare"), section="3.2",
+              engine=enum("scale_selection"), cloudcompare="cloudcompare", cli_type=str, commands=BOTH,
+              help="multi-scale rule: the most planar scale (the paper's) or CloudCompare's"),
+    Parameter("min_points_normal", "--min-points-normal", PLANE_POINTS, section="3.1.2",
+              engine=same("min_points_normal"), cli_type=int, commands=BOTH,
+              help="fewest neighbours for a plane fit at one scale"),
+    Parameter("min_points_multiscale", "--min-points-multiscale", PLANE_POINTS, section="3.2",
+              engine=same("min_points_multiscale"), cli_type=int, commands=BOTH,
+              help="fewest neighbours at the scale multi-scale normals choose"),
+    Parameter("normal_subsample", "--normal-subsample", Real(), section="5.1",
+              engine=unset_is_zero("normal_subsample_spacing"), commands=BOTH,
+              help="compute normals on the cloud subsampled to this minimum spacing"),
+    Parameter("orient", "--orient", parsers.Orientation(), section="3.1.2", engine=ORIENTATION, default="+z",
+              cli_type=str, cloudcompare_keys=("NormalPreferedOri",), py4dgeo="orientation_vector",
+              commands=BOTH,
+              help="normal orientation: +z -z +x -x +y -y, a point X,Y,Z, or a FILE of points (scanner "
+                   "positions; E57 scan positions by default)"),
+    # Projection (section 3.1.3)
+    Parameter("projection_scale", "--projection-scale", Real(), section="3.1.3",
+              engine=same("projection_diameter"), default=None, cloudcompare_keys=("SearchScale",),
+              py4dgeo="cyl_radius (a radius: d / 2)", help="d: DIAMETER of the projection cylinder (required)"),
+    Parameter("max_depth", "--max-depth", Real(), section="3.1.3", engine=same("max_depth"), default=None,
+              cloudcompare_keys=("SearchDepth",), py4dgeo="max_distance",
+              help="half-length of the cylinder along the normal, on each side (required)"),
+    Parameter("depth_search", "--depth-search", Choice(*DEPTH_SEARCHES), section="3.1.3, 5.3",
+              engine=enum("depth_search"), cloudcompare="progressive", cli_type=str,
+              cloudcompare_keys=("UseSinglePass4Depth",),
+              help="how the cylinder's length is searched; two-pass when --first-pass-depth is given"),
+    Parameter("first_pass_depth", "--first-pass-depth", Real(), section="5.3",
+              engine=unset_is_zero("first_pass_depth"),
+              help="two-pass depth search: a short half-length first, --max-depth only where it finds nothing"),
+    Parameter("positive_search_only", "--positive-search-only", Flag(), section="3.1.3",
+              engine=same("positive_search_only"), cli_type=None, cloudcompare_keys=("PositiveSearchOnly",),
+              help="search only along +normal (CloudCompare option)"),
+    Parameter("median", "--median", Flag(), section="3.1.3", engine=STATISTIC, cli_type=None,
+              cloudcompare_keys=("UseMedian",), py4dgeo="robust_aggr",
+              help="median and IQR instead of mean and standard deviation"),
+    Parameter("variance", "--variance", Choice("sample", "population"), section="3.3",
+              engine=same("variance"), cloudcompare="population", cli_type=str, commands=BOTH,
+              help="denominator of every variance: n - 1 (sample, as py4dgeo) or n (population, as CloudCompare)"),
+    # Confidence (section 3.3, Appendix B)
+    Parameter("registration_error", "--registration-error", Real(closed=True), section="3.3 eq. (1)",
+              engine=same("registration_error"), cloudcompare_keys=("RegistrationError", "RegistrationErrorEnabled"),
+              py4dgeo="registration_error", help="reg of eq. (1), in the clouds' unit"),
+    Parameter("confidence", "--confidence", Real(0.0, below=1.0), section="3.3",
+              engine=same("confidence"), help="confidence level of the LOD"),
+    Parameter("min_points", "--min-points", COUNT, section="5.2.1", engine=same("min_points"), cloudcompare=5,
+              cli_type=int, cloudcompare_keys=("MinPoints4Stat", "UseMinPoints4Stat"),
+              help="points needed in each cylinder for a LOD"),
+    Parameter("lod", "--lod", Choice("z", "t", "auto", "bootstrap"), section="3.3, Appendix B",
+              engine=enum("lod"), cli_type=str,
+              help="the LOD's statistic: eq. (1) with z, with Welch's t (eq. 2), the paper's rule auto (t when "
+                   "n1 or n2 < 30), or the bootstrap of Appendix B (--bootstrap N resamples)"),
+    Parameter("median_lod", "--median-lod", Choice("maritz-jarrett", "cloudcompare"), section="3.3, Appendix B",
+              engine=enum("median_lod"), cloudcompare="cloudcompare", cli_type=str,
+              help="with --median: the median's standard error in eq. (1), exact (Maritz-Jarrett) or "
+                   "CloudCompare's IQR / 1.349 as if it were a mean's spread"),
+    Parameter("t_statistic", "--t-statistic", Flag(), section="3.3 eq. (2)", default=False, cli_type=None,
+              scope="alias", help="the same as --lod auto: Welch t instead of z when n1 or n2 < 30 (eq. 2)"),
+    Parameter("bootstrap", "--bootstrap", Integer(0, UINT32_MAX, "0 (off) or >= 2 resamples", excluded=(1,)),
+              section="Appendix B", engine=same("bootstrap_samples"), cli_type=int,
+              help="LOD from N bootstrap resamples (implies --lod bootstrap)"),
+    Parameter("seed", "--seed", Integer(0, UINT64_MAX, "a non-negative integer"), section="Appendix B",
+              engine=same("bootstrap_seed"), cli_type=int, help="bootstrap seed"),
+    # Per-point uncertainty (section 6.2; include/m3c2/uncertainty.hpp)
+    Parameter("uncertainty", "--uncertainty", Choice("eq1", "pm", "ep"), section="6.2", engine=enum("uncertainty"),
+              cli_type=str, help="the LOD's uncertainty model: eq. (1), M3C2-PM (precision maps) or M3C2-EP "
+                                 "(error propagation); pm and ep need their per-point inputs"),
+    Parameter("precision_rule", "--precision-rule", Choice("nearest", "all"), section="6.2",
+              engine=enum("precision_rule"), cli_type=str,
+              help="M3C2-PM: the precision of the point nearest the cylinder's centre (CloudCompare's) or of "
+                   "every point in it"),
+    Parameter("precision_scales", "--precision-scales", Positives(2), section="6.2", engine=PRECISION_SCALES,
+              cli_type=str, metavar="S1,S2", help="M3C2-PM: scale of each cloud's precisions"),
+    Parameter("ep_covariance", "--ep-covariance", Choice("independent", "mean-of-points"), section="6.2",
+              engine=enum("ep_covariance"), cli_type=str, help="M3C2-EP: the covariance of a centre of gravity"),
+    Parameter("ep_lod", "--ep-lod", Choice("projected", "published"), section="6.2", engine=enum("ep_lod"),
+              cli_type=str, help="M3C2-EP: the level of detection, projected on the normal or as published"),
+    Parameter("ep_weights", "--ep-weights", Choice("normal", "matrix"), section="6.2", engine=enum("ep_weights"),
+              cli_type=str, help="M3C2-EP: the weights of the centres of gravity"),
+    # How the run is made (not what the engine computes)
+    Parameter("core_spacing", "--core-spacing", Real(), section="3.1.1", default=None,
+              cloudcompare_keys=("SubsampleRadius", "SubsampleEnabled"), scope="run",
+              help="core points = the reference subsampled to this minimum spacing"),
+    Parameter("threads", "--threads", Integer(0, 2**31 - 1, "0 (all) or a positive integer"), section="-",
+              default=0, cli_type=int, cloudcompare_keys=("MaxThreadCount",), commands=BOTH, scope="run",
+              help="threads, 0 for all; results are identical for any count"),
+    Parameter("compat", "--compat", Choice("cloudcompare"), section="-", default=None, cli_type=str, scope="run",
+              help="CloudCompare qM3C2 semantics: its defaults where marked (docs/validation.md)"),
+    Parameter("position", "--position", Choice("core", "reference", "compared"), section="3.1.3",
+              default="core", cli_type=str, cloudcompare_keys=("ProjDestIndex",), scope="output",
+              help="where output rows are placed: the core points or their projection on a cloud"),
+)
+
+
+def by_name() -> dict[str, Parameter]:
+    return {p.name: p for p in PARAMETERS}
+
+
+def parameters_of(command: str) -> tuple[Parameter, ...]:
+    return tuple(p for p in PARAMETERS if command in p.commands)
+
+
+def by_cloudcompare_key() -> dict[str, Parameter]:
+    """The parameter each CloudCompare params-file key sets."""
+    return {key: p for p in PARAMETERS for key in p.cloudcompare_keys}
