@@ -3,7 +3,9 @@
 from __future__ import annotations
 
 import argparse
+import os
 import signal
+import warnings
 import sys
 from pathlib import Path
 
@@ -12,7 +14,7 @@ import numpy as np
 from . import api, raster
 from .analysis.cli import analysis_parsers
 from .classify.cli import classify_parsers
-from .errors import M3C2Error, UsageError
+from .errors import M3C2Error, M3C2Warning, UsageError, printable
 from .io import info as file_info
 from .io import read_cloud, write_cloud_table
 from .io.crs import crs_label, same_crs
@@ -281,7 +283,7 @@ def run_subsample(args) -> int:
 
 def run_info(args) -> int:
     for key, value in file_info(args.file).items():
-        print(f"{key}: {value}")
+        print(printable(f"{key}: {value}"))  # a WKT or a file name may hold terminal escapes
     return 0
 
 
@@ -289,22 +291,40 @@ def _raise_interrupted(signum, frame):
     raise Interrupted(f"interrupted by {signal.Signals(signum).name}; no output written")
 
 
+def _show_warning(message, category, filename, lineno, file=None, line=None):
+    """M3C2Warning (e.g. QuantisationWarning) as `m3c2: warning: ...`; others as Python shows them."""
+    if issubclass(category, M3C2Warning):
+        print(f"m3c2: warning: {printable(message)}", file=sys.stderr)
+    else:
+        _python_showwarning(message, category, filename, lineno, file, line)
+
+
+_python_showwarning = warnings.showwarning
+
+
 def main(argv=None) -> int:
     previous = signal.signal(signal.SIGTERM, _raise_interrupted)
     try:
-        args = make_parser().parse_args(argv)
-        return args.run(args)
+        with warnings.catch_warnings():
+            warnings.showwarning = _show_warning
+            args = make_parser().parse_args(argv)
+            return args.run(args)
     except UsageError as e:
-        print(f"m3c2: error: {e}", file=sys.stderr)
+        print(f"m3c2: error: {printable(e)}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:
         print("m3c2: error: interrupted by SIGINT; no output written", file=sys.stderr)
         return 1
     except M3C2Error as e:
-        print(f"m3c2: error: {e}", file=sys.stderr)
+        print(f"m3c2: error: {printable(e)}", file=sys.stderr)
         return 1
     except MemoryError:
         print("m3c2: error: out of memory; use fewer or subsampled core points", file=sys.stderr)
+        return 1
+    except BrokenPipeError:
+        # stdout closed by the reader (`m3c2 info x.las | head -1`): stop quietly, as Unix tools
+        # do, and point stdout at /dev/null so that the interpreter's final flush stays quiet.
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
         return 1
     finally:
         signal.signal(signal.SIGTERM, previous)

@@ -26,7 +26,7 @@ def usable_length(option: str, value) -> float:
     except (TypeError, ValueError, OverflowError):
         raise UsageError(f"{option} must be a positive number, got {value!r}") from None
     if not math.isfinite(v) or v <= 0:
-        raise UsageError(f"{option} must be finite and > 0, got {value!r}")
+        raise UsageError(f"{option} must be a finite, positive length, got {value!r}")
     if v < sys.float_info.min:
         raise UsageError(f"{option} {value!r} is too small to be a length (below {sys.float_info.min:.3g}, "
                          f"the smallest normal float)")

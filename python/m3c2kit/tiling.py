@@ -36,6 +36,7 @@ from typing import Callable
 import numpy as np
 
 from . import api, engine
+from .limits import check_tile_size, usable_length
 from .errors import M3C2Error, UsageError
 from .io.streaming import DEFAULT_CHUNK, PointSource, TableWriter, _in_box
 from .io.fields import typed_columns
@@ -421,11 +422,12 @@ def run_tiled(reference, compared, *, output=None, core=None, core_spacing=None,
                          "core point's index in the run, which a tile does not know")
     if tile_size is None and memory_limit is None:
         raise UsageError("tiling needs --tile-size or --memory-limit")
-    if tile_size is not None and not (float(tile_size) > 0 and math.isfinite(float(tile_size))):
-        raise UsageError(f"--tile-size must be a positive number, got {tile_size!r}")
     h = halo(engine_p)
     hp = engine.tile_halo(engine_p)
     report.halo = h
+    if tile_size is not None:  # before any file is read (docs/errors.md, "Run limits")
+        tile_size = usable_length("--tile-size", tile_size)
+        check_tile_size(tile_size, h)
 
     ref_src = reference if isinstance(reference, PointSource) else PointSource(reference, drop_nonfinite=drop_nonfinite)
     cmp_src = compared if isinstance(compared, PointSource) else PointSource(compared, drop_nonfinite=drop_nonfinite)

@@ -10,7 +10,7 @@ import pytest
 
 from m3c2kit.analysis.suggest import suggest as suggest_parameters
 from m3c2kit.cli import main
-from m3c2kit.cloudcompare_params import read_cloudcompare_params
+from m3c2kit.settings.cloudcompare_params import read_cloudcompare_params
 from m3c2kit.errors import M3C2Error, UsageError, printable
 from m3c2kit.io.arrays import as_coordinates
 from m3c2kit.limits import check_tile_size, usable_length
@@ -105,3 +105,103 @@ def test_real_coordinate_arrays_are_viewed_or_converted():
 ])
 def test_printable_escapes_terminal_controls_and_keeps_text(raw, shown):
     assert printable(raw) == shown
+
+
+# ----------------------------------------------------------- wired into the command line and API
+
+def _escape_cloud(path):
+    np.savetxt(path, np.random.default_rng(0).uniform(0, 1, (50, 3)))
+    return path
+
+
+def test_an_escape_sequence_in_a_file_name_reaches_no_terminal(tmp_path, capsys):
+    """`m3c2: error: ...` printed the file name raw: ESC ] 0 ; retitles the terminal window."""
+    name = tmp_path / "evil\x1b]0;pwned\x07\x1b[2J.bogus"
+    name.write_text("1 2 3\n")
+    assert main(["info", str(name)]) == 1
+    err = capsys.readouterr().err
+    assert "\x1b" not in err and "\x07" not in err
+    assert "evil\\x1b]0;pwned\\x07\\x1b[2J.bogus" in err
+
+
+def test_an_escape_sequence_in_a_las_wkt_reaches_no_terminal(tmp_path, capsys):
+    import laspy
+    las = laspy.LasData(laspy.LasHeader(version="1.4", point_format=6))
+    las.x, las.y, las.z = np.arange(5.0), np.arange(5.0), np.arange(5.0)
+    las.header.vlrs.append(laspy.vlrs.known.WktCoordinateSystemVlr('LOCAL_CS["\x1b[31mred\x1b]0;t\x07",UNIT["metre",1]]'))
+    las.header.global_encoding.wkt = True
+    path = tmp_path / "wkt.las"
+    las.write(path)
+    assert main(["info", str(path)]) == 0
+    out = capsys.readouterr().out
+    assert "\x1b" not in out and "\x07" not in out
+    assert "\\x1b[31mred" in out
+
+
+def test_bootstrap_above_the_maximum_names_the_option(tmp_path, capsys):
+    ref = _escape_cloud(tmp_path / "ref.xyz")
+    assert main(["compare", str(ref), str(ref), "-o", str(tmp_path / "o.csv"), "--normal-scale", "1",
+                 "--projection-scale", "1", "--max-depth", "1", "--bootstrap", "1000000000"]) == 2
+    assert capsys.readouterr().err == ("m3c2: error: --bootstrap must be 0 (off) or >= 2 resamples, at most 100000, "
+                                       "got 1000000000\n")
+    assert not (tmp_path / "o.csv").exists()
+
+
+@pytest.mark.parametrize("tile, message", [
+    ("5e-324", "--tile-size 5e-324 is too small to be a length"),
+    ("1e-6", "--tile-size 1e-06 is too small for the halo of"),
+])
+def test_tile_sizes_that_cannot_work_are_refused_naming_the_option(tmp_path, capsys, tile, message):
+    """--tile-size 5e-324 was a traceback, 1e-6 said 'use fewer core points', and 0.5 beside a
+    halo of 30 looped for minutes with memory growing."""
+    ref = _escape_cloud(tmp_path / "ref.xyz")
+    assert main(["compare", str(ref), str(ref), "-o", str(tmp_path / "o.csv"), "--normal-scale", "1",
+                 "--projection-scale", "1", "--max-depth", "1", "--tile-size", tile]) == 2
+    assert capsys.readouterr().err.startswith(f"m3c2: error: {message}")
+
+
+@pytest.mark.parametrize("kind", ["complex", "bool", "datetime"])
+def test_the_api_refuses_non_real_coordinates(kind):
+    """complex (imaginary part dropped), bool and datetime arrays were computed on."""
+    from m3c2kit import api
+    good = np.random.default_rng(0).uniform(0, 1, (50, 3))
+    bad = {"complex": good + 1j, "bool": good > 0.5, "datetime": np.full((50, 3), np.datetime64("2024-01-01"))}[kind]
+    with pytest.raises(UsageError, match=r"^compared must be an \(N, 3\) array of real numbers"):
+        api.compare(good, bad, normal_scale=1, projection_scale=1, max_depth=1)
+
+
+def test_a_grid_too_fine_for_the_memory_is_refused_before_allocating(tmp_path, capsys, monkeypatch):
+    """--grid 0.001 on a 20 m cloud took 8.6 GB: the rasters were not in the memory estimate."""
+    rng = np.random.default_rng(0)
+    cloud = np.column_stack([rng.uniform(0, 20, (400, 2)), rng.normal(0, 0.01, 400)])
+    np.savetxt(tmp_path / "ref.xyz", cloud)
+    monkeypatch.setenv("M3C2_AVAILABLE_MEMORY", str(2 * 2**30))
+    out = tmp_path / "dod.laz"
+    assert main(["compare", str(tmp_path / "ref.xyz"), str(tmp_path / "ref.xyz"), "-o", str(out), "--grid", "0.001",
+                 "--max-depth", "1", "--quiet"]) == 1
+    err = capsys.readouterr().err
+    assert err.startswith("m3c2: error: --grid 0.001 makes rasters of ") and "only 2.0 GiB is available" in err
+    assert "use a larger --grid (at least about 0.00" in err
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["ref.xyz"]
+
+
+@pytest.mark.parametrize("cell", ["5e-324", "0", "nan"])
+def test_grid_sizes_that_are_not_lengths_are_refused(tmp_path, capsys, cell):
+    ref = _escape_cloud(tmp_path / "ref.xyz")
+    assert main(["compare", str(ref), str(ref), "-o", str(tmp_path / "o.laz"), "--grid", cell, "--max-depth", "1"]) == 2
+    assert capsys.readouterr().err.startswith("m3c2: error: --grid ")
+
+
+def test_a_closed_stdout_ends_quietly(tmp_path):
+    """`m3c2 info x | head -1` printed a BrokenPipeError traceback."""
+    import subprocess
+    import sys
+    from child_env import child_env
+    path = _escape_cloud(tmp_path / "cloud.xyz")
+    proc = subprocess.Popen([sys.executable, "-m", "m3c2kit", "info", str(path)], stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, env=child_env())
+    proc.stdout.close()  # the reader is gone before the first line
+    err = proc.stderr.read().decode()
+    proc.wait(timeout=120)
+    assert "Traceback" not in err and "BrokenPipeError" not in err, err
+    assert proc.returncode == 1
