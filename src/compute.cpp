@@ -281,8 +281,11 @@ Result compute(PointsView reference, PointsView compared, PointsView core_points
   if (reference.empty()) throw InvalidArgument("the reference cloud is empty");
   if (compared.empty()) throw InvalidArgument("the compared cloud is empty");
   // The clouds' coordinates are checked by their indexes, on the thread building each
-  // (index_of); the core points here.
-  detail::require_finite_points("core points", core_points);
+  // (index_of); the core points here, unless they are one of the clouds (the default: the
+  // reference itself), whose index names its own non-finite coordinates ("reference cloud has
+  // ...", not "core points has ...").
+  const bool cloud_itself = core_points.size() == reference.size() && core_points.data() == reference.data();
+  if (!cloud_itself) detail::require_finite_points("core points", core_points);
   if (params.normal_source == NormalSource::kCorePoints && core_normals.size() != 3 * core_points.size())
     throw InvalidArgument("core_normals must hold 3 values per core point (" + std::to_string(3 * core_points.size()) +
                           "), got " + std::to_string(core_normals.size()));

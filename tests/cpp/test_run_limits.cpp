@@ -136,6 +136,20 @@ TEST(RunLimits, AProcessThreadLimitRunsWithTheThreadsItCanCreate) {
   EXPECT_EQ(WEXITSTATUS(status), 0) << "libgomp exits 1 when it cannot create a thread; 90/91: set-up failed";
 }
 
+// A NaN in the reference with the reference as its own core points (the default) was reported
+// as one "in the core points".
+TEST(RunLimits, ANanInTheReferenceAsItsOwnCorePointsIsTheReferences) {
+  Pair pr = rough_pair(24, 300);
+  pr.reference.xyz[7] = kNaN;
+  const Params p = basic_params(1.0, 0.5, 2.0);
+  try {
+    compute(pr.reference.view(), pr.compared.view(), pr.reference.view(), p, with_threads(1));
+    FAIL() << "a NaN was accepted";
+  } catch (const InvalidArgument& e) {
+    EXPECT_EQ(std::string(e.what()), "reference cloud has 1 non-finite coordinates (NaN or Inf)");
+  }
+}
+
 TEST(RunLimits, ALongBootstrapIsCancelledInsideItsCorePoint) {
   Cloud reference, compared, core;
   std::mt19937_64 rng(5);

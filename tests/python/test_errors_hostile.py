@@ -205,3 +205,56 @@ def test_a_closed_stdout_ends_quietly(tmp_path):
     proc.wait(timeout=120)
     assert "Traceback" not in err and "BrokenPipeError" not in err, err
     assert proc.returncode == 1
+
+
+def test_an_output_that_is_a_folder_says_so(tmp_path, capsys):
+    """`-o adir` said "cannot write '' files"."""
+    ref = _escape_cloud(tmp_path / "ref.xyz")
+    (tmp_path / "adir").mkdir()
+    assert main(["compare", str(ref), str(ref), "-o", str(tmp_path / "adir"), "--normal-scale", "1",
+                 "--projection-scale", "1", "--max-depth", "1", "--quiet"]) == 1
+    assert capsys.readouterr().err == f"m3c2: error: {tmp_path / 'adir'}: is a directory\n"
+
+
+def test_an_empty_orientation_says_so(tmp_path, capsys):
+    """`--orient ""` said ". is a directory" (Path("") is the working folder)."""
+    ref = _escape_cloud(tmp_path / "ref.xyz")
+    assert main(["compare", str(ref), str(ref), "-o", str(tmp_path / "o.csv"), "--normal-scale", "1",
+                 "--projection-scale", "1", "--max-depth", "1", "--orient", "", "--quiet"]) == 2
+    assert capsys.readouterr().err == ("m3c2: error: --orient is empty: give +x|-x|+y|-y|+z|-z, X,Y,Z or a file "
+                                       "of points\n")
+
+
+def test_a_nan_in_the_reference_is_the_references():
+    """With the reference as its own core points (the default) the NaN was "in the core points"."""
+    from m3c2kit import api
+    ref = np.random.default_rng(0).uniform(0, 1, (100, 3))
+    ref[5, 2] = np.nan
+    with pytest.raises(UsageError, match=r"^reference cloud has 1 non-finite coordinates"):
+        api.compare(ref, ref[::-1].copy(), normal_scale=1, projection_scale=1, max_depth=1)
+
+
+_GOOD = np.random.default_rng(1).uniform(0, 1, (60, 3))
+_KW = dict(normal_scale=0.5, projection_scale=0.5, max_depth=0.5)
+_BAD_CALLS = [
+    ("compare", (_GOOD, "cloud"), _KW), ("compare", (_GOOD, None), _KW), ("compare", (_GOOD, _GOOD[:, :2]), _KW),
+    ("compare", (_GOOD, _GOOD + 1j), _KW), ("compare", (_GOOD, [[1, 2, [3]]]), _KW),
+    ("compare", (_GOOD, _GOOD), dict(_KW, normal_scale="abc")), ("compare", (_GOOD, _GOOD), dict(_KW, normal_scale=-1)),
+    ("compare", (_GOOD, _GOOD), dict(_KW, max_depth=float("nan"))), ("compare", (_GOOD, _GOOD), dict(_KW, bogus=1)),
+    ("compare", (_GOOD, _GOOD), dict(_KW, threads=-1)), ("compare", (_GOOD, _GOOD), dict(_KW, threads="many")),
+    ("compare", (_GOOD, _GOOD), dict(_KW, bootstrap=10**9)), ("compare", (_GOOD, _GOOD), dict(_KW, orient="")),
+    ("compare", (_GOOD, _GOOD), dict(_KW, orient=object())), ("compare", (_GOOD, _GOOD), dict(_KW, confidence=2)),
+    ("compare", (_GOOD, _GOOD), dict(_KW, min_points=1.5)), ("compare", (_GOOD, _GOOD), dict(_KW, seed=-1)),
+    ("compare", (_GOOD, _GOOD), dict(_KW, core_points=np.zeros((0, 3)))),
+    ("compare", (_GOOD, _GOOD), dict(_KW, progress=lambda done, total: False)),
+    ("normals", (_GOOD,), dict(normal_scale=0)), ("normals", ("x",), dict(normal_scale=1)),
+    ("subsample", (_GOOD, 0), {}), ("subsample", (_GOOD, "x"), {}), ("subsample", (None, 1), {}),
+]
+
+
+@pytest.mark.parametrize("fn, args, kwargs", _BAD_CALLS)
+def test_the_api_raises_only_the_packages_exceptions(fn, args, kwargs):
+    """ValueError, TypeError, AttributeError and m3c2kit._core.Cancelled escaped the API."""
+    from m3c2kit import api
+    with pytest.raises(M3C2Error):
+        getattr(api, fn)(*args, **kwargs)
