@@ -422,6 +422,12 @@ def main():
     canupo = C.REPO / "docs" / "validation" / "canupo-ahn.md"  # written by validation/canupo_ahn.py
     emit(canupo.read_text().rstrip("\n") if canupo.exists() else "Not generated: run validation/canupo_ahn.py.")
     emit("")
+    emit("## 7. Per-point uncertainty: M3C2-PM and M3C2-EP (issue 16)\n")
+    # The saved output of the uncertainty campaigns, which take longer than this script:
+    # validation/uncertainty_sim.py, uncertainty_ahk.py and py4dgeo_m3c2ep.py.
+    unc = C.REPO / "docs" / "validation" / "uncertainty.md"
+    emit(unc.read_text().rstrip("\n") if unc.exists() else "Not generated: run validation/uncertainty_sim.py.")
+    emit("")
     emit("## Runtime\n")
     emit(f"This script ran in {time.perf_counter() - start:.0f} s.")
     DOC.write_text("\n".join(LINES) + "\n")

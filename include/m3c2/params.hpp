@@ -106,7 +106,8 @@ struct Params {
   // Per-point uncertainty (6.2; include/m3c2/uncertainty.hpp, docs/algorithm.md §6.5)
   Uncertainty uncertainty = Uncertainty::kEq1;  ///< eq. (1), M3C2-PM or M3C2-EP
   PrecisionRule precision_rule = PrecisionRule::kNearest;  ///< PM: which points give sigma
-  double precision_scale1 = 1.0, precision_scale2 = 1.0;  ///< PM: scale of each cloud's sigmas
+  double precision_scale1 = 1.0;  ///< PM: scale of the reference cloud's sigmas (qM3C2's PM1Scale)
+  double precision_scale2 = 1.0;  ///< PM: scale of the compared cloud's sigmas (PM2Scale)
   EpCovariance ep_covariance = EpCovariance::kIndependent;  ///< EP: the centres' covariance
   EpLod ep_lod = EpLod::kProjected;  ///< EP: the level of detection
   EpWeights ep_weights = EpWeights::kNormal;  ///< EP: the weights of the centres of gravity

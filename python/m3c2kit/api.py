@@ -10,7 +10,7 @@ from typing import Callable
 
 import numpy as np
 
-from . import engine
+from . import engine, uncertainty_inputs
 from .io.arrays import as_coordinates
 from .errors import CloudReadError, M3C2Error, UsageError
 from .io.guard import available_memory, format_bytes
@@ -116,7 +116,10 @@ def compare(reference, compared, core_points=None, *, core=None, core_normals=No
         normals = as_points("core_normals", core_normals)
         if len(normals) != len(core_xyz):
             raise UsageError(f"core_normals has {len(normals)} rows for {len(core_xyz)} core points")
-    raw = engine.compute(ref, cmp_, core_xyz, engine_p, normals, threads=values["threads"], progress=progress)
+    # Per-point inputs of --uncertainty pm / ep from the clouds' fields (docs/algorithm.md §6.5).
+    uncertainty = uncertainty_inputs.inputs_for(values, reference, compared)
+    raw = engine.compute(ref, cmp_, core_xyz, engine_p, normals, threads=values["threads"], progress=progress,
+                         **uncertainty)
     return Result.from_engine(core_xyz, raw, run_record(params, engine_p))
 
 

@@ -15,9 +15,9 @@ from . import api, raster
 from .analysis.cli import analysis_parsers
 from .classify.cli import classify_parsers
 from .errors import M3C2Error, M3C2Warning, UsageError, printable
-from .io import info as file_info
 from .io import read_cloud, write_cloud_table
-from .io.crs import crs_label, same_crs
+from .io import crs as crs_mod
+from .io.describe import describe, describe_text
 from .progress import ProgressBar
 from .report.outputs import write_compare_outputs
 from .settings import by_name, parameters_of
@@ -56,7 +56,14 @@ def _compare_parser(sub) -> None:
     p.add_argument("--projected", action="store_true", help="also write the projected positions x1..z2")
     p.add_argument("--drop-nonfinite", action="store_true", help="drop points with NaN/Inf coordinates")
     p.add_argument("--ignore-crs", action="store_true",
-                   help="compare clouds whose CRS or units differ (default: an error naming both)")
+                   help="compare clouds whose CRS or units differ, or of which only one has a CRS, or in degrees "
+                        "(default: an error naming them)")
+    p.add_argument("--allow-angular", action="store_true",
+                   help="accept horizontal coordinates in degrees (a geographic CRS such as EPSG:4326; default: "
+                        "an error, as distances would mix degrees and heights)")
+    p.add_argument("--crs", metavar="CRS",
+                   help="CRS of inputs that have none (ASCII, PLY, .npy, LAS without one): EPSG:CODE, a WKT or a "
+                        ".prj file; written to LAS outputs and GeoTIFFs (default: none)")
     p.add_argument("--report", type=Path, metavar="HTML", help="also write a self-contained HTML report (docs/report.md)")
     p.add_argument("--report-png", type=Path, metavar="PREFIX", help="also write the report's figures as PREFIX_<figure>.png")
     p.add_argument("--tile-size", type=float, metavar="S",
@@ -106,12 +113,16 @@ def _subsample_parser(sub) -> None:
 
 def _info_parser(sub) -> None:
     p = sub.add_parser("info", help="point count, bounds, CRS and fields of a file")
-    p.add_argument("file", type=Path)
+    p.add_argument("file", type=Path, help="a point-cloud file")
+    p.add_argument("--json", action="store_true",
+                   help="machine-readable output: one JSON object, the CRS as name, EPSG code and WKT (default: text)")
     p.set_defaults(run=run_info)
 
 
 def make_parser() -> argparse.ArgumentParser:
     parser = ArgumentParser(prog="m3c2", description="M3C2 point-cloud change detection (Lague et al. 2013)")
+    from . import __version__
+    parser.add_argument("--version", action="version", version=f"m3c2 (m3c2kit) {__version__}")
     sub = parser.add_subparsers(dest="command", required=True, parser_class=ArgumentParser)
     for build in (_compare_parser, _normals_parser, _subsample_parser, _info_parser, analysis_parsers, classify_parsers):
         build(sub)
@@ -151,11 +162,17 @@ def run_compare(args) -> int:
     cell = raster.grid_mode(args)  # --grid: checks its options, d = 1.1 CELL by default
     settings = compare_settings(args)
     if args.tile_size is not None or args.memory_limit is not None or args.dask_scheduler is not None:
+        if getattr(args, "crs", None):
+            raise UsageError("--crs is not available with --tile-size, --memory-limit or --dask-scheduler; "
+                             "give the inputs a CRS (e.g. convert them to LAS with one) or run in memory")
         from .tiling import run_compare_tiled  # out-of-core / Dask (docs/scaling.md)
         return run_compare_tiled(args, settings, grid=cell)
     reference, compared = _read(args.reference, args), _read(args.compared, args)
     core_cloud = _read(args.core, args) if args.core is not None else None
-    check_same_crs(reference, compared, core_cloud, ignore=getattr(args, "ignore_crs", False))  # docs/errors.md
+    if getattr(args, "crs", None):
+        assign_crs(args.crs, reference, compared, core_cloud)
+    check_same_crs(reference, compared, core_cloud, ignore=getattr(args, "ignore_crs", False),
+                   allow_angular=getattr(args, "allow_angular", False))  # docs/errors.md
     grid = None
     if cell is not None:
         settings = raster.grid_settings(settings)
@@ -163,6 +180,8 @@ def run_compare(args) -> int:
         core_cloud = grid.core_points
     settings["orient"] = _orient_spec(args, settings, reference)
     position = settings.pop("position", "core")
+    field_names = settings.pop("field_names", "m3c2")
+    float64 = bool(settings.pop("float64", False))
     threads = settings.pop("threads", 0)
     core_normals = None
     if settings.get("normal_source") == "core":
@@ -171,7 +190,8 @@ def run_compare(args) -> int:
     result = api.compare(reference, compared, core_cloud, core_normals=core_normals, threads=threads,
                          progress=bar.update, read_points=lambda p: _read(p, args).xyz, **settings)
     bar.close()
-    extra = write_compare_outputs(args, result, reference, grid=grid, position=position)
+    extra = write_compare_outputs(args, result, reference, grid=grid, position=position, field_names=field_names,
+                                  float64=float64, core_spacing=settings.get("core_spacing"))
     if not args.quiet:
         for line in summary_lines(result, args.output):
             print(line)
@@ -181,27 +201,26 @@ def run_compare(args) -> int:
     return 0
 
 
-class CrsMismatch(M3C2Error):
-    """The epochs' CRSs or units differ (exit 1); --ignore-crs overrides."""
+CrsMismatch = crs_mod.CrsMismatch  # the epochs' CRSs or units differ (exit 1); --ignore-crs overrides
 
 
-def check_same_crs(reference, compared, core=None, *, ignore: bool = False) -> None:
-    """Raises CrsMismatch when the compared cloud (or the core points) and the reference have
-    CRSs known to differ (m3c2kit.io.crs.same_crs) or different units hints; unknown ones pass."""
-    if ignore:
-        return
-    for role, other in (("compared", compared), ("core points", core)):
-        if other is None:
+def check_same_crs(reference, compared, core=None, *, ignore: bool = False, allow_angular: bool = False) -> None:
+    """m3c2kit.io.crs.check_crs: CRSs known to differ, a CRS on one cloud only, different units,
+    angular coordinates (docs/errors.md)."""
+    crs_mod.check_crs(reference, compared, core, ignore=ignore, allow_angular=allow_angular)
+
+
+def assign_crs(spec: str, *clouds) -> None:
+    """--crs: the CRS of every given cloud that has none; a cloud with another CRS is an error."""
+    wkt = crs_mod.assign_crs(spec)
+    for cloud in clouds:
+        if cloud is None:
             continue
-        if same_crs(reference.crs, other.crs) is False:
-            raise CrsMismatch(f"the clouds have different CRSs: reference {reference.path} is in "
-                              f"{crs_label(reference.crs)}, {role} {other.path} in {crs_label(other.crs)}; "
-                              f"reproject one of them, or pass --ignore-crs if the coordinates are comparable")
-        units = (reference.units_hint, other.units_hint)
-        if all(units) and units[0] != units[1]:
-            raise CrsMismatch(f"the clouds have different units: reference {reference.path} is in {units[0]}, "
-                              f"{role} {other.path} in {units[1]}; convert one of them, or pass --ignore-crs "
-                              f"if the coordinates are comparable")
+        if not cloud.crs:
+            cloud.crs, cloud.units_hint = wkt, crs_mod.crs_units(wkt) or cloud.units_hint
+        elif crs_mod.same_crs(cloud.crs, wkt) is False:
+            raise CrsMismatch(f"{cloud.path} already has a CRS, {crs_mod.crs_label(cloud.crs)}, not the --crs "
+                              f"{crs_mod.crs_label(wkt)}; --crs only assigns a CRS to inputs that have none")
 
 
 #: Share of computed core points with an empty cylinder in one cloud only above which
@@ -224,26 +243,43 @@ def result_warnings(result, min_points: int, max_depth=None, projection_scale=No
         lines.append(f"warning: the median cylinder holds n1 = {m1:g}, n2 = {m2:g} points, fewer than "
                      f"--min-points {min_points}: the projection scale d = {projection_scale} is small for "
                      f"the point spacing and most LODs are NaN; consider a larger --projection-scale")
-    one_side = np.count_nonzero((n1 == 0) != (n2 == 0)) / len(n1)
-    if one_side > EMPTY_ONE_SIDE_WARNING:
-        lines.append(f"warning: {100 * one_side:.1f}% of the core points with a normal have an empty cylinder "
-                     f"in one cloud only: the change may reach beyond --max-depth {max_depth}; consider a "
-                     f"larger --max-depth")
+    # Empty cylinders in one cloud: m3c2kit.quality tells no overlap from a depth too short.
+    return lines
+
+
+def quality_warnings(settings: dict, result, reference, compared) -> list[str]:
+    """m3c2kit.quality's diagnoses: normals that fail (D given as a radius?), and empty cylinders
+    split into no overlap (no depth helps) and a depth too short (the depth that reaches)."""
+    from . import quality
+
+    lines = []
+    failed = quality.normal_failure_message(result, settings.get("normal_scale") or 0.0)
+    if failed:
+        lines.append(f"warning: {failed}")
+    status = np.asarray(result.status)
+    with_normal = np.count_nonzero(np.isin(status, (0, 3, 4, 5)))
+    empty = np.count_nonzero(np.isin(status, (3, 4)))
+    if with_normal and empty / with_normal > quality.EMPTY_SHARE:
+        diagnoses = quality.cylinder_diagnosis(reference.xyz, compared.xyz, result,
+                                               projection_scale=float(settings["projection_scale"]),
+                                               max_depth=float(settings["max_depth"]),
+                                               threads=int(settings.get("threads", 0) or 0))
+        lines += [f"warning: {m}" for m in quality.cylinder_messages(diagnoses, float(settings["max_depth"]))]
     return lines
 
 
 def _print_warnings(args, settings: dict, result, *clouds) -> None:
+    """Warnings go to stderr (docs/errors.md), with --quiet too: they are about the numbers."""
     min_points = settings.get("min_points")
     lines = [f"note: dropped {c.dropped_nonfinite} points with non-finite coordinates from {c.path}"
              for c in clouds if getattr(c, "dropped_nonfinite", 0)]
     lines += result_warnings(result, by_name()["min_points"].default_for(settings.get("compat")) if min_points is None
                              else int(min_points),
                              settings.get("max_depth"), settings.get("projection_scale"))
+    if len(clouds) >= 2 and clouds[0] is not None and clouds[1] is not None:
+        lines += quality_warnings(settings, result, clouds[0], clouds[1])
     for line in lines:
-        if args.quiet:
-            print(f"m3c2: {line}", file=sys.stderr)
-        else:
-            print(line)
+        print(f"m3c2: {line}", file=sys.stderr)
 
 
 def _core_normals(args, core_cloud) -> np.ndarray:
@@ -269,6 +305,11 @@ def run_normals(args) -> int:
     fields = {"nx": n[:, 0], "ny": n[:, 1], "nz": n[:, 2], "normal_scale": out["normal_scale"],
               "roughness": out["roughness"], "count": out["count"].astype(np.uint32), "status": out["status"]}
     write_cloud_table(args.output, out["core"], fields, like=cloud)
+    if not args.quiet:
+        ok = int(np.count_nonzero(np.asarray(out["status"]) == 0))
+        print(f"{args.output}: normals at {ok:,} of {len(out['core']):,} points "
+              f"({100.0 * ok / max(len(out['core']), 1):.1f} %); median roughness "
+              f"{np.nanmedian(out['roughness']) if ok else float('nan'):.4g}")
     return 0
 
 
@@ -282,8 +323,12 @@ def run_subsample(args) -> int:
 
 
 def run_info(args) -> int:
-    for key, value in file_info(args.file).items():
-        print(printable(f"{key}: {value}"))  # a WKT or a file name may hold terminal escapes
+    d = describe(args.file)
+    if args.json:
+        import json
+        print(printable(json.dumps(d, indent=2)))
+    else:
+        print(printable(describe_text(d)))  # a WKT or a file name may hold terminal escapes
     return 0
 
 
@@ -302,11 +347,31 @@ def _show_warning(message, category, filename, lineno, file=None, line=None):
 _python_showwarning = warnings.showwarning
 
 
+#: Option values that start with "-" and that argparse would take for options: "--orient -z".
+_DASH_VALUES = {"--orient": ("-x", "-y", "-z")}
+
+
+def join_dash_values(argv: list[str]) -> list[str]:
+    """["--orient", "-z"] -> ["--orient=-z"], as --help writes it (argparse reads "-z" as an option)."""
+    out: list[str] = []
+    i = 0
+    while i < len(argv):
+        a = argv[i]
+        if a in _DASH_VALUES and i + 1 < len(argv) and str(argv[i + 1]).lower() in _DASH_VALUES[a]:
+            out.append(f"{a}={argv[i + 1]}")
+            i += 2
+            continue
+        out.append(a)
+        i += 1
+    return out
+
+
 def main(argv=None) -> int:
     previous = signal.signal(signal.SIGTERM, _raise_interrupted)
     try:
         with warnings.catch_warnings():
             warnings.showwarning = _show_warning
+            argv = join_dash_values([str(a) for a in (sys.argv[1:] if argv is None else argv)])
             args = make_parser().parse_args(argv)
             return args.run(args)
     except UsageError as e:

@@ -23,7 +23,7 @@ from .errors import Cancelled, UsageError
 
 __all__ = ["PARAM_FIELDS", "RESULT_FIELDS", "OPTIONAL_RESULT_FIELDS", "STATUS_NAMES", "MAX_CELLS_PER_AXIS", "MAX_BOOTSTRAP_SAMPLES", "INDEX_MEMORY", "Params",
            "translated", "make_params", "default_fields", "params_fields", "compute", "compute_normals",
-           "subsample_min_spacing", "grid_core_points", "roughness_by_scale", "c2c", "max_abs_coordinate",
+           "subsample_min_spacing", "grid_core_points", "roughness_by_scale", "dimensionality", "c2c", "max_abs_coordinate",
            "neighbourhood_reach", "tile_halo"]
 
 Params = _core.Params
@@ -120,6 +120,14 @@ def roughness_by_scale(cloud, core, diameters, variance: str = "sample", min_poi
     with translated():
         return _core.roughness_by_scale(cloud, core, list(diameters), _core.Variance[variance], min_points,
                                         threads=threads, progress=progress)
+
+
+def dimensionality(cloud: np.ndarray, core: np.ndarray, diameters, min_points: int = 3, *, threads: int = 0,
+                   progress=None) -> dict:
+    """Multi-scale dimensionality features (Brodu & Lague 2012; include/m3c2/dimensionality.hpp)."""
+    with translated():
+        return _core.dimensionality(cloud, core, [float(d) for d in diameters], int(min_points), int(threads),
+                                    progress)
 
 
 def c2c(reference, compared, **kwargs) -> dict:

@@ -5,12 +5,14 @@ from dataclasses import field, make_dataclass
 
 import numpy as np
 
-from .engine import RESULT_FIELDS, STATUS_NAMES
+from .engine import OPTIONAL_RESULT_FIELDS, RESULT_FIELDS, STATUS_NAMES
 
 #: Output columns in every format, in this order (a contract: see docs/cli.md).
 COLUMNS = ("x", "y", "z", "distance", "lod", "significant", "n1", "n2", "sigma1", "sigma2",
            "nx", "ny", "nz", "normal_scale", "roughness", "status")
 PROJECTED_COLUMNS = ("x1", "y1", "z1", "x2", "y2", "z2")
+#: Written after the status when the run made them (uncertainty pm / ep; docs/algorithm.md §6.5).
+UNCERTAINTY_COLUMNS = ("spread1", "spread2")
 
 #: Reason codes of the `status` column: STATUS_NAMES (the engine's, by code).
 STATUS_OK = 0
@@ -75,6 +77,9 @@ class _ResultMethods:
             "normal_scale": self.normal_scale, "roughness": self.roughness,
             "status": self.status.astype(np.uint8),
         }
+        for name in UNCERTAINTY_COLUMNS:
+            if getattr(self, name, None) is not None:
+                table[name] = getattr(self, name)
         if projected:
             p1, p2 = self.projected(1), self.projected(2)
             table.update(x1=p1[:, 0], y1=p1[:, 1], z1=p1[:, 2], x2=p2[:, 0], y2=p2[:, 1], z2=p2[:, 2])
@@ -87,6 +92,8 @@ class _ResultMethods:
 
 #: The Result class: ``core``, one array per engine Result field, ``params``.
 Result = make_dataclass("Result", [("core", np.ndarray)] + [(name, np.ndarray) for name in RESULT_FIELDS]
-                        + [("params", dict, field(default_factory=dict))], bases=(_ResultMethods,),
+                        + [("params", dict, field(default_factory=dict))]
+                        + [(name, object, field(default=None)) for name in OPTIONAL_RESULT_FIELDS],
+                        bases=(_ResultMethods,),
                         namespace={"__module__": __name__})
 Result.__doc__ = _ResultMethods.__doc__

@@ -420,6 +420,10 @@ def run_tiled(reference, compared, *, output=None, core=None, core_spacing=None,
     if values["lod"] == "bootstrap":
         raise UsageError("--bootstrap cannot be combined with tiling: the bootstrap stream is seeded by the "
                          "core point's index in the run, which a tile does not know")
+    if values["uncertainty"] != "eq1":
+        raise UsageError(f"--uncertainty {values['uncertainty']} runs in memory only: tiled and Dask runs do not "
+                         "carry the per-point fields it reads (precisions, scan-position ids); drop --tile-size, "
+                         "--memory-limit and --dask-scheduler")
     if tile_size is None and memory_limit is None:
         raise UsageError("tiling needs --tile-size or --memory-limit")
     h = halo(engine_p)

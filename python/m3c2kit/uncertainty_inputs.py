@@ -9,7 +9,10 @@ default ``sx,sy,sz``: LAS extra bytes, PLY properties or ASCII columns, through 
 (``--transform``), its 12x12 alignment covariance (``--alignment-covariance``) and the reduction
 point (``--reduction-point``).
 
-The engine call goes through the facade (m3c2kit.engine), which translates its errors.
+:func:`inputs_for` turns a run's resolved settings and the clouds' fields into the engine's
+keyword arrays (m3c2kit.api.compare passes them to m3c2kit.engine.compute); :func:`compute` is
+the same engine call for arrays already at hand (tests, validation/). The engine call goes
+through the facade (m3c2kit.engine), which translates its errors.
 """
 from __future__ import annotations
 
@@ -24,7 +27,7 @@ from . import engine
 from .errors import UsageError
 
 __all__ = ["UNCERTAINTIES", "EpInputs", "precision_array", "scan_position_ids", "load_scan_positions",
-           "load_matrix", "parse_reduction_point", "compute"]
+           "load_matrix", "parse_reduction_point", "inputs_for", "compute"]
 
 UNCERTAINTIES = ("eq1", "pm", "ep")
 _TABLE_KEYS = ("sigma_range", "sigma_scan", "sigma_yaw")
@@ -161,6 +164,71 @@ class EpInputs:
     alignment_covariance: np.ndarray | None = None
     reduction_point: np.ndarray = field(default_factory=lambda: np.zeros(3))
     transform_applied: bool = False
+
+
+def _fields(cloud, what: str, option: str) -> dict:
+    fields = getattr(cloud, "fields", None)
+    if fields is None:
+        raise UsageError(f"{option} reads per-point fields of the {what} cloud: give it as a file or an "
+                         "m3c2kit.io.Cloud (read_cloud), not a bare array")
+    return fields
+
+
+def _table_or_file(value, poses, option: str) -> np.ndarray:
+    if isinstance(value, np.ndarray):
+        table = np.ascontiguousarray(value, dtype=np.float64)
+        if table.ndim != 2 or table.shape[1] != 8:
+            raise UsageError(f"{option}: an array table must be (K, 8): id, x, y, z, sigma_range, "
+                             "sigma_range_ppm, sigma_scan, sigma_yaw")
+        return table
+    return load_scan_positions(value, poses)
+
+
+def _matrix(value, shape, option: str) -> np.ndarray:
+    if isinstance(value, (np.ndarray, list, tuple)):
+        m = np.asarray(value, dtype=np.float64)
+        if m.shape != shape:
+            raise UsageError(f"{option}: expected a {shape[0]}x{shape[1]} matrix, got shape {m.shape}")
+        return np.ascontiguousarray(m)
+    return load_matrix(value, shape, option)
+
+
+def inputs_for(values: dict, reference, compared) -> dict:
+    """The engine's uncertainty keyword arrays for a run with these resolved settings
+    (m3c2kit.settings.resolve) on these clouds (m3c2kit.io.Cloud: their fields and E57 poses)."""
+    kind = values.get("uncertainty", "eq1")
+    if kind == "pm":
+        names = values.get("precision_fields") or "sx,sy,sz"
+        return dict(precision1=precision_array(_fields(reference, "reference", "--uncertainty pm"), names,
+                                               what="reference cloud"),
+                    precision2=precision_array(_fields(compared, "compared", "--uncertainty pm"), names,
+                                               what="compared cloud"))
+    if kind != "ep":
+        return {}
+    spec = values.get("scan_positions")
+    if spec is None:
+        raise UsageError("--uncertainty ep needs --scan-positions FILE (py4dgeo's sps.json or a CSV)")
+    files = spec.split(",") if isinstance(spec, str) else [spec]
+    if len(files) > 2:
+        raise UsageError(f"--scan-positions takes FILE or FILE1,FILE2 (reference, compared), got {spec!r}")
+    field_name = values.get("scan_position_field") or "point_source_id"
+    ref_fields = _fields(reference, "reference", "--scan-position-field")
+    cmp_fields = _fields(compared, "compared", "--scan-position-field")
+    table1 = _table_or_file(files[0], getattr(reference, "scan_positions", None), "--scan-positions")
+    table2 = _table_or_file(files[-1], getattr(compared, "scan_positions", None), "--scan-positions")
+    transform = values.get("transform")
+    if transform is None and values.get("transform_applied"):
+        raise UsageError("--transform-applied needs --transform FILE (the transformation that was applied)")
+    kw = dict(scan_positions1=table1, scan_positions2=table2,
+              scan_position1=scan_position_ids(ref_fields, field_name, what="reference cloud"),
+              scan_position2=scan_position_ids(cmp_fields, field_name, what="compared cloud"),
+              transform=np.eye(3, 4) if transform is None else _matrix(transform, (3, 4), "--transform"),
+              reduction_point=np.zeros(3) if values.get("reduction_point") is None
+              else parse_reduction_point(values["reduction_point"]),
+              transform_applied=bool(values.get("transform_applied", False)))
+    if values.get("alignment_covariance") is not None:
+        kw["alignment_covariance"] = _matrix(values["alignment_covariance"], (12, 12), "--alignment-covariance")
+    return kw
 
 
 def compute(reference, compared, core_points, params, *, core_normals=None, threads=0, progress=None,

@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 
 from m3c2kit.analysis import calibrate
+from m3c2kit.analysis.calibrate import report_lines
 from m3c2kit.analysis.calibrate import resolve_spacing
 from m3c2kit.analysis.synthetic import noisy_plane
 from m3c2kit.cli import main
@@ -80,3 +81,24 @@ def test_real_cloud(shared_data, tmp_path, capsys):
     out = tmp_path / "autzen.csv"
     assert main(["calibrate", str(cloud), "--projection-scales", "3,4,6", "--bootstrap", "10", "-o", str(out)]) == 0
     assert len(list(csv.DictReader(out.open()))) == 3
+
+
+def test_every_lod_statistic_is_measured_and_one_is_recommended(result):
+    # Issue 14: the no-change false-positive rate of mean / median x z / auto / t / bootstrap at
+    # each d, the closest to the nominal 5 % per d, and per statistic over the scales.
+    t = result["table"]
+    for statistic in ("mean", "median"):
+        for lod in ("z", "auto", "t", "bootstrap"):
+            v = t[f"fp_{statistic}_{lod}"]
+            assert v.shape == (len(D_LIST),) and np.all((v >= 0) & (v <= 0.15)), (statistic, lod, v)
+    # The legacy columns are the same runs: z and the paper's t rule (auto).
+    np.testing.assert_allclose(100 - t["pct_not_significant_z"], 100 * t["fp_mean_z"])
+    np.testing.assert_allclose(100 - t["pct_not_significant_t"], 100 * t["fp_mean_auto"])
+    for d, rec in zip(D_LIST, t["recommended"]):
+        statistic, lod = rec.split("/")
+        rates = {k: abs(t[k][D_LIST.index(d)] - 0.05) for k in t if k.startswith("fp_")}
+        assert rates[f"fp_{statistic}_{lod}"] == min(rates.values())
+    rec = result["recommendation"]
+    assert set(rec) == {"mean", "median"} and all(lod in ("z", "auto", "t", "bootstrap") for lod, _ in rec.values())
+    lines = report_lines(result)
+    assert any(line.startswith("recommended with the mean: --lod ") for line in lines)

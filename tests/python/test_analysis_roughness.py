@@ -99,3 +99,24 @@ def test_bad_range_is_a_usage_error(tmp_path, capsys):
     assert main(["roughness", str(tmp_path / "c.npy"), "--normal-scale", "2:1:0.5", "-o", str(tmp_path / "t.csv")]) == 2
     assert main(["roughness", str(tmp_path / "c.npy"), "--normal-scale", "1", "--fit-range", "3", "-o",
                  str(tmp_path / "t.csv")]) == 2
+
+
+@pytest.mark.parametrize("offset", [(0.0, 0.0, 0.0), (512345.25, 5412345.5, 1234.0)])
+def test_exact_tilted_plane_has_no_roughness_exponent(tmp_path, capsys, offset):
+    # Issue 14: sigma(D) had a floor of ~3e-10 D (the summed co-moment's smallest eigenvalue), and
+    # eq. (3) fitted a spurious beta of 0.98 to it on an exact plane. sigma(D) is now at the
+    # rounding (<= 1e-12 D, the centred pass) and such scales are planar, left out of the fit.
+    g = np.arange(-40, 41) * 0.0625
+    x, y = (a.ravel() for a in np.meshgrid(g, g))
+    pts = np.column_stack([x, y, 0.5 * x + 0.25 * y]) + np.asarray(offset)
+    np.save(tmp_path / "plane.npy", pts)
+    np.save(tmp_path / "core.npy", pts[::97])
+    out = tmp_path / "r.csv"
+    assert main(["roughness", str(tmp_path / "plane.npy"), "--normal-scale", "0.5,1,2", "--core",
+                 str(tmp_path / "core.npy"), "-o", str(out)]) == 0
+    text = capsys.readouterr().out
+    assert "planar to the engine's precision" in text and "no roughness exponent" in text
+    assert "beta = nan" in text
+    rows = list(csv.DictReader(out.open()))
+    for row in rows:
+        assert float(row["mean_sigma"]) <= 1e-12 * float(row["D"])

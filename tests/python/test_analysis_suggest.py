@@ -1,6 +1,8 @@
 """m3c2 suggest: D from the xi >= 25 rule, d from median n >= 30, max depth from a first pass."""
 from __future__ import annotations
 
+import importlib
+
 import numpy as np
 import pytest
 
@@ -63,3 +65,34 @@ def test_real_pair(shared_data, capsys):
     assert main(["suggest", str(pair / "autzen-bmx-2010.las"), str(pair / "autzen-bmx-2023.las"), "--sample",
                  "300"]) == 0
     assert "=> --max-depth" in capsys.readouterr().out
+
+
+S = importlib.import_module("m3c2kit.analysis.suggest")  # the module (the package exports the function)
+
+
+def test_proposal_is_rounded_and_printed_as_a_command(pair, tmp_path, capsys):
+    assert S.round_sig(0.4242640687) == 0.42 and S.round_sig(1234.5) == 1200.0
+    assert S.round_sig(0.1501, up=True) == 0.16 and S.round_sig(3.0, up=True) == 3.0
+    res = suggest(*pair, sample=400, seed=0)
+    p = S.proposal(res, "a.laz", "b.laz")
+    for key in ("projection_scale", "max_depth"):
+        assert p[key] == S.round_sig(p[key])  # 2 significant digits
+    assert p["max_depth"] >= res["depth"]["max_depth"]  # rounded up: the depth never shrinks
+    assert p["command"] == (f"m3c2 compare a.laz b.laz -o change.laz --normal-scale {p['normal_scale']} "
+                            f"--projection-scale {p['projection_scale']:g} --max-depth {p['max_depth']:g}")
+    np.save(tmp_path / "a.npy", pair[0])
+    np.save(tmp_path / "b.npy", pair[1])
+    assert main(["suggest", str(tmp_path / "a.npy"), str(tmp_path / "b.npy"), "--sample", "400"]) == 0
+    out = capsys.readouterr().out.splitlines()
+    command = out[out.index("command to run:") + 1].strip()
+    assert command.startswith(f"m3c2 compare {tmp_path / 'a.npy'} {tmp_path / 'b.npy'} -o change.laz --normal-scale ")
+
+
+def test_multiscale_proposal_has_few_round_scales():
+    from m3c2kit.options import normal_scales
+    res = {"normal_scale": "0.3:4.80833:0.3", "projection_scale": 0.4242, "projection_table": {"d": [0.4242]},
+           "depth": {"max_depth": 0.1234}}
+    p = S.proposal(res)
+    assert p["normal_scale"] == "0.3:4.8:0.65"
+    assert len(normal_scales(p["normal_scale"])) <= S.MAX_PROPOSED_SCALES
+    assert p["projection_scale"] == 0.42 and p["max_depth"] == 0.13

@@ -270,10 +270,11 @@ def test_precision_maps_off_accepts_and_ignores_pm_scales(tmp_path):
     assert opts == read(tmp_path)
 
 
-def test_precision_maps_on_is_rejected(tmp_path):
-    message = rejects(tmp_path, "UsePrecisionMaps=true", UsePrecisionMaps="true",
-                      PM1Scale="1", PM2Scale="1")
-    assert "M3C2-PM" in message and "not supported" in message
+def test_precision_maps_on_selects_m3c2_pm_with_its_scales(tmp_path):
+    """UsePrecisionMaps=true is M3C2-PM (issue 16); PM1Scale / PM2Scale the clouds' scales."""
+    opts = read(tmp_path, UsePrecisionMaps="true", PM1Scale="0.5", PM2Scale="2")
+    assert opts["uncertainty"] == "pm" and opts["precision_scales"] == [0.5, 2.0]
+    assert "PM1Scale" in rejects(tmp_path, "PM1Scale", UsePrecisionMaps="true", PM1Scale="0", PM2Scale="1")
 
 
 @pytest.mark.parametrize(

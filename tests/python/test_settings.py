@@ -50,9 +50,9 @@ def test_the_struct_the_binding_and_the_table_have_the_same_fields():
 
 
 def test_the_result_schema_is_the_engine_struct():
-    assert sorted(engine.RESULT_FIELDS) == sorted(_struct_fields("result.hpp", "Result"))
+    assert sorted(engine.RESULT_FIELDS + engine.OPTIONAL_RESULT_FIELDS) == sorted(_struct_fields("result.hpp", "Result"))
     fields = [f for f in m3c2kit.Result.__dataclass_fields__]
-    assert fields == ["core", *engine.RESULT_FIELDS, "params"]
+    assert fields == ["core", *engine.RESULT_FIELDS, "params", *engine.OPTIONAL_RESULT_FIELDS]
 
 
 def test_params_pickle_with_every_field():

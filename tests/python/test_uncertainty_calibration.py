@@ -27,9 +27,20 @@ def test_ep_false_positive_rate_is_nominal(ep_tallies):
 
 
 def test_eq1_with_one_registration_error_is_miscalibrated_in_space(ep_tallies):
-    near = ep_tallies["eq1 (single reg)"].rate(lambda xy: np.hypot(xy[:, 0], xy[:, 1]) < 5.0)[0]
-    far = ep_tallies["eq1 (single reg)"].rate(lambda xy: np.hypot(xy[:, 0], xy[:, 1]) > 9.0)[0]
-    assert near < 0.02 and far > 0.08, (near, far)
+    """The one reg that gives eq. (1) 5 % over the area flags too few near the reduction point
+    and too many far from it, where the alignment error is larger."""
+    (name,) = [k for k in ep_tallies if k.startswith("eq1 (one reg")]
+    near = ep_tallies[name].rate(lambda xy: np.hypot(xy[:, 0], xy[:, 1]) < 5.0)
+    far = ep_tallies[name].rate(lambda xy: np.hypot(xy[:, 0], xy[:, 1]) > 9.0)
+    assert near[0] < binomial_low(near[1]) and far[0] > binomial_high(far[1]), (near, far)
+
+
+def binomial_low(n):
+    return sim.binomial_interval(n)[0]
+
+
+def binomial_high(n):
+    return sim.binomial_interval(n)[1]
 
 
 def test_pm_false_positive_rate_is_nominal():

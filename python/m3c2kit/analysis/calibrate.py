@@ -26,7 +26,8 @@ import numpy as np
 from .. import api
 from . import lod_engine
 from ..errors import UsageError
-from .common import format_table, loglog_fit, median_spacing, pyplot, sample_indices, save_figure
+from .common import (format_table, loglog_fit, median_spacing, pyplot, readable_log_axis, reference_line,
+                     sample_indices, save_figure)
 from .roughness import L0, fit_scaling, roughness_by_scale, roughness_table
 
 
@@ -223,10 +224,18 @@ def plot(path, res: dict, title: str = "") -> None:
         x = np.geomspace(t["d"][ok].min(), t["d"][ok].max(), 50)
         b.loglog(x, f["lod_l0"] * (x / f["l0"]) ** f["alpha"], "r-", label=f"alpha = {f['alpha']:.3f}")
         if np.isfinite(f["alpha_predicted"]):
-            b.loglog(x, f["lod_l0"] * (x / f["l0"]) ** f["alpha_predicted"], "g--",
-                     label=f"beta - 0.95 = {f['alpha_predicted']:.3f}")
+            # The predicted slope is a slope, not a fit: drawn through the fitted line's value at
+            # the data's geometric centre (anchored at l0 it ran decades off the data when l0 lies
+            # outside the scales measured).
+            xc = float(np.sqrt(x[0] * x[-1]))
+            yc = f["lod_l0"] * (xc / f["l0"]) ** f["alpha"]
+            b.loglog(x, reference_line(x, yc, xc, f["alpha_predicted"]), "g--",
+                     label=f"beta - 0.95 = {f['alpha_predicted']:.3f} (slope)")
     b.set_xlabel("projection scale d (diameter)")
     b.set_ylabel("mean LOD95")
+    if ok.any():
+        readable_log_axis(b.xaxis, float(t["d"][ok].min()), float(t["d"][ok].max()))
+        readable_log_axis(a.xaxis, float(t["d"][ok].min()), float(t["d"][ok].max()))
     b.legend(fontsize=8)
     b.grid(True, which="both", alpha=0.3)
     fig.suptitle(title or "LOD95 calibration (Lague et al. 2013, Figs. 8-9)")

@@ -2,6 +2,7 @@
 (docs/analysis.md). Registered by m3c2kit.cli.make_parser through `analysis_parsers`."""
 from __future__ import annotations
 
+import shlex
 from pathlib import Path
 
 import numpy as np
@@ -208,6 +209,7 @@ def run_simplify(args) -> int:
 def run_suggest(args) -> int:
     reference, compared = _read(args.reference), _read(args.compared)
     res = suggest_mod.suggest(reference, compared, sample=args.sample, seed=args.seed, threads=args.threads)
-    for line in suggest_mod.report_lines(res):
+    for line in suggest_mod.report_lines(res) + suggest_mod.proposal_lines(res, shlex.quote(str(args.reference)),
+                                                                          shlex.quote(str(args.compared))):
         print(line)
     return 0

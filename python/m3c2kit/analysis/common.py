@@ -131,3 +131,22 @@ def pyplot():
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
     return plt
+
+
+def readable_log_axis(axis, lo: float, hi: float) -> None:
+    """Log-axis ticks that do not overlap: labels at 1, 2, 5 x 10^k only (matplotlib labels
+    every minor tick when the range spans less than a decade, and they collide), plain numbers,
+    no minor labels."""
+    from matplotlib import ticker
+
+    decades = math.log10(hi / lo) if lo > 0 and hi > lo else 1.0
+    subs = (1.0,) if decades > 4 else (1.0, 2.0, 5.0) if decades > 0.7 else (1.0, 1.5, 2.0, 3.0, 5.0, 7.0)
+    axis.set_major_locator(ticker.LogLocator(base=10, subs=subs))
+    axis.set_major_formatter(ticker.FuncFormatter(lambda v, _: f"{v:g}"))
+    axis.set_minor_formatter(ticker.NullFormatter())
+
+
+def reference_line(x: np.ndarray, y_at: float, x_at: float, slope: float) -> np.ndarray:
+    """y = y_at (x / x_at)^slope: a reference slope drawn through (x_at, y_at), a point of the
+    data, so that it lies on the data whatever the fit's anchor l0 is."""
+    return y_at * (np.asarray(x, dtype=float) / x_at) ** slope

@@ -97,15 +97,13 @@ def false_positive_rates(noise: str, n: int, cores: int, seed: int, *, statistic
 
 
 def binomial_interval(p: float, trials: int, level: float = 0.99) -> tuple[float, float]:
-    """Central interval holding `level` of Binomial(trials, p) / trials (exact quantiles)."""
-    from math import comb  # small trials only: exact sums
-
+    """Central interval [lo, hi] / trials holding at least `level` of Binomial(trials, p): lo the
+    smallest k with P(X <= k) > (1 - level) / 2, hi the largest with P(X >= k) > (1 - level) / 2
+    (exact, from log-probabilities)."""
     tail = (1 - level) / 2
-    pmf = [comb(trials, k) * p ** k * (1 - p) ** (trials - k) for k in range(trials + 1)] if trials <= 1000 else None
-    if pmf is None:  # normal limit with continuity correction (trials > 1000)
-        z = {0.99: 2.5758293035489004, 0.95: 1.959963984540054}[level]
-        half = z * math.sqrt(p * (1 - p) / trials) + 0.5 / trials
-        return max(p - half, 0.0), min(p + half, 1.0)
+    log_p, log_q = math.log(p), math.log1p(-p)
+    pmf = [math.exp(math.lgamma(trials + 1) - math.lgamma(k + 1) - math.lgamma(trials - k + 1) + k * log_p
+                    + (trials - k) * log_q) for k in range(trials + 1)]
     acc, lo = 0.0, 0
     while acc + pmf[lo] <= tail:
         acc += pmf[lo]

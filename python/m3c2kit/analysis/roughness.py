@@ -17,9 +17,13 @@ import numpy as np
 from .. import engine
 from ..api import as_points
 from ..errors import UsageError
-from .common import format_table, loglog_fit, pyplot, save_figure
+from .common import format_table, loglog_fit, pyplot, readable_log_axis, save_figure
 
 L0 = 0.5
+#: sigma(D) at or below this share of D is zero to the engine's precision (docs/algorithm.md#3.3:
+#: sigma(D) is accurate to 1e-12 of the neighbourhood's spread): such scales are planar and left
+#: out of the eq. (3) fit, which would otherwise fit the rounding (beta ~ 3 on an exact plane).
+PLANAR_SHARE = 1e-12
 
 
 def roughness_by_scale(cloud, core, diameters, *, variance: str = "sample", min_points: int = 3,
@@ -54,6 +58,7 @@ def fit_scaling(diameters, mean_sigma, fit_range: tuple[float, float] | None = N
     d = np.asarray(diameters, float)
     m = np.asarray(mean_sigma, float)
     sel = np.ones(len(d), bool) if fit_range is None else (d >= fit_range[0] * (1 - 1e-12)) & (d <= fit_range[1] * (1 + 1e-12))
+    sel = sel & ~(m <= PLANAR_SHARE * d)  # planar to the engine's precision (NaN stays out anyway)
     fit = loglog_fit(d[sel], m[sel], l0)
     used = d[sel][np.isfinite(m[sel]) & (m[sel] > 0)]
     return {"beta": fit["slope"], "beta_se": fit["slope_se"], "sigma_l0": fit["a"], "sigma_l0_factor": fit["a_factor"],
@@ -68,6 +73,11 @@ def report_lines(table: dict, fit: dict) -> list[str]:
     lines.append(f"eq. (3) fit over D = {fit['d_min']:g} to {fit['d_max']:g} ({fit['n_scales']} scales): "
                  f"beta = {fit['beta']:.4f} +/- {fit['beta_se']:.4f} (standard error), "
                  f"sigma(l0 = {fit['l0']:g}) = {fit['sigma_l0']:.6g}, R^2 = {fit['r2']:.4f}")
+    planar = np.asarray(table["mean_sigma"], float) <= PLANAR_SHARE * np.asarray(table["D"], float)
+    if planar.any():
+        lines.append(f"{int(planar.sum())} scale(s) with <sigma(D)> <= {PLANAR_SHARE:g} D: planar to the engine's "
+                     "precision, left out of the fit" + (" (no roughness exponent: the surface is an exact plane)"
+                                                          if fit["n_scales"] < 2 else ""))
     sel = fit["in_fit"] & (table["n_core"] > 0)
     if sel.any() and table["n_core"][sel].min() < 0.9 * table["n_core"].max():
         lines.append("warning: some fitted scales have sigma(D) at fewer than 90% of the core points (too few "
@@ -89,6 +99,9 @@ def plot(path, table: dict, fit: dict, title: str = "") -> None:
                 label=f"beta = {fit['beta']:.3f} +/- {fit['beta_se']:.3f}, sigma({fit['l0']:g}) = {fit['sigma_l0']:.3g}")
     ax.set_xscale("log")
     ax.set_yscale("log")
+    if ok.any():  # labels at 1-2-5 only: the default labels every minor tick below a decade, overlapping
+        readable_log_axis(ax.xaxis, float(d[ok].min()), float(d[ok].max()))
+        readable_log_axis(ax.yaxis, float(m[ok].min()), float(m[ok].max()))
     ax.set_xlabel("normal scale D (diameter)")
     ax.set_ylabel("<sigma(D)>")
     ax.set_title(title or "Roughness scaling (Lague et al. 2013, Fig. 6a)")

@@ -144,3 +144,45 @@ def report_lines(res: dict) -> list[str]:
         lines.append(f"=> no d up to the largest candidate has median n1, n2 >= {N_TARGET}: the clouds are too sparse; "
                      "use the largest d shown")
     return lines
+
+
+def round_sig(value: float, digits: int = 2, up: bool = False) -> float:
+    """`value` to `digits` significant digits (rounded up with `up`: a depth must not shrink)."""
+    if not math.isfinite(value) or value == 0:
+        return value
+    k = math.floor(math.log10(abs(value))) - digits + 1
+    q = value / 10**k
+    q = math.ceil(q - 1e-9) if up else round(q)
+    return float(f"{q * 10**k:.{max(0, -k)}f}")
+
+
+#: At most this many scales in a proposed multi-scale range.
+MAX_PROPOSED_SCALES = 8
+
+
+def proposal(res: dict, reference: str = "REFERENCE", compared: str = "COMPARED",
+             output: str = "change.laz") -> dict:
+    """The choices of :func:`suggest` rounded to 2 significant digits (the depth rounded up), a
+    multi-scale range of at most MAX_PROPOSED_SCALES scales, and the command line to run."""
+    spec = res["normal_scale"]
+    if isinstance(spec, str):
+        lo, hi, _ = (float(v) for v in spec.split(":"))
+        lo, hi = round_sig(lo), round_sig(hi)
+        step = round_sig(max((hi - lo) / (MAX_PROPOSED_SCALES - 1), lo), up=True)
+        normal = f"{lo:g}:{hi:g}:{step:g}"
+    else:
+        normal = f"{round_sig(float(spec)):g}"
+    d = res["projection_scale"]
+    if not math.isfinite(d):
+        d = float(res["projection_table"]["d"][-1])
+    d = round_sig(d)
+    depth = round_sig(res["depth"]["max_depth"], up=True)
+    command = (f"m3c2 compare {reference} {compared} -o {output} --normal-scale {normal} "
+               f"--projection-scale {d:g} --max-depth {depth:g}")
+    return {"normal_scale": normal, "projection_scale": d, "max_depth": depth, "command": command}
+
+
+def proposal_lines(res: dict, reference: str, compared: str) -> list[str]:
+    p = proposal(res, reference, compared)
+    return ["", f"proposal (rounded): --normal-scale {p['normal_scale']} --projection-scale "
+                f"{p['projection_scale']:g} --max-depth {p['max_depth']:g}", "command to run:", f"  {p['command']}"]

@@ -5,8 +5,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .. import _core
-from ..errors import UsageError
+from .. import engine
 
 SQRT3_2 = np.sqrt(3.0) / 2.0
 
@@ -49,9 +48,5 @@ def features(cloud_xyz, scales, core_xyz=None, *, min_points: int = 3, threads: 
     cloud_xyz = np.ascontiguousarray(cloud_xyz, dtype=np.float64)
     core = cloud_xyz if core_xyz is None else np.ascontiguousarray(core_xyz, dtype=np.float64)
     scales = np.asarray(scales, dtype=np.float64).ravel()
-    try:
-        r = _core.dimensionality(cloud_xyz, core, [float(s) for s in scales], int(min_points), int(threads),
-                                 progress)
-    except ValueError as e:  # the engine's InvalidArgument
-        raise UsageError(str(e)) from None
+    r = engine.dimensionality(cloud_xyz, core, scales, min_points, threads=threads, progress=progress)
     return Features(scales, r["proportions"], r["barycentric"], r["count"], r["status"])

@@ -292,6 +292,8 @@ class M3C2:
             raise UsageError("M3C2: give normal_radii (a list of radii; m3c2kit's normal_scale is 2 x radius)")
         scales = [2.0 * _positive("normal_radii", r) for r in self.normal_radii]
         options: dict[str, Any] = {"normal_scale": scales if len(scales) > 1 else scales[0]}
+        if len(scales) > 1:
+            options["min_points_multiscale"] = 3  # py4dgeo takes any scale with a plane (3 points)
         source = self.cloud_for_normals
         if source is not None:
             cloud = as_epoch(source).cloud

@@ -1,5 +1,6 @@
 """A visual report of an M3C2 run: ONE self-contained HTML file (PNG figures embedded as base64,
-inline CSS, no script, no external resource) and optionally the same figures as PNG files.
+inline CSS, plotly.js inline for the 3D view, no external resource: it works offline) and
+optionally the same figures as PNG files.
 
     m3c2 compare REF CMP -o change.laz ... --report change.html [--report-png figs/change]
 
@@ -7,7 +8,9 @@ Figures: top view of the distance on a symmetric logarithmic diverging scale (as
 Lague et al. 2013: the log scale starts at the minimum detectable change), non-significant
 points grey; top view of the LOD; top view of the status; histograms of distance and LOD; the
 distribution of the normal scale and of xi = D / sigma(D) with the thresholds 20 and 25 of
-section 5.1. Then a summary table and the parameters. See docs/report.md.
+section 5.1; an interactive 3D view of the core points coloured by distance (plotly, the
+``report`` extra). Top views carry axis names and units from the CRS, a scale bar and a north
+arrow. Then a summary table and every parameter in effect, with the version. See docs/report.md.
 
 Top views draw at most ``max_points`` core points (200,000 by default): above that a uniform
 random subsample with a fixed seed, said in the caption. Histograms and tables use every point.
@@ -41,6 +44,7 @@ class Report:
     summary: list = field(default_factory=list)     # (name, value)
     status: list = field(default_factory=list)      # (code, name, count, percent)
     parameters: list = field(default_factory=list)  # (name, value)
+    view3d: tuple | None = None                      # (plotly div HTML, caption), or ("", why missing)
 
 
 def png_paths(prefix: str | os.PathLike) -> dict[str, Path]:
@@ -102,10 +106,21 @@ def _summary(result: Result, linthresh: float) -> list:
 
 
 def build_report(result: Result, *, grid=None, images=None, inputs: dict | None = None,
-                 max_points: int = MAX_PLOT_POINTS, seed: int = SEED, title: str = "M3C2 change report") -> Report:
+                 max_points: int = MAX_PLOT_POINTS, seed: int = SEED, title: str = "M3C2 change report",
+                 crs: str | None = None, units: str | None = None, core_spacing=None,
+                 view3d: bool = True) -> Report:
     """Draws the figures and tables of `result`. With `grid` and `images` (2D mode, see
-    m3c2kit.raster) the top views are the rasters themselves."""
+    m3c2kit.raster) the top views are the rasters themselves. `crs` (the reference's CRS text)
+    and `units` (its units hint) name the axes and units; without them the units are "unknown"."""
+    from ..io.crs import crs_label, crs_units, parse_crs
+    from . import cartography as K
     from . import figures as F
+    from . import view3d as V
+    from .parameters import effective_parameters
+
+    parsed = parse_crs(crs)
+    projected = bool(parsed is not None and parsed.is_projected)
+    units = units or crs_units(crs)
 
     n = len(result)
     xy = np.asarray(result.core, dtype=float)[:, :2]
@@ -117,7 +132,7 @@ def build_report(result: Result, *, grid=None, images=None, inputs: dict | None 
         plotted = np.arange(n)
         sampling = (f"Raster of {grid.rows} x {grid.cols} cells of {grid.cell:g}." if grid is not None
                     else f"All {n:,} core points plotted.")
-    view = F.TopView(xy, plotted, grid=grid, images=images)
+    view = F.TopView(xy, plotted, grid=grid, images=images, units=units, projected=projected)
     linthresh, vmax = F.distance_scale(result.distance, result.lod)
     norm = F.distance_norm(result.distance, result.lod)
     rep = Report(title=title)
@@ -153,13 +168,19 @@ def build_report(result: Result, *, grid=None, images=None, inputs: dict | None 
                  "orientation error stays below ~2% where xi > 20 (dashed orange) and ~1% where xi > 25 (red)."))
     for key, heading, fig, caption in figs:
         rep.figures.append((key, heading, F.png(fig), caption))
+    if view3d:
+        if V.available():
+            rep.view3d = V.view_div(result.core, result.distance, vmax, K.unit_symbol(units), seed=seed)
+        else:
+            rep.view3d = ("", V.MISSING)
 
     rep.summary = _summary(result, linthresh)
     counts = result.status_counts()
     rep.status = [(k, name, counts.get(name, 0), 100.0 * counts.get(name, 0) / n if n else 0.0)
                   for k, name in enumerate(STATUS_NAMES)]
-    rep.parameters = [(k, _fmt(v)) for k, v in (inputs or {}).items()]
-    rep.parameters += [(k, _fmt(v)) for k, v in sorted(result.params.items()) if v is not None]
+    rep.parameters = [(k, _fmt(v)) for k, v in (inputs or {}).items() if k != "reference CRS"]
+    rep.parameters += [(k, _fmt(v)) for k, v in effective_parameters(
+        result.params, core_spacing=core_spacing, crs_label=crs_label(crs) if crs else None, units=units)]
     return rep
 
 
@@ -191,6 +212,10 @@ def render_html(rep: Report) -> str:
         b64 = base64.b64encode(data).decode("ascii")
         parts.append(f'<h2 id="{e(key)}">{e(heading)}</h2><figure><img alt="{e(heading)}" '
                      f'src="data:image/png;base64,{b64}"><figcaption>{e(caption)}</figcaption></figure>')
+    if rep.view3d is not None:
+        div, caption = rep.view3d
+        parts.append(f'<h2 id="view3d">3D view</h2><figure class="view3d">{div}'
+                     f"<figcaption>{e(caption)}</figcaption></figure>")
     parts.append("<h2>Parameters</h2><table><tr><th>parameter</th><th>value</th></tr>")
     parts += [f"<tr><td>{e(k)}</td><td>{e(v)}</td></tr>" for k, v in rep.parameters]
     parts.append("</table></body></html>")

@@ -16,6 +16,7 @@ from matplotlib.backends.backend_agg import FigureCanvasAgg  # noqa: E402
 from matplotlib.figure import Figure  # noqa: E402
 
 from ..result import STATUS_NAMES
+from . import cartography as K
 
 DPI = 100
 GREY = "#a8a8a8"          # non-significant change
@@ -74,8 +75,10 @@ class TopView:
     """Where the top views draw: core point x, y (a seeded subsample when there are many), or a
     raster grid (2D mode), whose images are drawn pixel for pixel."""
 
-    def __init__(self, xy: np.ndarray, plotted: np.ndarray, grid=None, images=None):
+    def __init__(self, xy: np.ndarray, plotted: np.ndarray, grid=None, images=None, units: str | None = None,
+                 projected: bool = False):
         self.xy, self.plotted, self.grid, self.images = xy, plotted, grid, images
+        self.units, self.projected = units, projected
 
     def _axes(self, title: str, wide: bool = True):
         x, y = self.xy[:, 0], self.xy[:, 1]
@@ -85,11 +88,14 @@ class TopView:
         ax = fig.add_subplot()
         ax.set_aspect("equal")
         ax.set_title(title, fontsize=11)
-        ax.set_xlabel("x")
-        ax.set_ylabel("y")
+        xlabel, ylabel = K.axis_labels(self.projected, self.units)
+        ax.set_xlabel(xlabel)
+        ax.set_ylabel(ylabel)
         ax.ticklabel_format(useOffset=False, style="plain")
         ax.tick_params(labelsize=8)
         ax.set_facecolor("white")
+        K.add_scale_bar(ax, K.extent_span(self.xy), self.units)
+        K.add_north_arrow(ax, self.projected)
         return fig, ax
 
     def marker_size(self) -> float:
@@ -138,7 +144,11 @@ class TopView:
             self._limits(ax)
         sm = _mappable(norm, cmap)
         cb = fig.colorbar(sm, ax=ax, shrink=0.85, extend="both", pad=0.01)
-        cb.set_label(label)
+        ticks = colorbar_ticks(norm)
+        cb.set_ticks(ticks, labels=[K.format_tick(t) for t in ticks])
+        cb.ax.tick_params(labelsize=8)
+        sym = K.unit_symbol(self.units)
+        cb.set_label(f"{label} ({sym})" if sym else label)
         return fig
 
     def status(self, status, title):
@@ -167,6 +177,15 @@ class TopView:
         pad_x, pad_y = 0.01 * max(np.ptp(x), 1e-9), 0.01 * max(np.ptp(y), 1e-9)
         ax.set_xlim(x.min() - pad_x, x.max() + pad_x)
         ax.set_ylim(y.min() - pad_y, y.max() + pad_y)
+
+
+def colorbar_ticks(norm) -> list[float]:
+    """Enough labelled ticks for the norm's scale (symmetric log, log or linear)."""
+    if isinstance(norm, colors.SymLogNorm):
+        return K.symlog_ticks(float(norm.linthresh), float(norm.vmax))
+    if isinstance(norm, colors.LogNorm):
+        return K.log_ticks(float(norm.vmin), float(norm.vmax))
+    return K.linear_ticks(float(norm.vmin), float(norm.vmax))
 
 
 def label_key(label: str) -> str:

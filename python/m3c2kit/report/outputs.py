@@ -21,14 +21,16 @@ def _inputs(args, reference, grid) -> dict:
     return out
 
 
-def write_compare_outputs(args, result: Result, reference, *, grid=None, position: str = "core") -> list[Path]:
+def write_compare_outputs(args, result: Result, reference, *, grid=None, position: str = "core",
+                          field_names: str = "m3c2", float64: bool = False, core_spacing=None) -> list[Path]:
     """Writes the point table to args.output and, as asked, the rasters (grid) and the report.
     Returns the paths written besides args.output."""
     html_path = getattr(args, "report", None)
     png_prefix = getattr(args, "report_png", None)
     projected = getattr(args, "projected", False)
     if grid is None and html_path is None and png_prefix is None:
-        write(args.output, result, like=reference, projected=projected, position=position)
+        write(args.output, result, like=reference, projected=projected, position=position,
+              field_names=field_names, float64=float64)
         return []
     from . import png_paths, write_report
 
@@ -39,7 +41,8 @@ def write_compare_outputs(args, result: Result, reference, *, grid=None, positio
     if len(set(targets)) != len(targets):
         raise raster.UsageError("the output, raster, report and PNG paths must all differ")
     with raster.staged_outputs(targets) as staged:
-        write(staged[Path(args.output)], result, like=reference, projected=projected, position=position)
+        write(staged[Path(args.output)], result, like=reference, projected=projected, position=position,
+              field_names=field_names, float64=float64)
         images = None
         if grid is not None:
             images = raster.rasters(result, grid)
@@ -47,5 +50,7 @@ def write_compare_outputs(args, result: Result, reference, *, grid=None, positio
                                  getattr(reference, "crs", None), targets=rasters)
         if html_path is not None or png_prefix is not None:
             write_report(result, html_path, png_prefix, staged=staged, grid=grid, images=images,
+                         crs=getattr(reference, "crs", None), units=getattr(reference, "units_hint", None),
+                         core_spacing=core_spacing,
                          inputs=_inputs(args, reference, grid))
     return extra

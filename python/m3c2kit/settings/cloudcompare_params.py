@@ -72,7 +72,7 @@ _KEY_TYPES = {
 _CANONICAL = {key.lower(): key for key in _KEY_TYPES}
 _OUTPUT_ONLY_KEYS = ("UseOriginalCloud", "ExportStdDevInfo", "ExportDensityAtProjScale")
 #: Keys that set no parameter: the file's version, and options m3c2 refuses with a reason.
-NON_PARAMETER_KEYS = ("M3C2VER", "NormalUseCorePoints", "UsePrecisionMaps", "PM1Scale", "PM2Scale") + _OUTPUT_ONLY_KEYS
+NON_PARAMETER_KEYS = ("M3C2VER", "NormalUseCorePoints") + _OUTPUT_ONLY_KEYS
 
 
 def _name(key: str) -> str:
@@ -198,10 +198,12 @@ def read_cloudcompare_params(path: str | os.PathLike) -> dict[str, object]:
     options[_name("ProjDestIndex")] = _PROJ_DEST[dest]
 
     if values.get("UsePrecisionMaps", False):
-        raise fail(
-            "UsePrecisionMaps=true (M3C2-PM with per-point precision maps) is not supported; "
-            "set it to false"
-        )
+        # M3C2-PM (docs/algorithm.md §6.5): the precision fields come from --precision-fields.
+        options[_name("UsePrecisionMaps")] = "pm"
+        scales = [values.get("PM1Scale", 1.0), values.get("PM2Scale", 1.0)]
+        if not all(s > 0 and math.isfinite(s) for s in scales):
+            raise fail(f"PM1Scale and PM2Scale must be finite and > 0, got {scales[0]!r}, {scales[1]!r}")
+        options[_name("PM1Scale")] = scales
 
     for key in _OUTPUT_ONLY_KEYS:
         if key in values:

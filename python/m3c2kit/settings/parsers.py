@@ -213,6 +213,20 @@ class Positives:
         return f"{self.count} values > 0, comma-separated"
 
 
+class Text:
+    """A name, a file or a short list, kept as given (its meaning is checked where it is used:
+    m3c2kit.uncertainty_inputs); `rule` says what it is."""
+
+    def __init__(self, rule: str):
+        self.rule = rule
+
+    def __call__(self, name: str, value):
+        return value
+
+    def describe(self) -> str:
+        return self.rule
+
+
 class Flag:
     """On or off."""
 

@@ -16,7 +16,7 @@ from typing import Any, Callable
 
 from .. import engine
 from . import parsers
-from .parsers import UINT32_MAX, UINT64_MAX, Choice, Flag, Integer, Positives, Real, Scales
+from .parsers import UINT32_MAX, UINT64_MAX, Choice, Flag, Integer, Positives, Real, Scales, Text
 
 __all__ = ["Parameter", "EngineField", "PARAMETERS", "FROM_ENGINE", "SAME", "by_name", "parameters_of"]
 
@@ -202,20 +202,46 @@ PARAMETERS: tuple[Parameter, ...] = (
               engine=same("bootstrap_seed"), cli_type=int, help="bootstrap seed"),
     # Per-point uncertainty (section 6.2; include/m3c2/uncertainty.hpp)
     Parameter("uncertainty", "--uncertainty", Choice("eq1", "pm", "ep"), section="6.2", engine=enum("uncertainty"),
-              cli_type=str, help="the LOD's uncertainty model: eq. (1), M3C2-PM (precision maps) or M3C2-EP "
+              cli_type=str, cloudcompare_keys=("UsePrecisionMaps",), help="the LOD's uncertainty model: eq. (1), M3C2-PM (precision maps) or M3C2-EP "
                                  "(error propagation); pm and ep need their per-point inputs"),
     Parameter("precision_rule", "--precision-rule", Choice("nearest", "all"), section="6.2",
               engine=enum("precision_rule"), cli_type=str,
               help="M3C2-PM: the precision of the point nearest the cylinder's centre (CloudCompare's) or of "
                    "every point in it"),
     Parameter("precision_scales", "--precision-scales", Positives(2), section="6.2", engine=PRECISION_SCALES,
-              cli_type=str, metavar="S1,S2", help="M3C2-PM: scale of each cloud's precisions"),
+              cli_type=str, cloudcompare_keys=("PM1Scale", "PM2Scale"), metavar="S1,S2", help="M3C2-PM: scale of each cloud's precisions"),
     Parameter("ep_covariance", "--ep-covariance", Choice("independent", "mean-of-points"), section="6.2",
               engine=enum("ep_covariance"), cli_type=str, help="M3C2-EP: the covariance of a centre of gravity"),
     Parameter("ep_lod", "--ep-lod", Choice("projected", "published"), section="6.2", engine=enum("ep_lod"),
               cli_type=str, help="M3C2-EP: the level of detection, projected on the normal or as published"),
     Parameter("ep_weights", "--ep-weights", Choice("normal", "matrix"), section="6.2", engine=enum("ep_weights"),
               cli_type=str, help="M3C2-EP: the weights of the centres of gravity"),
+    # The per-point inputs of pm and ep (read by m3c2kit.uncertainty_inputs; in-memory runs)
+    Parameter("precision_fields", "--precision-fields", Text("three field names SX,SY,SZ"), section="6.2",
+              default="sx,sy,sz", cli_type=str, metavar="SX,SY,SZ", scope="run",
+              help="M3C2-PM: each cloud's fields holding the precisions sx, sy, sz (LAS extra bytes, PLY "
+                   "properties, ASCII columns)"),
+    Parameter("scan_positions", "--scan-positions", Text("a file, or FILE1,FILE2"), section="6.2", default=None,
+              cli_type=str, metavar="FILE[,FILE2]", scope="run",
+              help="M3C2-EP: scan positions (py4dgeo's sps.json or a CSV: id, origin, sigma_range, sigma_scan, "
+                   "sigma_yaw[, sigma_range_ppm]); a second file for the compared epoch; an entry without an "
+                   "origin takes the E57 scan's pose"),
+    Parameter("scan_position_field", "--scan-position-field", Text("a field name"), section="6.2",
+              default="point_source_id", cli_type=str, metavar="NAME", scope="run",
+              help="M3C2-EP: the field holding each point's scan-position id (LAS point source id, an extra "
+                   "dimension, or scan_index for E57)"),
+    Parameter("transform", "--transform", Text("a file (3x4)"), section="6.2", default=None, cli_type=str,
+              metavar="FILE", scope="run",
+              help="M3C2-EP: the compared epoch's 3x4 transformation tfM, applied to it about the reduction "
+                   "point unless --transform-applied"),
+    Parameter("transform_applied", "--transform-applied", Flag(), section="6.2", default=False, cli_type=None,
+              scope="run", help="M3C2-EP: the compared cloud is given already transformed by --transform"),
+    Parameter("alignment_covariance", "--alignment-covariance", Text("a file (12x12)"), section="6.2",
+              default=None, cli_type=str, metavar="FILE", scope="run",
+              help="M3C2-EP: 12x12 covariance Cxx of the transformation's parameters (r11..r33, tx, ty, tz)"),
+    Parameter("reduction_point", "--reduction-point", Text("X,Y,Z or a file"), section="6.2", default=None,
+              cli_type=str, metavar="X,Y,Z", scope="run",
+              help="M3C2-EP: the point the transformation rotates about (default 0,0,0)"),
     # How the run is made (not what the engine computes)
     Parameter("core_spacing", "--core-spacing", Real(), section="3.1.1", default=None,
               cloudcompare_keys=("SubsampleRadius", "SubsampleEnabled"), scope="run",
@@ -228,6 +254,12 @@ PARAMETERS: tuple[Parameter, ...] = (
     Parameter("position", "--position", Choice("core", "reference", "compared"), section="3.1.3",
               default="core", cli_type=str, cloudcompare_keys=("ProjDestIndex",), scope="output",
               help="where output rows are placed: the core points or their projection on a cloud"),
+    Parameter("field_names", "--field-names", Choice("m3c2", "cloudcompare", "pdal"), section="-", default="m3c2",
+              cli_type=str, scope="output",
+              help="output column names: m3c2kit's, CloudCompare's scalar fields (M3C2 distance, distance "
+                   "uncertainty, ...) or PDAL's m3c2_* (table in docs/python.md)"),
+    Parameter("float64", "--float64", Flag(), section="-", default=False, cli_type=None, scope="output",
+              help="store measured values as float64 (default float32: relative error 6e-8, < 0.06 mm below 1 km)"),
 )
 
 

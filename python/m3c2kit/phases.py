@@ -1,0 +1,76 @@
+"""Progress over every phase of a run (reading, indexing, normals, distances, writing) with tqdm:
+``tqdm.auto`` draws a widget in notebooks and a text bar on a terminal.
+
+Shown on stderr only when it is a terminal, or when forced (``enabled=True``); never on a pipe or
+a log file unless asked. No ETA is shown before :data:`ETA_AFTER` of a phase is done (the first
+seconds of a run, spent building indexes, say nothing about the rest), and the rate is the
+average since the phase began (``smoothing=0``), not a jumpy instantaneous one.
+
+    >>> with Phases() as p:
+    ...     with p.phase("reading", total=2) as step:
+    ...         step(1, 2); step(2, 2)
+    ...     with p.phase("distances", total=n) as step:
+    ...         m3c2kit.compare(..., progress=step)   # the engine's progress(done, total) callback
+"""
+from __future__ import annotations
+
+import contextlib
+import sys
+from typing import Callable, Iterator
+
+__all__ = ["Phases", "PHASES", "ETA_AFTER"]
+
+#: The phases of a compare run, in order.
+PHASES = ("reading", "indexing", "normals", "distances", "writing")
+#: Share of a phase after which its ETA is shown.
+ETA_AFTER = 0.03
+
+_WAITING = "{desc}: {percentage:3.0f}%|{bar}| {n_fmt}/{total_fmt} [{elapsed}, ETA soon]"
+_RUNNING = "{desc}: {percentage:3.0f}%|{bar}| {n_fmt}/{total_fmt} [{elapsed}<{remaining}]"
+
+
+class Phases:
+    """One progress bar per phase. `enabled`: None (default) shows the bars when `stream`
+    (default stderr) is a terminal, True always, False never."""
+
+    def __init__(self, enabled: bool | None = None, stream=None, mininterval: float = 0.2) -> None:
+        self.stream = stream if stream is not None else sys.stderr
+        if enabled is None:
+            isatty = getattr(self.stream, "isatty", None)
+            enabled = bool(isatty and isatty())
+        self.enabled = enabled
+        self.mininterval = mininterval
+
+    def __enter__(self) -> "Phases":
+        return self
+
+    def __exit__(self, *exc) -> None:
+        return None
+
+    @contextlib.contextmanager
+    def phase(self, name: str, total: int | None = None) -> Iterator[Callable[[int, int], bool]]:
+        """A context whose value is ``update(done, total) -> True``, the engine's callback."""
+        if not self.enabled:
+            yield lambda done, total=None: True
+            return
+        from tqdm.auto import tqdm
+
+        bar = tqdm(total=total, desc=name, file=self.stream, smoothing=0, mininterval=self.mininterval,
+                   bar_format=_WAITING if total else None, dynamic_ncols=True, leave=True)
+        state = {"eta": False}
+
+        def update(done: int, total_now: int | None = None) -> bool:
+            if total_now is not None and total_now != bar.total:
+                bar.total = total_now
+            if bar.total and not state["eta"] and done >= ETA_AFTER * bar.total:
+                bar.bar_format = _RUNNING
+                state["eta"] = True
+            bar.update(max(0, done - bar.n))
+            return True
+
+        try:
+            yield update
+        finally:
+            if bar.total and bar.n < bar.total and not state["eta"]:
+                bar.bar_format = _RUNNING
+            bar.close()

@@ -1,0 +1,136 @@
+"""What the data-quality warnings say (issue 13): the diagnosis behind each, decided from the
+result and, where needed, one more engine run; the wording a scientist can act on.
+
+- :func:`cylinder_diagnosis`: of the core points with an empty cylinder in one cloud, which have
+  no point of that cloud along their normal however far the cylinder reaches (the clouds do not
+  overlap there: no --max-depth can help) and which have points beyond --max-depth (a larger
+  depth would find them, and how large). Decided by the engine itself: the same core points,
+  normals and cylinder diameter, with a cylinder as long as the clouds' extent.
+- :func:`normal_failure_message`: more than :data:`NORMAL_FAILURE_SHARE` of the core points
+  without a normal, with the likely cause (D is a diameter: a radius given for it halves it).
+- :func:`share_text`: shares stated over the core points they describe ("of the N core points
+  with a normal"), never over a subset left unnamed.
+
+The emitting module (Python ``warnings``, stderr at the command line) calls these.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .result import STATUS_NAMES
+
+__all__ = ["CylinderDiagnosis", "cylinder_diagnosis", "cylinder_messages", "normal_failure_message",
+           "share_text", "NORMAL_FAILURE_SHARE", "EMPTY_SHARE"]
+
+#: Share of core points without a normal above which the run warns.
+NORMAL_FAILURE_SHARE = 0.5
+#: Share of core points with a normal whose cylinder is empty in one cloud above which the run warns.
+EMPTY_SHARE = 0.10
+
+_EMPTY = {1: STATUS_NAMES.index("empty_cylinder_reference"), 2: STATUS_NAMES.index("empty_cylinder_compared")}
+_NO_NORMAL = (STATUS_NAMES.index("too_few_normal_points"), STATUS_NAMES.index("degenerate_normal"))
+
+
+def share_text(count: int, total: int, of: str) -> str:
+    """``"1,234 of the 5,678 core points with a normal (21.7 %)"``."""
+    pct = 100.0 * count / total if total else 0.0
+    return f"{count:,} of the {total:,} {of} ({pct:.1f} %)"
+
+
+@dataclass
+class CylinderDiagnosis:
+    """For one cloud (1 reference, 2 compared): core points with a normal whose cylinder was empty
+    in that cloud, split into ``no_overlap`` (no point along the normal at any depth) and
+    ``beyond_depth`` (points found beyond --max-depth), with the depth that reaches 95 % of the
+    latter (``needed_depth``)."""
+
+    cloud: int
+    with_normal: int
+    empty: int
+    no_overlap: np.ndarray
+    beyond_depth: np.ndarray
+    needed_depth: float | None
+
+
+def _extent(*clouds: np.ndarray) -> float:
+    lo = np.min([c.min(axis=0) for c in clouds if len(c)], axis=0)
+    hi = np.max([c.max(axis=0) for c in clouds if len(c)], axis=0)
+    return float(np.linalg.norm(hi - lo))
+
+
+def cylinder_diagnosis(reference: np.ndarray, compared: np.ndarray, result, *, projection_scale: float,
+                       max_depth: float, threads: int = 0) -> list[CylinderDiagnosis]:
+    """One :class:`CylinderDiagnosis` per cloud with empty cylinders (see the module docstring)."""
+    from .api import compare  # the engine run; lazily, so that this module stays light
+
+    status = np.asarray(result.status)
+    with_normal = int(np.count_nonzero(~np.isin(status, _NO_NORMAL)))
+    out = []
+    for cloud, code in _EMPTY.items():
+        idx = np.flatnonzero(status == code)
+        if not idx.size:
+            continue
+        reach = max(_extent(reference, compared), 2.0 * float(max_depth))
+        far = compare(reference, compared, result.core[idx], normal_source="core", core_normals=result.normal[idx],
+                      projection_scale=projection_scale, max_depth=reach, min_points=1, threads=threads)
+        counts = np.asarray(far.n1 if cloud == 1 else far.n2)
+        found = counts > 0
+        needed = None
+        if found.any():
+            # Where the cylinder meets that cloud: the offset of its points' mean along the normal.
+            offset = np.abs(np.asarray(far.i1 if cloud == 1 else far.i2)[found])
+            spread = np.asarray(far.sigma1 if cloud == 1 else far.sigma2)[found]
+            reach_needed = offset + 2.0 * np.nan_to_num(spread)
+            needed = float(np.percentile(reach_needed[np.isfinite(reach_needed)], 95)) if np.isfinite(
+                reach_needed).any() else None
+        out.append(CylinderDiagnosis(cloud, with_normal, int(idx.size), idx[~found], idx[found], needed))
+    return out
+
+
+def _nice_up(value: float) -> float:
+    """`value` rounded up to 2 significant digits."""
+    if not value > 0:
+        return value
+    k = np.floor(np.log10(value)) - 1
+    return float(np.ceil(value / 10**k) * 10**k)
+
+
+def cylinder_messages(diagnoses: list[CylinderDiagnosis], max_depth: float) -> list[str]:
+    """The warnings for :func:`cylinder_diagnosis`: no overlap (never advising a depth) and depth
+    too short (advising the depth that reaches the points), above :data:`EMPTY_SHARE`."""
+    lines = []
+    for d in diagnoses:
+        name = "reference" if d.cloud == 1 else "compared"
+        if not d.with_normal or d.empty / d.with_normal <= EMPTY_SHARE:
+            continue
+        if d.no_overlap.size:
+            lines.append(
+                f"{share_text(int(d.no_overlap.size), d.with_normal, 'core points with a normal')} have no {name} "
+                f"point in their cylinder at any depth: the {name} cloud does not cover them (the surveys do not "
+                f"overlap there). Their distance is NaN (status empty_cylinder_{name}); a larger --max-depth "
+                f"cannot help: restrict the core points to the overlap.")
+        if d.beyond_depth.size and d.needed_depth is not None:
+            lines.append(
+                f"{share_text(int(d.beyond_depth.size), d.with_normal, 'core points with a normal')} have {name} "
+                f"points only beyond --max-depth {max_depth:g} along the normal: the change exceeds the depth; "
+                f"--max-depth {_nice_up(d.needed_depth):g} reaches 95 % of them.")
+    return lines
+
+
+def normal_failure_message(result, normal_scale) -> str | None:
+    """A warning when more than :data:`NORMAL_FAILURE_SHARE` of the core points have no normal,
+    naming the likely cause (D is a diameter)."""
+    status = np.asarray(result.status)
+    n = len(status)
+    failed = int(np.count_nonzero(np.isin(status, _NO_NORMAL)))
+    if not n or failed / n <= NORMAL_FAILURE_SHARE:
+        return None
+    scales = np.atleast_1d(np.asarray(normal_scale, dtype=float))
+    d = float(scales.max()) if scales.size else float("nan")
+    few = int(np.count_nonzero(status == _NO_NORMAL[0]))
+    why = ("too few neighbours within D/2" if few >= failed - few else "collinear or coincident neighbours")
+    return (f"{share_text(failed, n, 'core points')} have no normal ({why}): D = --normal-scale {d:g} is a "
+            f"DIAMETER (neighbours within D/2 = {d / 2:g}); did you give a radius? Try --normal-scale {2 * d:g} "
+            f"or larger (about 10 points within D/2, paper 3.2).")

@@ -1,0 +1,75 @@
+"""The diagnoses behind the data-quality warnings (m3c2kit.quality): no overlap vs. a depth too
+short, normals that fail because D was given as a radius, shares over what they describe."""
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import m3c2kit
+from m3c2kit import quality as Q
+
+TORONTO = Path(__file__).resolve().parents[2] / "data" / "toronto-ttp"
+
+
+@pytest.fixture(scope="module")
+def toronto():
+    return m3c2kit.read(TORONTO / "TTP_15.laz").xyz, m3c2kit.read(TORONTO / "TTP_23.laz").xyz
+
+
+def _no_compared_point_on_the_line(cmp_xyz, core, normal, radius) -> bool:
+    """Oracle: no compared point within `radius` of the infinite line core + t normal."""
+    rel = cmp_xyz - core
+    along = rel @ normal
+    perp2 = np.einsum("ij,ij->i", rel, rel) - along**2
+    return not np.any(perp2 <= radius**2)
+
+
+def test_toronto_shoreline_is_no_overlap_at_every_depth(toronto):
+    ref, cmp_ = toronto
+    counts = []
+    for depth in (20, 100, 1000):
+        r = m3c2kit.compare(ref, cmp_, core_spacing=8, normal_scale=10, projection_scale=5, max_depth=depth)
+        diag = {d.cloud: d for d in Q.cylinder_diagnosis(ref, cmp_, r, projection_scale=5, max_depth=depth)}
+        compared = diag[2]
+        counts.append(compared.no_overlap.size)
+        messages = Q.cylinder_messages(list(diag.values()), depth)
+        overlap = [m for m in messages if "do not overlap" in m]
+        assert len(overlap) == 1 and "cannot help" in overlap[0] and "of the" in overlap[0], messages
+        # Never advise a larger depth for points no depth can reach.
+        assert not any("reaches 95 %" in m for m in messages if "compared points only beyond" in m
+                       and compared.beyond_depth.size == 0)
+        # The oracle agrees on a sample of the no-overlap core points.
+        for i in compared.no_overlap[:: max(1, compared.no_overlap.size // 25)]:
+            assert _no_compared_point_on_the_line(cmp_, r.core[i], r.normal[i], 2.5)
+    # The cause does not depend on the depth asked for.
+    assert counts[0] == counts[1] == counts[2] > 0
+
+
+def test_depth_too_short_advises_the_depth_that_reaches():
+    rng = np.random.default_rng(5)
+    xy = rng.uniform(0, 20, (4000, 2))
+    ref = np.column_stack([xy, 0.01 * rng.standard_normal(4000)])
+    cmp_ = np.column_stack([xy[::-1], 6.0 + 0.01 * rng.standard_normal(4000)])
+    r = m3c2kit.compare(ref, cmp_, ref[::40], normal_scale=3, projection_scale=2, max_depth=2)
+    diag = Q.cylinder_diagnosis(ref, cmp_, r, projection_scale=2, max_depth=2)
+    (d,) = [x for x in diag if x.cloud == 2]
+    assert d.no_overlap.size == 0 and d.beyond_depth.size == d.empty > 0
+    assert 6.0 <= d.needed_depth < 6.2
+    messages = Q.cylinder_messages(diag, 2)
+    assert len(messages) == 1 and "--max-depth 6.1 reaches 95 %" in messages[0] and "overlap" not in messages[0]
+
+
+def test_normal_failures_name_the_diameter(toronto):
+    ref, cmp_ = toronto
+    r = m3c2kit.compare(ref, cmp_, core_spacing=8, normal_scale=1, projection_scale=5, max_depth=10)
+    m = Q.normal_failure_message(r, 1)
+    assert m is not None and "DIAMETER" in m and "did you give a radius?" in m and "--normal-scale 2" in m
+    assert m.split(" (")[0].startswith(f"{np.isin(r.status, (1, 2)).sum():,} of the {len(r):,} core points")
+    ok = m3c2kit.compare(ref, cmp_, core_spacing=8, normal_scale=10, projection_scale=5, max_depth=10)
+    assert Q.normal_failure_message(ok, 10) is None
+
+
+def test_share_text():
+    assert Q.share_text(1234, 5678, "core points with a normal") == "1,234 of the 5,678 core points with a normal (21.7 %)"
