@@ -47,7 +47,7 @@ repo=$(pwd)
 step "fuzzing"
 fuzz_dir=$(mktemp -d)
 if python -c "import atheris" 2>/dev/null || python -m pip install --quiet --disable-pip-version-check atheris; then
-  for target in ascii_reader ply_reader cc_params cli_args; do
+  for target in ascii_reader ply_reader cc_params cli_args crs_text las_header; do
     (cd "$fuzz_dir" && python "$repo/tests/fuzz/fuzz.py" "$target" -max_total_time=25 -print_final_stats=0 \
       >"$fuzz_dir/$target.log" 2>&1) || { tail -50 "$fuzz_dir/$target.log"; exit 1; }
     echo "fuzz $target: $(grep -Eo 'Done [0-9]+ runs' "$fuzz_dir/$target.log" || echo done)"

@@ -52,11 +52,12 @@ double resampled_stat(std::span<const double> values, const Params& params, Spli
 }  // namespace
 
 double bootstrap_sigma(std::span<const double> t1, std::span<const double> t2, const Params& params,
-                       std::uint64_t core_index, std::vector<double>& work) {
+                       std::uint64_t core_index, std::vector<double>& work, Pulse& pulse) {
   SplitMix64 seeder(params.bootstrap_seed);
   SplitMix64 rng(seeder.next() ^ (core_index * 0xD1B54A32D192ED03ULL));
   std::vector<double> draw, distances(params.bootstrap_samples);
   for (double& d : distances) {
+    pulse.beat();
     const double i1 = resampled_stat(t1, params, rng, draw, work);
     const double i2 = resampled_stat(t2, params, rng, draw, work);
     d = i2 - i1;

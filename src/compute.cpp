@@ -7,6 +7,7 @@
 #include "parallel_for.hpp"
 #include "plane_fit.hpp"
 #include "spatial_order.hpp"
+#include "thread_limits.hpp"
 #include "uncertainty.hpp"
 
 #include <algorithm>
@@ -28,7 +29,6 @@ using detail::Octree;
 using detail::OctreeGrid;
 using detail::OrientedNormal;
 using detail::Scratch;
-using detail::thread_count;
 
 /// Both clouds' indexes and the core points' processing order (morton_order), the compared
 /// index and the order on a second thread when the run has two: they are independent (the
@@ -43,7 +43,8 @@ std::pair<Octree, Octree> build_indexes(PointsView reference, PointsView compare
                                         std::vector<std::uint32_t>& core_order,
                                         const std::function<void()>& alongside) {
   const bool ref_moments = moments_needed(params, true), cmp_moments = moments_needed(params, false);
-  if (thread_count(run) < 2) {
+  detail::OpenMpTeam team(std::min(2, detail::requested_threads(run)));
+  if (team.size() < 2) {
     core_order = detail::morton_order(core_points);
     if (alongside) alongside();
     return {index_of(reference, "reference cloud", grid, ref_moments),
@@ -59,6 +60,7 @@ std::pair<Octree, Octree> build_indexes(PointsView reference, PointsView compare
 #endif
   {
     const int part = detail::thread_num();
+    if (part == 0) team.started();
     const bool alone = detail::team_size() < 2;
     try {
       if (part == 0) first.emplace(index_of(reference, "reference cloud", grid, ref_moments));
@@ -100,7 +102,7 @@ class Pipeline {
   /// The order in which to process the core points (Morton order).
   const std::vector<std::uint32_t>& core_order() const { return core_order_; }
 
-  void run(const Vec3& core, std::size_t i, Result& r, Scratch& s) const {
+  void run(const Vec3& core, std::size_t i, Result& r, Scratch& s, detail::Pulse& pulse) const {
     const OrientedNormal n = detail::normal_at(core, i, params_, reference_normals_ ? &*reference_normals_ : nullptr,
                                                compared_normals_ ? &*compared_normals_ : nullptr, core_normals_, s.normal);
     for (int a = 0; a < 3; ++a) r.normal[3 * i + a] = n.normal(a);
@@ -113,7 +115,7 @@ class Pipeline {
     }
     detail::project(reference_tree_, compared_tree_, core, n.normal, params_, s.projection, s.t1, s.t2,
                     uncertainty_ ? &s.index1 : nullptr, uncertainty_ ? &s.index2 : nullptr);
-    detail::measure(params_, z_, uncertainty_ != nullptr, s, i, r);
+    detail::measure(params_, z_, uncertainty_ != nullptr, s, i, r, pulse);
     if (uncertainty_ && r.n1[i] > 0 && r.n2[i] > 0) uncertainty_->measure(core, n.normal, s.index1, s.index2, i, r);
   }
 
@@ -139,7 +141,10 @@ Result compute(PointsView reference, PointsView compared, PointsView core_points
   if (compared.empty()) throw InvalidArgument("the compared cloud is empty");
   // The clouds' coordinates are checked by their indexes, on the thread building each
   // (index_of); the core points here.
-  detail::require_finite_points("core points", core_points);
+  // The clouds' coordinates are checked by their indexes; the core points here, unless they are
+  // the reference itself (the default), whose index names its own non-finite coordinates.
+  const bool cloud_itself = core_points.size() == reference.size() && core_points.data() == reference.data();
+  if (!cloud_itself) detail::require_finite_points("core points", core_points);
   if (params.normal_source == NormalSource::kCorePoints && core_normals.size() != 3 * core_points.size())
     throw InvalidArgument("core_normals must hold 3 values per core point (" + std::to_string(3 * core_points.size()) +
                           "), got " + std::to_string(core_normals.size()));
@@ -164,10 +169,10 @@ Result compute(PointsView reference, PointsView compared, PointsView core_points
   // With two threads the team has just built the indexes: it is awake (build_indexes).
   detail::parallel_blocks<Scratch>(
       core_points.size(), run,
-      [&](std::size_t begin, std::size_t end, Scratch& s) {
-        for (std::size_t k = begin; k < end; ++k) pipeline.run(core_points[order[k]], order[k], result, s);
+      [&](std::size_t begin, std::size_t end, Scratch& s, detail::Pulse& pulse) {
+        for (std::size_t k = begin; k < end; ++k) pipeline.run(core_points[order[k]], order[k], result, s, pulse);
       },
-      64, thread_count(run) >= 2);
+      64, detail::requested_threads(run) >= 2);
   return result;
 }
 

@@ -44,7 +44,6 @@ inline bool moments_needed(const Params& params, bool reference) {
                    : src == NormalSource::kCompared;
 }
 
-inline int thread_count(const RunOptions& run) { return run.threads > 0 ? run.threads : max_threads(); }
 
 /// The index of a cloud named `name` ("reference cloud"). Its one pass over the coordinates
 /// refuses those beyond the grid's range (NaN and Inf among them); only then is the cloud
@@ -146,8 +145,9 @@ inline OrientedNormal normal_at(const Vec3& core, std::size_t i, const Params& p
 /// Section 3.1.3 step 3 and 3.3: the distance, spreads, LOD and significance of core point i
 /// from its cylinders' offsets s.t1, s.t2 (z = z_critical(params.confidence)). With
 /// `lod_by_model` (per-point uncertainty, PM / EP) only the distance and spreads: the model
-/// gives the LOD.
-inline void measure(const Params& params, double z, bool lod_by_model, Scratch& s, std::size_t i, Result& r) {
+/// gives the LOD. `pulse` lets a long bootstrap be cancelled inside the core point (pulse.hpp).
+inline void measure(const Params& params, double z, bool lod_by_model, Scratch& s, std::size_t i, Result& r,
+                    Pulse& pulse) {
   const auto n1 = static_cast<std::uint32_t>(s.t1.size()), n2 = static_cast<std::uint32_t>(s.t2.size());
   r.n1[i] = n1;
   r.n2[i] = n2;
@@ -167,7 +167,7 @@ inline void measure(const Params& params, double z, bool lod_by_model, Scratch& 
     return;
   }
   if (params.lod == Lod::kBootstrap) {
-    r.lod[i] = z * (bootstrap_sigma(s.t1, s.t2, params, i, s.work) + params.registration_error);
+    r.lod[i] = z * (bootstrap_sigma(s.t1, s.t2, params, i, s.work, pulse) + params.registration_error);
   } else {
     const double critical = critical_value(params, z, a.se, n1, b.se, n2);
     r.lod[i] = lod_parametric(critical, a.se, b.se, params.registration_error);

@@ -5,22 +5,28 @@
 #include <m3c2/errors.hpp>
 #include <m3c2/run_options.hpp>
 
+#include "pulse.hpp"
+#include "thread_limits.hpp"
 #include "threads.hpp"
 
 #include <algorithm>
 #include <atomic>
 #include <chrono>
+#include <condition_variable>
 #include <cstddef>
 #include <cstdint>
 #include <exception>
 #include <mutex>
+#include <type_traits>
 
 namespace m3c2::detail {
 
 /// Calls fn(begin, end, scratch) on consecutive blocks of [0, n). run.progress, if set, is
 /// called under a lock after each block with the number of items done; when it returns false
 /// the remaining blocks are skipped and Cancelled is thrown. `Scratch` is default-constructed
-/// once per thread and passed to fn, for buffers reused across items.
+/// once per thread and passed to fn, for buffers reused across items; fn may take a fourth
+/// argument, the thread's Pulse, to be cancellable inside a long item (pulse.hpp). The team is
+/// requested_threads(run), or fewer when the process cannot create that many (threads.hpp).
 ///
 /// The first blocks run on the calling thread alone, for up to kSerialLead: only what is left
 /// after that is shared among the threads. Waking and joining the OpenMP team costs ~0.1 ms on
@@ -32,51 +38,80 @@ namespace m3c2::detail {
 template <class Scratch, class Fn>
 void parallel_blocks(std::size_t n, const RunOptions& run, Fn&& fn, std::size_t block = 64, bool team_awake = false) {
   constexpr auto kSerialLead = std::chrono::milliseconds(2);
-  const int threads = run.threads > 0 ? run.threads : max_threads();
+  constexpr auto kCallerPoll = std::chrono::milliseconds(100);
+  const int threads = requested_threads(run);
   const auto blocks = static_cast<std::int64_t>((n + block - 1) / block);
   std::exception_ptr failure;
-  std::atomic<bool> stop{false};
-  std::mutex lock;
-  std::size_t done = 0;
-  const auto run_block = [&](std::int64_t b, Scratch& scratch) {
-    if (stop.load(std::memory_order_relaxed)) return;
+  LoopControl control(run, n);
+  const auto run_block = [&](std::int64_t b, Scratch& scratch, Pulse& pulse) {
+    if (control.stop.load(std::memory_order_relaxed)) return;
     const std::size_t begin = std::size_t(b) * block, end = std::min(n, begin + block);
     try {
-      fn(begin, end, scratch);
-      if (run.progress) {
-        std::lock_guard guard(lock);
-        done += end - begin;
-        if (!stop && !run.progress(done, n)) stop = true;
-      }
+      if constexpr (std::is_invocable_v<Fn&, std::size_t, std::size_t, Scratch&, Pulse&>)
+        fn(begin, end, scratch, pulse);
+      else
+        fn(begin, end, scratch);
+      if (run.progress && !control.finished(end - begin)) control.stop = true;
     } catch (...) {
-      std::lock_guard guard(lock);
+      std::lock_guard guard(control.lock);
       if (!failure) failure = std::current_exception();
-      stop = true;
+      control.stop = true;
     }
   };
   std::int64_t first = 0;  // blocks before this one ran serially
-  {
+  const auto serial = [&](bool lead) {
     Scratch scratch;
+    Pulse pulse(&control);
     const auto start = std::chrono::steady_clock::now();
-    while (first < blocks && !stop.load(std::memory_order_relaxed) &&
-           (threads <= 1 || (!team_awake && std::chrono::steady_clock::now() - start < kSerialLead)))
-      run_block(first++, scratch);
-  }
-  if (first < blocks && !stop.load(std::memory_order_relaxed)) {
-    // Without OpenMP (a serial build) the pragmas are not compiled: one thread runs every block.
+    while (first < blocks && !control.stop.load(std::memory_order_relaxed) &&
+           (!lead || (!team_awake && std::chrono::steady_clock::now() - start < kSerialLead)))
+      run_block(first++, scratch, pulse);
+  };
+  serial(threads > 1);
+  if (first < blocks && !control.stop.load(std::memory_order_relaxed)) {
+    OpenMpTeam team(threads);
+    if (team.size() < 2) {
+      serial(false);  // the process cannot create another thread now
+    } else {
+      // Blocks done or skipped; the thread that finishes the last one wakes thread 0's watch.
+      std::atomic<std::int64_t> finished{first};
+      std::mutex watch_lock;
+      std::condition_variable all_done;
+      // Without OpenMP (a serial build) the pragmas are not compiled: one thread runs every block.
 #if defined(_OPENMP)
-#pragma omp parallel num_threads(threads)
+#pragma omp parallel num_threads(team.size())
 #endif
-    {
-      Scratch scratch;
+      {
+        const bool caller = thread_num() == 0;
+        if (caller) team.started();
+        Scratch scratch;
+        Pulse pulse(&control);
 #if defined(_OPENMP)
-#pragma omp for schedule(dynamic, 1)
+#pragma omp for schedule(dynamic, 1) nowait
 #endif
-      for (std::int64_t b = first; b < blocks; ++b) run_block(b, scratch);
+        for (std::int64_t b = first; b < blocks; ++b) {
+          run_block(b, scratch, pulse);
+          if (finished.fetch_add(1) + 1 == blocks) {
+            std::lock_guard guard(watch_lock);
+            all_done.notify_all();
+          }
+        }
+        // Thread 0 is the caller's thread, the only one on which a Python caller's progress
+        // callback can notice Ctrl-C and SIGTERM: once out of blocks it keeps polling while
+        // the others finish theirs (one long core point would otherwise run to its end).
+        if (caller && run.progress) {
+          std::unique_lock wait(watch_lock);
+          while (!all_done.wait_for(wait, kCallerPoll, [&] { return finished.load() >= blocks; })) {
+            wait.unlock();
+            control.poll();
+            wait.lock();
+          }
+        }
+      }
     }
   }
   if (failure) std::rethrow_exception(failure);
-  if (stop) throw Cancelled();
+  if (control.stop) throw Cancelled();
 }
 
 }  // namespace m3c2::detail

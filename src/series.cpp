@@ -81,7 +81,7 @@ Result Comparison::compare(PointsView compared, const RunOptions& run) const {
   const PointsView core = s.core_view();
   // The body of compute()'s Pipeline::run with the normal looked up instead of estimated.
   detail::parallel_blocks<detail::Scratch>(
-      core.size(), run, [&](std::size_t begin, std::size_t end, detail::Scratch& scratch) {
+      core.size(), run, [&](std::size_t begin, std::size_t end, detail::Scratch& scratch, detail::Pulse& pulse) {
         for (std::size_t k = begin; k < end; ++k) {
           const std::size_t i = s.order[k];
           const detail::OrientedNormal& n = s.normals[i];
@@ -96,7 +96,7 @@ Result Comparison::compare(PointsView compared, const RunOptions& run) const {
           }
           detail::project(*s.reference, epoch, core[i], n.normal, s.params, scratch.projection, scratch.t1,
                           scratch.t2);
-          detail::measure(s.params, s.z, false, scratch, i, result);
+          detail::measure(s.params, s.z, false, scratch, i, result, pulse);
         }
       });
   return result;

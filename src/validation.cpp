@@ -82,6 +82,8 @@ void validate_params(const Params& p) {
   if (p.min_points < 1) fail("min_points", ">= 1", p.min_points);
   if (p.lod == Lod::kBootstrap && p.bootstrap_samples < 2)
     fail("bootstrap_samples", ">= 2 with the bootstrap LOD", p.bootstrap_samples);
+  if (p.bootstrap_samples > kMaxBootstrapSamples)
+    fail("bootstrap_samples", "at most " + std::to_string(kMaxBootstrapSamples), p.bootstrap_samples);
 }
 
 }  // namespace m3c2::detail

@@ -266,6 +266,8 @@ NB_MODULE(_core, m) {
     return names;
   });
 
+  m.attr("MAX_BOOTSTRAP_SAMPLES") = m3c2::kMaxBootstrapSamples;  // params.hpp: resamples per core point
+
   m.def("max_abs_coordinate", &m3c2::max_abs_coordinate, "params"_a,
         "The largest |coordinate| of a cloud compute() indexes with these parameters.");
   m.def("neighbourhood_reach", &m3c2::neighbourhood_reach, "params"_a,

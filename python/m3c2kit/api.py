@@ -11,6 +11,7 @@ from typing import Callable
 import numpy as np
 
 from . import diagnostics, engine, uncertainty_inputs
+from .io.arrays import as_coordinates
 from .errors import CloudReadError, M3C2Error, UsageError
 from .io.guard import available_memory, format_bytes
 from .result import Result
@@ -20,12 +21,9 @@ from .settings.table import by_name
 
 
 def as_points(name: str, values) -> np.ndarray:
-    """(N, 3) float64 C-contiguous view of `values` (no copy when it already is one)."""
-    xyz = getattr(values, "xyz", values)
-    arr = np.asarray(xyz, dtype=np.float64)
-    if arr.ndim != 2 or arr.shape[1] != 3:
-        raise UsageError(f"{name} must be an (N, 3) array of coordinates, got shape {arr.shape}")
-    return np.ascontiguousarray(arr)
+    """(N, 3) float64 C-contiguous view of `values` (no copy when it already is one); only real
+    numbers (io.arrays.as_coordinates: bool, complex, datetime, strings are refused)."""
+    return as_coordinates(name, values)
 
 
 def threads_count(threads) -> int:

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import os
 import signal
 import sys
 import warnings
@@ -13,7 +14,7 @@ import numpy as np
 from . import api, raster
 from .analysis.cli import analysis_parsers
 from .classify.cli import classify_parsers
-from .errors import M3C2Error, M3C2Warning, UsageError
+from .errors import M3C2Error, M3C2Warning, UsageError, printable
 from .io import read_cloud, write_cloud_table
 from .io import crs as crs_mod
 from .io.collisions import check_outputs
@@ -375,9 +376,9 @@ def run_info(args) -> int:
     d = describe(args.file)
     if args.json:
         import json
-        print(json.dumps(d, indent=2))
+        print(printable(json.dumps(d, indent=2)))
     else:
-        print(describe_text(d))
+        print(printable(describe_text(d)))  # a WKT or a file name may hold terminal escapes
     return 0
 
 
@@ -386,6 +387,17 @@ _CLEAN_EXIT_SIGNALS = tuple(getattr(signal, name) for name in ("SIGHUP", "SIGQUI
 
 def _raise_interrupted(signum, frame):
     raise Interrupted(f"interrupted by {signal.Signals(signum).name}; no output written")
+
+
+def _show_warning(message, category, filename, lineno, file=None, line=None):
+    """M3C2Warning (e.g. QuantisationWarning) as `m3c2: warning: ...`; others as Python shows them."""
+    if issubclass(category, M3C2Warning):
+        print(f"m3c2: warning: {printable(message)}", file=sys.stderr)
+    else:
+        _python_showwarning(message, category, filename, lineno, file, line)
+
+
+_python_showwarning = warnings.showwarning
 
 
 #: Option values that start with "-" and that argparse would take for options: "--orient -z".
@@ -423,20 +435,27 @@ def main(argv=None) -> int:
 
 def _main(argv) -> int:
     try:
-        argv = join_dash_values([str(a) for a in (sys.argv[1:] if argv is None else argv)])
-        args = make_parser().parse_args(argv)
-        return args.run(args)
+        with warnings.catch_warnings():
+            warnings.showwarning = _show_warning
+            argv = join_dash_values([str(a) for a in (sys.argv[1:] if argv is None else argv)])
+            args = make_parser().parse_args(argv)
+            return args.run(args)
     except UsageError as e:
-        print(f"m3c2: error: {e}", file=sys.stderr)
+        print(f"m3c2: error: {printable(e)}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:
         print("m3c2: error: interrupted by SIGINT; no output written", file=sys.stderr)
         return 1
     except M3C2Error as e:
-        print(f"m3c2: error: {e}", file=sys.stderr)
+        print(f"m3c2: error: {printable(e)}", file=sys.stderr)
         return 1
     except MemoryError:
         print("m3c2: error: out of memory; use fewer or subsampled core points", file=sys.stderr)
+        return 1
+    except BrokenPipeError:
+        # stdout closed by the reader (`m3c2 info x.las | head -1`): stop quietly, as Unix tools
+        # do, and point stdout at /dev/null so that the interpreter's final flush stays quiet.
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
         return 1
 
 

@@ -21,7 +21,7 @@ import numpy as np
 from . import _core
 from .errors import Cancelled, UsageError
 
-__all__ = ["PARAM_FIELDS", "RESULT_FIELDS", "OPTIONAL_RESULT_FIELDS", "STATUS_NAMES", "MAX_CELLS_PER_AXIS", "INDEX_MEMORY", "Params",
+__all__ = ["PARAM_FIELDS", "RESULT_FIELDS", "OPTIONAL_RESULT_FIELDS", "STATUS_NAMES", "MAX_CELLS_PER_AXIS", "MAX_BOOTSTRAP_SAMPLES", "INDEX_MEMORY", "Params",
            "translated", "make_params", "default_fields", "params_fields", "compute", "compute_normals",
            "subsample_min_spacing", "grid_core_points", "roughness_by_scale", "dimensionality", "c2c", "max_abs_coordinate",
            "neighbourhood_reach", "tile_halo"]
@@ -37,6 +37,8 @@ OPTIONAL_RESULT_FIELDS: tuple[str, ...] = tuple(_core.OPTIONAL_RESULT_FIELDS)
 STATUS_NAMES: tuple[str, ...] = tuple(_core.status_names())
 #: Most cells along an axis of the subsampling and 2D grids (extent / cell).
 MAX_CELLS_PER_AXIS: float = float(_core.MAX_CELLS_PER_AXIS)
+#: Bootstrap resamples per core point the engine accepts (m3c2::kMaxBootstrapSamples, params.hpp).
+MAX_BOOTSTRAP_SAMPLES: int = int(_core.MAX_BOOTSTRAP_SAMPLES)
 #: What compute() allocates beyond its inputs: bytes_per_point (each cloud), overhead, bytes_per_core_point.
 INDEX_MEMORY: dict = dict(_core.index_memory())
 

@@ -20,6 +20,7 @@ failed run leaves none of them. See docs/report.md.
 """
 from __future__ import annotations
 
+import math
 import os
 import sys
 from dataclasses import dataclass
@@ -28,7 +29,10 @@ from pathlib import Path
 import numpy as np
 
 from . import engine
-from .errors import CloudWriteError, UsageError
+from .errors import CloudWriteError, M3C2Error, UsageError
+from .io.guard import available_memory, format_bytes
+from .limits import usable_length
+from .limits import usable_length
 from .io.crs import looks_like_wkt
 from .optional import require
 
@@ -82,9 +86,39 @@ class Grid:
         return out
 
 
+#: Bytes per raster cell while the images exist together (rasters(): the six images, 18 bytes a
+#: cell, plus the one being written): the images cover every cell of the grid, empty or not, so a
+#: small --grid on a large cloud is sized by its extent, not by its points.
+RASTER_BYTES_PER_CELL = sum(np.dtype(t).itemsize for t, _, _ in RASTERS.values()) + 4
+
+
+def check_raster_memory(xyz: np.ndarray, cell: float, available: int | None = None) -> int:
+    """Raster cells of a --grid `cell` over the XY extent of `xyz`; a RasterTooLarge naming --grid
+    when the images would not fit the available memory (io.guard.available_memory)."""
+    if len(xyz) == 0:
+        return 0
+    extent = xyz[:, :2].max(axis=0) - xyz[:, :2].min(axis=0)
+    cols, rows = (np.floor(extent / cell) + 1).tolist()
+    cells = cols * rows
+    available = available_memory() if available is None else available
+    needed = cells * RASTER_BYTES_PER_CELL
+    if available is not None and needed > available:
+        smallest = cell * math.sqrt(needed / available)
+        raise RasterTooLarge(f"--grid {cell:g} makes rasters of {int(cols)} x {int(rows)} cells over the reference's "
+                             f"{extent[0]:.6g} x {extent[1]:.6g} extent ({format_bytes(needed)} for the "
+                             f"{len(RASTERS)} rasters) but only {format_bytes(available)} is available; use a larger "
+                             f"--grid (at least about {smallest:.3g})")
+    return int(cells)
+
+
+class RasterTooLarge(M3C2Error):
+    """The rasters of a --grid run would not fit in memory (exit status 1)."""
+
+
 def grid_core_points(points, cell: float) -> Grid:
     """One core point per non-empty `cell`-sized cell over the XY extent of `points`."""
     xyz = np.ascontiguousarray(getattr(points, "xyz", points), dtype=np.float64)
+    check_raster_memory(xyz, float(cell))
     g = engine.grid_core_points(xyz, float(cell), "--grid")
     return Grid(float(g["x0"]), float(g["y0"]), float(g["cell"]), int(g["rows"]), int(g["cols"]),
                 np.asarray(g["core_points"]).reshape(-1, 3), np.asarray(g["row"]), np.asarray(g["col"]))
@@ -96,8 +130,7 @@ def grid_settings(cell, settings: dict, explicit: dict) -> dict:
     command line: there a --normal-scale (which would only choose the normal), a --normal-source
     but vertical, --core-normals and --position reference/compared are usage errors; from a params
     file the normal scale and core point options are dropped (the grid is the core points)."""
-    if not (np.isfinite(cell) and cell > 0):
-        raise UsageError(f"--grid must be a positive cell size, got {cell!r}")
+    cell = usable_length("--grid", cell)  # finite, > 0, not denormal
     if explicit.get("normal_scale") is not None:
         raise UsageError("--grid imposes vertical normals (section 6.1.2): --normal-scale has no effect; "
                          "leave it out")

@@ -37,6 +37,7 @@ from typing import Callable
 import numpy as np
 
 from . import api, diagnostics, engine
+from .limits import check_tile_size, usable_length
 from .errors import M3C2Error, UsageError
 from .io.atomic import private_folder
 from .io.streaming import DEFAULT_CHUNK, PointSource, TableWriter, _in_box
@@ -433,11 +434,12 @@ def run_tiled(reference, compared, *, output=None, core=None, core_spacing=None,
                          "--memory-limit and --dask-scheduler")
     if tile_size is None and memory_limit is None:
         raise UsageError("tiling needs --tile-size or --memory-limit")
-    if tile_size is not None and not (float(tile_size) > 0 and math.isfinite(float(tile_size))):
-        raise UsageError(f"--tile-size must be a positive number, got {tile_size!r}")
     h = halo(engine_p)
     hp = engine.tile_halo(engine_p)
     report.halo = h
+    if tile_size is not None:  # before any file is read (docs/errors.md, "Run limits")
+        tile_size = usable_length("--tile-size", tile_size)
+        check_tile_size(tile_size, h)
 
     ref_src = reference if isinstance(reference, PointSource) else PointSource(reference, drop_nonfinite=drop_nonfinite)
     cmp_src = compared if isinstance(compared, PointSource) else PointSource(compared, drop_nonfinite=drop_nonfinite)
@@ -714,15 +716,70 @@ def _run_in(work: Path, report: TiledReport, ref_src, cmp_src, cores: _CoreStrea
     return report
 
 
+#: Seconds to reach a Dask scheduler and complete its handshake: an address that accepts and never
+#: answers waited forever, a closed local port took 30 s (distributed's default) to say so.
+DASK_CONNECT_TIMEOUT = 10.0
+
+
+def _connect(Client, address: str):
+    """A distributed.Client of `address`, every wait bounded by DASK_CONNECT_TIMEOUT, or an
+    M3C2Error naming --dask-scheduler: refused at once when nothing listens (a TCP probe before
+    distributed's retries), a timeout when the address accepts but never answers, and a clear
+    message when something other than a Dask scheduler answers (its bytes read as a message
+    length made "Unable to allocate 3.07 EiB")."""
+    import socket
+    where = str(address).split("://", 1)[-1]
+    host, _, port = where.rpartition(":")
+    if host and port.isdigit():
+        _probe_scheduler(address, host.strip("[]"), int(port))
+    try:
+        return Client(address, timeout=DASK_CONNECT_TIMEOUT)
+    except (MemoryError, OverflowError, ValueError, TypeError) as e:
+        raise M3C2Error(f"--dask-scheduler {address}: the service there did not answer as a Dask scheduler "
+                        f"({type(e).__name__}); check the address and port") from None
+    except Exception as e:  # noqa: BLE001 - timeouts and every other connection failure are the address's
+        raise M3C2Error(f"--dask-scheduler {address}: no answer from a Dask scheduler within "
+                        f"{DASK_CONNECT_TIMEOUT:g} s ({type(e).__name__}: {e})") from None
+
+
+#: A Dask scheduler opens every connection with its handshake: one message whose first 8 bytes
+#: are its length (uint64, little-endian; ~60 bytes). Longer than this is not a scheduler.
+_DASK_HANDSHAKE_MAX = 2**26
+
+
+def _probe_scheduler(address: str, host: str, port: int) -> None:
+    """Connects to (host, port) and reads the first 8 bytes a Dask scheduler sends, within
+    DASK_CONNECT_TIMEOUT; an M3C2Error naming --dask-scheduler when that fails."""
+    import socket
+    import struct
+    try:
+        conn = socket.create_connection((host, port), timeout=DASK_CONNECT_TIMEOUT)
+    except ConnectionRefusedError:
+        raise M3C2Error(f"--dask-scheduler {address}: connection refused (no scheduler listens there)") from None
+    except OSError as e:
+        raise M3C2Error(f"--dask-scheduler {address}: cannot connect: {e.strerror or e}") from None
+    with conn:
+        head = b""
+        try:
+            while len(head) < 8:
+                chunk = conn.recv(8 - len(head))
+                if not chunk:
+                    break
+                head += chunk
+        except OSError:  # socket.timeout among them
+            raise M3C2Error(f"--dask-scheduler {address}: no answer within {DASK_CONNECT_TIMEOUT:g} s: the address "
+                            f"accepts connections but no Dask scheduler speaks there") from None
+    if len(head) < 8 or not 0 < struct.unpack("<Q", head)[0] <= _DASK_HANDSHAKE_MAX:
+        raise M3C2Error(f"--dask-scheduler {address}: the service there did not answer as a Dask scheduler "
+                        f"(first bytes {head!r}); check the address and port")
+
+
 def _run_dask(tasks, engine_p, threads, retries, task_fn, accept, address, client, report, log) -> None:
     distributed = require("distributed", extra="dask", purpose="running on a Dask cluster (--dask-scheduler)")
     Client, as_completed = distributed.Client, distributed.as_completed
     own = client is None
     if own:
-        try:
-            client = Client(address)
-        except Exception as e:  # noqa: BLE001 - any connection failure is the user's address
-            raise M3C2Error(f"--dask-scheduler {address}: cannot connect: {e}") from None
+        client = _connect(Client, address)
     try:
         report.workers = max(1, len(client.scheduler_info().get("workers", {})))
         run_id = uuid.uuid4().hex[:8]
@@ -792,14 +849,15 @@ def _merge(work: Path, result_spill: _Spills, dtype: np.dtype, counts, n_core: i
         if not np.array_equal(taken, counts):
             raise M3C2Error("core-point bookkeeping failed: rows taken per tile differ from the plan")
 
-    xyz_min = None
+    xyz_min = xyz_max = None
     if output is not None and (like is None or like.scale is None):
-        xyz_min = np.full(3, np.inf)
+        xyz_min, xyz_max = np.full(3, np.inf), np.full(3, -np.inf)
         for chunk in chunks():
-            # fmin: rows without a projection (--position reference|compared) have NaN coordinates.
-            xyz_min = np.fmin(xyz_min, np.fmin.reduce(_output_xyz(chunk, projected, position), axis=0,
-                                                      initial=np.inf))
-            del chunk
+            # fmin/fmax: rows without a projection (--position reference|compared) have NaN coordinates.
+            xyz = _output_xyz(chunk, projected, position)
+            xyz_min = np.fmin(xyz_min, np.fmin.reduce(xyz, axis=0, initial=np.inf))
+            xyz_max = np.fmax(xyz_max, np.fmax.reduce(xyz, axis=0, initial=-np.inf))
+            del chunk, xyz
     gathered = []
     evidence = {k: [] for k in _EVIDENCE}
     status = np.zeros(256, dtype=np.int64)
@@ -822,7 +880,7 @@ def _merge(work: Path, result_spill: _Spills, dtype: np.dtype, counts, n_core: i
             gathered.append(chunk)
 
     if output is not None:
-        with TableWriter(output, like=like, xyz_min=xyz_min) as writer:
+        with TableWriter(output, like=like, xyz_min=xyz_min, xyz_max=xyz_max) as writer:
             for chunk in chunks():
                 consume(chunk, writer)
                 del chunk

@@ -165,7 +165,44 @@ def _check_command(args) -> None:
         os.chdir(cwd)
 
 
-TARGETS = {"ascii_reader": ascii_reader, "ply_reader": ply_reader, "cc_params": cc_params, "cli_args": cli_args}
+# ------------------------------------------------------------------------------------ CRS text
+
+def crs_text(data: bytes) -> None:
+    """The CRS helpers on any text (a LAS WKT record, --crs): values or None, never an exception
+    (a deeply nested WKT raised RecursionError), and printable() leaves no control character."""
+    from m3c2kit.errors import printable
+    from m3c2kit.io import crs
+    text = data.decode("utf-8", "replace")
+    assert isinstance(crs.looks_like_wkt(text), bool)
+    crs.parse_crs(text)
+    label = crs.crs_label(text)
+    assert isinstance(label, str) and "\n" not in label
+    crs.crs_units(text)
+    crs.crs_info(text)
+    crs.is_angular(text)
+    assert crs.same_crs(text, "EPSG:32632") in (True, False, None)
+    shown = printable(label)
+    assert not any(ord(c) < 32 and c not in "\t\n" or 0x7F <= ord(c) < 0xA0 for c in shown), shown
+
+
+# ---------------------------------------------------------------------------------- LAS header
+
+def las_header(data: bytes) -> None:
+    """check_las_file on any bytes: a LasLayout whose point count the file can hold, or a
+    ValueError (the reader prefixes the path); never another exception, never a read of more
+    than the file."""
+    from m3c2kit.io.las_header import check_las_file
+    path = _write("fuzzed.las", data)
+    try:
+        layout = check_las_file(path)
+    except ValueError:
+        return
+    if not layout.compressed and layout.record_length:
+        assert layout.point_count * layout.record_length <= len(data), layout
+
+
+TARGETS = {"ascii_reader": ascii_reader, "ply_reader": ply_reader, "cc_params": cc_params, "cli_args": cli_args,
+           "crs_text": crs_text, "las_header": las_header}
 
 # ----------------------------------------------------------------------------------- seeds
 
@@ -211,4 +248,22 @@ SEEDS = {
                  _argv("subsample", "in.xyz", "-o", "s.csv", "--spacing", "0.1"),
                  _argv("info", "x.las")],
 }
+_WKT_SEED = (b'PROJCS["WGS 84 / UTM zone 32N",GEOGCS["WGS 84",DATUM["WGS_1984",SPHEROID["WGS 84",6378137,298.257223563]],'
+             b'PRIMEM["Greenwich",0],UNIT["degree",0.0174532925199433]],PROJECTION["Transverse_Mercator"],'
+             b'PARAMETER["central_meridian",9],UNIT["metre",1],AUTHORITY["EPSG","32632"]]')
+SEEDS["crs_text"] = [_WKT_SEED, b"EPSG:26916", b"A[" * 3000 + b"]" * 3000, b'GEOGCS["\x1b]0;x\x07\x1b[2J"]',
+                     b"+proj=utm +zone=17 +datum=WGS84"]
+
+
+def _las_seed(version: str, point_format: int, compress: bool) -> bytes:
+    import laspy
+    las = laspy.LasData(laspy.LasHeader(version=version, point_format=point_format))
+    las.x, las.y, las.z = np.arange(5.0), np.arange(5.0), np.arange(5.0)
+    out = io.BytesIO()
+    las.write(out, do_compress=compress)
+    return out.getvalue()
+
+
+SEEDS["las_header"] = [_las_seed("1.2", 3, False), _las_seed("1.4", 6, False), _las_seed("1.4", 6, True),
+                       b"LASF" + bytes(400)]
 (_WORK / "m3c2_params.txt").write_bytes(_PARAMS_SEED)  # what the cli_args seed's --params names

@@ -47,7 +47,7 @@ def test_bounded_random_fuzz(name):
     (["--seed", "-1"], "--seed must be a non-negative integer, got -1"),
     # Integers wider than the engine's fields raised TypeError in the binding.
     (["--min-points", str(2**40)], "--min-points must be an integer >= 1, at most 4294967295"),
-    (["--bootstrap", str(2**40)], "--bootstrap must be 0 (off) or >= 2 resamples, at most 4294967295"),
+    (["--bootstrap", str(2**40)], "--bootstrap must be 0 (off) or >= 2 resamples, at most 100000"),
     (["--seed", str(2**64)], "--seed must be a non-negative integer, at most 18446744073709551615"),
     (["--threads", str(2**40)], "--threads must be 0 (all) or a positive integer, at most 2147483647"),
     # --threads -1 was accepted silently.

@@ -10,7 +10,7 @@ import pytest
 
 import m3c2kit.io.ascii
 import m3c2kit.io.ply
-from m3c2kit.errors import CloudWriteError
+from m3c2kit.errors import CloudWriteError, QuantisationWarning
 from m3c2kit.io import SUPPORTED_WRITE, Cloud, atomic_output, read_cloud, write_cloud_table
 
 
@@ -45,7 +45,8 @@ def _leftovers(directory) -> list[str]:
 def test_las_round_trip(tmp_path, ext):
     xyz, fields = _table()
     path = tmp_path / f"out{ext}"
-    write_cloud_table(path, xyz, fields)
+    with pytest.warns(QuantisationWarning, match="scale 1e-06"):  # uniform float64 values: finer than 1e-6
+        write_cloud_table(path, xyz, fields)
     las = laspy.read(path)
     assert str(las.header.version) == "1.4" and las.header.point_format.id == 6
     assert las.header.are_points_compressed == (ext == ".laz")
@@ -53,10 +54,11 @@ def test_las_round_trip(tmp_path, ext):
     # Each field keeps its own numeric type (bool as uint8): io/las.py _extra_type.
     assert types == {"distance": np.float64, "lod": np.float32, "significant": np.uint8, "n1": np.int64,
                      "sigma1": np.float64, "status": np.uint8}
-    np.testing.assert_allclose(las.header.scales, 0.001)
+    # Spans of at most 301 from floor(min): 1e-6 is the finest decimal scale int32 holds.
+    np.testing.assert_allclose(las.header.scales, 1e-6)
     np.testing.assert_array_equal(las.header.offsets, np.floor(xyz.min(axis=0)))
     back = read_cloud(path)
-    assert np.abs(back.xyz - xyz).max() <= 0.0005 + 1e-9
+    assert np.abs(back.xyz - xyz).max() <= 0.5e-6 + 1e-9
     for name, values in fields.items():
         assert _same(back.fields[name], values), name
 

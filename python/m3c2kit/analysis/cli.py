@@ -208,7 +208,7 @@ def run_simplify(args) -> int:
 
 def run_suggest(args) -> int:
     reference, compared = _read(args.reference), _read(args.compared)
-    res = suggest_mod.suggest(reference.xyz, compared.xyz, sample=args.sample, seed=args.seed, threads=args.threads)
+    res = suggest_mod.suggest(reference, compared, sample=args.sample, seed=args.seed, threads=args.threads)
     for line in suggest_mod.report_lines(res) + suggest_mod.proposal_lines(res, shlex.quote(str(args.reference)),
                                                                           shlex.quote(str(args.compared))):
         print(line)

@@ -23,9 +23,12 @@ import math
 import numpy as np
 
 from .. import api
+from ..errors import M3C2Error
 from .common import format_table, median_spacing, sample_indices
 from .roughness import roughness_by_scale
 
+#: Fewest reference points the rules can work with: sigma(D) needs 10 neighbours (rule 3).
+MIN_POINTS = 10
 XI_TARGET = 25.0
 XI_SHARE = 0.95
 N_TARGET = 30
@@ -36,8 +39,26 @@ def _extent(points: np.ndarray) -> float:
     return float(e[1]) if e[1] > 0 else float(e[0])
 
 
+def _name(role: str, source) -> str:
+    path = getattr(source, "path", None)
+    return str(path) if path is not None else f"the {role} cloud"
+
+
+def _require_a_surface(role: str, source, points: np.ndarray) -> None:
+    """The rules need a surface: at least MIN_POINTS points, not all at one place."""
+    if len(points) < MIN_POINTS:
+        raise M3C2Error(f"{_name(role, source)}: {len(points)} points; suggest needs at least {MIN_POINTS} "
+                        f"(sigma(D) is fitted to 10 neighbours, section 5.1)")
+    extent = points.max(axis=0) - points.min(axis=0)
+    if not np.isfinite(extent).all() or np.count_nonzero(extent) < 2:
+        raise M3C2Error(f"{_name(role, source)}: the points span no surface (extent {extent.tolist()}); "
+                        f"suggest needs a cloud spread over at least two axes")
+
+
 def suggest(reference, compared, *, sample: int = 2000, seed: int = 0, threads: int = 0) -> dict:
     ref, cmp_ = api.as_points("reference", reference), api.as_points("compared", compared)
+    _require_a_surface("reference", reference, ref)
+    _require_a_surface("compared", compared, cmp_)
     core = np.ascontiguousarray(ref[sample_indices(len(ref), sample, seed)])
     s = median_spacing(ref, seed=seed)
     extent = _extent(ref)
@@ -51,6 +72,10 @@ def suggest(reference, compared, *, sample: int = 2000, seed: int = 0, threads: 
     share25 = np.mean(np.nan_to_num(xi, nan=0.0) >= XI_TARGET, axis=0)
     share20 = np.mean(np.nan_to_num(xi, nan=0.0) >= 20.0, axis=0)
     median_xi = np.array([np.median(c[np.isfinite(c)]) if np.isfinite(c).any() else math.nan for c in xi.T])
+    if not np.isfinite(sigma).any():
+        raise M3C2Error(f"{_name('reference', reference)}: no candidate D from {candidates[0]:.6g} to "
+                        f"{candidates[-1]:.6g} holds {10} neighbours at any core point; the cloud is too sparse "
+                        f"or too small to suggest parameters from")
     d_table = {"D": candidates, "median_xi": median_xi, "share_xi_ge_20": share20, "share_xi_ge_25": share25,
                "n_with_sigma": np.isfinite(sigma).sum(axis=0)}
     ok = np.nonzero(share25 >= XI_SHARE)[0]

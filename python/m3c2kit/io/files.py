@@ -154,6 +154,8 @@ def write_cloud_table(path: str | os.PathLike, xyz: np.ndarray, fields: dict[str
     for name, values in fields.items():
         if values.shape != (len(xyz),):
             raise CloudWriteError(f"{path}: field {name!r} has shape {values.shape}, expected ({len(xyz)},)")
+    if Path(path).is_dir():  # before the extension: a folder has none ("cannot write '' files")
+        raise CloudWriteError(f"{path}: is a directory")
     fmt = format_for(Path(path), writing=True)
     if fmt is None or fmt.write is None:
         raise CloudWriteError(f"{path}: cannot write {extension_of(Path(path))!r} files "

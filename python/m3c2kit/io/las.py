@@ -12,12 +12,13 @@ other types as float64).
 from __future__ import annotations
 
 import math
+import warnings
 from pathlib import Path
 
 import laspy
 import numpy as np
 
-from ..errors import CloudReadError, CloudWriteError
+from ..errors import CloudReadError, CloudWriteError, QuantisationWarning
 from .atomic import atomic_output
 from .cloud import Cloud
 from .crs import geokey_crs, geokey_units, looks_like_wkt, wkt_units
@@ -29,7 +30,7 @@ __all__ = ["read", "write"]
 _PROJECTION_USER = "LASF_Projection"
 _WKT_RECORD = 2112
 _GEOTIFF_RECORDS = (34735, 34736, 34737)
-_DEFAULT_SCALE = 0.001
+_DEFAULT_SCALE = 0.001  # only for a cloud without finite coordinates (nothing to derive it from)
 _INT32 = (-(2**31), 2**31 - 1)
 
 
@@ -125,8 +126,9 @@ def _geokeys(records) -> dict[int, int]:
 def write(path: Path, xyz: np.ndarray, fields: dict[str, np.ndarray], like: Cloud | None) -> None:
     """Writes LAS 1.4 (LAZ when `path` ends in .laz) atomically; see the module docstring.
 
-    Coordinates use `like`'s scale and offset when it has them, else scale 0.001 and offset =
-    floor(min). Coordinates that do not fit (int32 after scaling) or are not finite raise
+    Coordinates use `like`'s scale and offset when it has them, else choose_scale_offset's (the
+    finest decimal scale at which int32 holds the data; a QuantisationWarning when it rounds
+    the coordinates by more than their float64 resolution). Coordinates that do not fit (int32 after scaling) or are not finite raise
     CloudWriteError; nothing is ever wrapped or clamped. `like`'s CRS is copied: its WKT as a
     WKT VLR (global-encoding WKT bit set), else its raw GeoTIFF key VLRs.
     """
@@ -151,6 +153,8 @@ def write(path: Path, xyz: np.ndarray, fields: dict[str, np.ndarray], like: Clou
         # laspy picks compression from a path's suffix (the temporary has none): pass a stream.
         with atomic_output(path) as tmp, open(tmp, "wb+") as out:
             las.write(out, do_compress=Path(path).suffix.lower() == ".laz")
+    if not _has_scale(like) and n:
+        warn_if_quantised(path, xyz, ints, scale, offset)  # once written: a failed write says only why
 
 
 def _plan_extra_dims(path, fields: dict[str, np.ndarray], standard: set[str]) -> list[tuple[str, type]]:
@@ -182,12 +186,77 @@ def _extra_type(dtype: np.dtype) -> np.dtype:
     return dtype if dtype in _EXTRA_TYPES else np.dtype(np.float64)
 
 
+def _has_scale(like: Cloud | None) -> bool:
+    return like is not None and like.scale is not None and like.offset is not None
+
+
 def _scale_offset(xyz: np.ndarray, like: Cloud | None):
-    if like is not None and like.scale is not None and like.offset is not None:
+    if _has_scale(like):
         return tuple(like.scale), tuple(like.offset)
     if len(xyz) == 0 or not np.isfinite(xyz).all():
         return (_DEFAULT_SCALE,) * 3, (0.0, 0.0, 0.0)
-    return (_DEFAULT_SCALE,) * 3, tuple(float(math.floor(v)) for v in xyz.min(axis=0))
+    return choose_scale_offset(xyz.min(axis=0), xyz.max(axis=0))
+
+
+def choose_scale_offset(lo, hi) -> tuple[tuple[float, float, float], tuple[float, float, float]]:
+    """LAS scale and offset for coordinates within [lo, hi] (per axis) that have no LAS scale
+    of their own (ASCII, PLY, E57, .npy inputs; computed positions).
+
+    offset = floor(lo) per axis; one decimal scale for x, y and z: the finest power of ten at
+    which int32 holds every axis's span from its offset, but not finer than the float64
+    resolution of the values (np.spacing of the largest magnitude: a finer scale stores nothing
+    more). A laboratory scan (a few centimetres) gets 1e-10 or 1e-9, a 1 km survey at UTM
+    coordinates 1e-6, a 30 km one 1e-4. The fixed 0.001 used before wrote a laboratory scan's
+    2,000 core points at one position and cut survey coordinates below a millimetre silently.
+    """
+    lo, hi = np.asarray(lo, dtype=np.float64), np.asarray(hi, dtype=np.float64)
+    offset = np.floor(lo)
+    span = float(np.max(hi - offset))
+    magnitude = float(np.max(np.maximum(np.abs(lo), np.abs(hi))))
+    if magnitude == 0.0:
+        return (_DEFAULT_SCALE,) * 3, tuple(map(float, offset))
+    finest = max(span / _INT32[1], float(np.spacing(magnitude)))
+    exponent = math.ceil(math.log10(finest))
+    scale = float(f"1e{exponent}")
+    if span / scale > _INT32[1]:  # log10 rounding at an exact power of ten
+        scale = float(f"1e{exponent + 1}")
+    return (scale,) * 3, tuple(map(float, offset))
+
+
+def quantisation_error(xyz: np.ndarray, ints: np.ndarray, scale, offset) -> float:
+    """The largest distance, on any axis, between a coordinate and its stored LAS value."""
+    if len(xyz) == 0:
+        return 0.0
+    stored = ints * np.asarray(scale) + np.asarray(offset)
+    return float(np.max(np.abs(stored - xyz)))
+
+
+def is_float32(xyz: np.ndarray) -> bool:
+    """Whether every coordinate is a float32 value (a PLY or E57 cloud stored in float32)."""
+    with np.errstate(over="ignore", invalid="ignore"):
+        return bool(np.array_equal(xyz.astype(np.float32).astype(np.float64), xyz))
+
+
+def quantisation_tolerance(magnitude: float, float32: bool) -> float:
+    """Rounding that loses nothing the values resolve: a few steps of their own float type at
+    the largest magnitude (float32 data resolve far less than float64's 1e-16 relative)."""
+    step = np.spacing(np.float32(magnitude)) if float32 else np.spacing(magnitude)
+    return 4.0 * float(step)
+
+
+def warn_if_quantised(path, xyz: np.ndarray, ints: np.ndarray, scale, offset) -> None:
+    """A QuantisationWarning when storing `xyz` at `scale` moves a coordinate by more than the
+    values resolve (quantisation_tolerance): int32 cannot hold their span at a finer scale."""
+    error = quantisation_error(xyz, ints, scale, offset)
+    if error > quantisation_tolerance(float(np.max(np.abs(xyz))), is_float32(xyz)):
+        span = float(np.max(xyz.max(axis=0) - np.asarray(offset)))
+        warnings.warn(quantisation_message(path, error, scale, span), QuantisationWarning, stacklevel=3)
+
+
+def quantisation_message(path, error: float, scale, span: float) -> str:
+    return (f"{path}: LAS stores the coordinates at scale {scale[0]:g}, the finest at which its int32 "
+            f"counts span {span:.6g} from the offset: they move by up to {error:.3g}; write .ply, .csv or "
+            f".txt for full float64 precision")
 
 
 def _quantise(path, xyz: np.ndarray, scale, offset) -> np.ndarray:

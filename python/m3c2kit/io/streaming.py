@@ -188,11 +188,12 @@ class TableWriter:
     """Writes an output table chunk by chunk; same bytes as write_cloud_table for .csv/.txt/.xyz/.asc
     and .las/.laz. Use as a context manager: the file appears only when the block completes.
 
-    For LAS without a scale/offset in `like`, pass `xyz_min` (the minimum of every row's x, y, z)
-    so that the offset is the one the in-memory writer would choose.
+    For LAS without a scale/offset in `like`, pass `xyz_min` and `xyz_max` (the minimum and
+    maximum of every row's x, y, z) so that the scale and offset are the ones the in-memory
+    writer would choose (las.choose_scale_offset), with the same QuantisationWarning.
     """
 
-    def __init__(self, path, *, like: Cloud | None = None, xyz_min=None):
+    def __init__(self, path, *, like: Cloud | None = None, xyz_min=None, xyz_max=None):
         self.path = Path(path)
         fmt = format_for(self.path, writing=True)
         if fmt is None or fmt.write is None:
@@ -200,6 +201,9 @@ class TableWriter:
         self.mode = {"ASCII": "text", "LAS/LAZ": "las"}.get(fmt.name, "memory")
         self.like = like
         self.xyz_min = xyz_min
+        self.xyz_max = xyz_max
+        # [largest error, largest |coordinate|, all float32, lo, hi] when the scale is derived
+        self._quantised = None
         self._stack = contextlib.ExitStack()
         self._parts: list = []
         self._started = False
@@ -220,6 +224,7 @@ class TableWriter:
                         self._extra_bytes_statistics()
                         self._las_writer.close()
                     self._out.close()
+                    self._warn_if_quantised()
                 elif self.mode == "text":
                     self._out.close()
                 else:
@@ -286,9 +291,13 @@ class TableWriter:
         like = self.like
         if like is not None and like.scale is not None and like.offset is not None:
             scale, offset = tuple(like.scale), tuple(like.offset)
+        elif (self.xyz_min is not None and self.xyz_max is not None and np.isfinite(self.xyz_min).all()
+              and np.isfinite(self.xyz_max).all()):
+            scale, offset = las.choose_scale_offset(self.xyz_min, self.xyz_max)
+            self._quantised = [0.0, 0.0, True, np.full(3, np.inf), np.full(3, -np.inf)]
         elif self.xyz_min is not None and np.isfinite(self.xyz_min).all():
-            import math
-            scale, offset = (las._DEFAULT_SCALE,) * 3, tuple(float(math.floor(v)) for v in self.xyz_min)
+            raise CloudWriteError(f"{self.path}: a LAS scale for these coordinates needs their maximum too "
+                                  f"(TableWriter(xyz_max=...))")
         else:
             scale, offset = (las._DEFAULT_SCALE,) * 3, (0.0, 0.0, 0.0)
         self._scale, self._offset = scale, offset
@@ -300,6 +309,18 @@ class TableWriter:
         with write_errors(self.path):
             self._las_writer = laspy.LasWriter(self._out, header=header,
                                                do_compress=self.path.suffix.lower() == ".laz", closefd=False)
+
+    def _warn_if_quantised(self) -> None:
+        from . import las
+        if self._quantised is None:
+            return
+        error, magnitude, float32, lo, hi = self._quantised
+        if error > las.quantisation_tolerance(magnitude, float32):
+            import warnings
+            from ..errors import QuantisationWarning
+            span = float(np.max(hi - np.asarray(self._offset)))
+            warnings.warn(las.quantisation_message(self.path, error, self._scale, span),
+                          QuantisationWarning, stacklevel=3)
 
     def _extra_bytes_statistics(self) -> None:
         # laspy records min/max of extra-bytes dimensions on every write_points call, but (laspy
@@ -315,7 +336,14 @@ class TableWriter:
     def _write_las(self, xyz, fields) -> None:
         import laspy
         from . import las
-        ints = las._quantise(self.path, np.asarray(xyz, dtype=np.float64), self._scale, self._offset)
+        xyz = np.asarray(xyz, dtype=np.float64)
+        ints = las._quantise(self.path, xyz, self._scale, self._offset)
+        if self._quantised is not None and len(xyz):
+            q = self._quantised
+            q[0] = max(q[0], las.quantisation_error(xyz, ints, self._scale, self._offset))
+            q[1] = max(q[1], float(np.max(np.abs(xyz))))
+            q[2] = q[2] and las.is_float32(xyz)
+            q[3], q[4] = np.minimum(q[3], xyz.min(axis=0)), np.maximum(q[4], xyz.max(axis=0))
         with write_errors(self.path):
             points = laspy.ScaleAwarePointRecord.zeros(len(xyz), header=self._header)
             points.X, points.Y, points.Z = ints[:, 0], ints[:, 1], ints[:, 2]

@@ -284,6 +284,16 @@ def _read_general_section(name: str, path: str | os.PathLike) -> dict[str, str]:
     return dict(parser.items("General"))
 
 
+_MAX_INT_DIGITS = 20
+
+
+def _shown(text: str, most: int = 40) -> str:
+    """`text` quoted for a message, cut to `most` characters (a value of 5,000 digits)."""
+    if len(text) <= most:
+        return repr(text)
+    return f"{text[:most]!r}... ({len(text)} characters)"
+
+
 def _parse_values(name: str, raw: dict[str, str]) -> dict[str, object]:
     values: dict[str, object] = {}
     for key, text in raw.items():
@@ -300,6 +310,10 @@ def _parse_values(name: str, raw: dict[str, str]) -> dict[str, object]:
             parsed = _BOOLS.get(value.lower())
             expected = "true or false"
         elif kind is int:
+            # Wider than any engine field (64 bits: 20 digits); int() refuses > 4300 digits with a ValueError.
+            if _INT_RE.fullmatch(value) and len(value.lstrip("+-0")) > _MAX_INT_DIGITS:
+                raise UsageError(f"{name}: {key}={_shown(text)} has {len(value.lstrip('+-0'))} digits, "
+                                 f"more than any integer parameter holds ({_MAX_INT_DIGITS})")
             parsed = int(value) if _INT_RE.fullmatch(value) else None
             expected = "an integer"
         else:
@@ -308,7 +322,7 @@ def _parse_values(name: str, raw: dict[str, str]) -> dict[str, object]:
                 parsed = None
             expected = "a finite number"
         if parsed is None:
-            raise UsageError(f"{name}: malformed value for {key}: {text!r} (expected {expected})")
+            raise UsageError(f"{name}: malformed value for {key}: {_shown(text)} (expected {expected})")
         values[key] = parsed
     return values
 

@@ -91,6 +91,8 @@ def orientation(spec, read_points=None) -> tuple[tuple[float, float, float], np.
         return AXES["+z"], np.empty((0, 3))
     if isinstance(spec, str):
         key = spec.strip().lower()
+        if not key:  # Path("") is ".": it read the working folder ("is a directory")
+            raise UsageError("--orient is empty: give +x|-x|+y|-y|+z|-z, X,Y,Z or a file of points")
         if key in AXES:
             return AXES[key], np.empty((0, 3))
         parts = key.split(",")
@@ -108,7 +110,10 @@ def orientation(spec, read_points=None) -> tuple[tuple[float, float, float], np.
             pts = read_points(path)
             return AXES["+z"], np.asarray(pts, dtype=float).reshape(-1, 3)
         raise UsageError(f"--orient must be +x|-x|+y|-y|+z|-z, X,Y,Z or an existing file, got {spec!r}")
-    arr = np.asarray(spec, dtype=float)
+    try:
+        arr = np.asarray(spec, dtype=float)
+    except (TypeError, ValueError):
+        raise UsageError(f"--orient must be +x|-x|+y|-y|+z|-z, X,Y,Z, a 3-vector or (K, 3) points, got {spec!r}") from None
     if arr.ndim == 1 and arr.shape == (3,):
         arr = arr.reshape(1, 3)
     if arr.ndim != 2 or arr.shape[1] != 3 or not np.isfinite(arr).all():

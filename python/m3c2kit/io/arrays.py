@@ -1,0 +1,36 @@
+"""Coordinates handed to the Python API as arrays: (N, 3) real numbers, nothing else.
+
+np.asarray(values, dtype=float64) alone accepts far more: booleans (True becomes 1.0), complex
+numbers (the imaginary part dropped with only a ComplexWarning), datetimes and timedeltas
+(nanosecond counts), strings that parse as numbers ("1e3"), decimal objects. A cloud of such
+values is a caller's mistake that would silently compute on something else.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from ..errors import UsageError
+
+__all__ = ["as_coordinates"]
+
+#: numpy dtype kinds that are real numbers: signed and unsigned integers, floating point.
+REAL_KINDS = "iuf"
+_KIND_NAMES = {"b": "booleans", "c": "complex numbers", "M": "datetimes", "m": "timedeltas", "O": "Python objects",
+               "U": "strings", "S": "bytes", "V": "structured records"}
+
+
+def as_coordinates(name: str, values) -> np.ndarray:
+    """`values` (or its ``xyz`` attribute, e.g. a m3c2kit.io.Cloud) as an (N, 3) float64
+    C-contiguous array, viewed without a copy when it already is one; a UsageError naming
+    `name` for anything that is not an (N, 3) array of real numbers."""
+    xyz = getattr(values, "xyz", values)
+    try:
+        arr = np.asarray(xyz)
+    except (TypeError, ValueError) as e:  # ragged nested lists, objects numpy cannot take
+        raise UsageError(f"{name} must be an (N, 3) array of real numbers: {e}") from None
+    if arr.dtype.kind not in REAL_KINDS:
+        what = _KIND_NAMES.get(arr.dtype.kind, f"dtype {arr.dtype}")
+        raise UsageError(f"{name} must be an (N, 3) array of real numbers, got {what} (dtype {arr.dtype})")
+    if arr.ndim != 2 or arr.shape[1] != 3:
+        raise UsageError(f"{name} must be an (N, 3) array of coordinates, got shape {arr.shape}")
+    return np.ascontiguousarray(arr, dtype=np.float64)
