@@ -3,8 +3,6 @@ user's, or the default the engine used), and the m3c2kit version, so that a figu
 reproduced from the table alone."""
 from __future__ import annotations
 
-import inspect
-
 #: Parameters with a name a reader knows, in the table's order (the rest follow, sorted).
 ORDER = ("normal_scale", "projection_scale", "max_depth", "core_spacing", "registration_error", "confidence",
          "min_points", "normal_source", "orient", "median", "lod", "t_statistic", "bootstrap", "seed",
@@ -14,17 +12,13 @@ ORDER = ("normal_scale", "projection_scale", "max_depth", "core_spacing", "regis
 
 def effective_parameters(params: dict, *, core_spacing=None, crs_label: str | None = None,
                          units: str | None = None) -> list[tuple[str, object]]:
-    """(name, value) rows: the run's parameters over the engine's defaults (api.build_params and
-    the --compat mode's), then the CRS, units and the version."""
-    from .. import __version__, api
+    """(name, value) rows: the run's parameters over the defaults of the parameter table (the
+    --compat mode's where it is asked), then the CRS, units and the version."""
+    from .. import __version__
+    from ..settings import parameters_of
 
-    signature = inspect.signature(api.build_params)
-    values = {k: p.default for k, p in signature.parameters.items()
-              if p.default is not inspect.Parameter.empty and k != "read_points"}
-    mode = api.CLOUDCOMPARE_DEFAULTS if params.get("compat") == "cloudcompare" else api.DEFAULTS
-    for k, v in mode.items():
-        if values.get(k) is None:
-            values[k] = v
+    values = {p.name: p.default_for(params.get("compat")) for p in parameters_of("compare")
+              if p.scope in ("engine", "alias")}
     values.update({k: v for k, v in params.items() if v is not None})
     if core_spacing is not None:
         values["core_spacing"] = core_spacing
