@@ -15,7 +15,7 @@ from .io.arrays import as_coordinates
 from .errors import CloudReadError, M3C2Error, UsageError
 from .io.guard import available_memory, format_bytes
 from .result import Result
-from .settings import engine_params, resolve
+from .settings import build_params, engine_params, resolve  # build_params: the engine's Params for keywords
 from .settings.parsers import positive
 from .settings.table import by_name
 

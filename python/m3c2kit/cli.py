@@ -291,7 +291,7 @@ def run_compare(args) -> int:
     if args.verbose:
         for name, value in sorted(result.params.items()):
             print(f"parameter {name}: {value}")
-    _print_notes((reference, compared, core_cloud))  # the warnings: m3c2kit.diagnostics, through main()
+    _print_notes((reference, compared, core_cloud), args.quiet)  # the warnings: m3c2kit.diagnostics, through main()
     return 0
 
 
@@ -317,12 +317,12 @@ def assign_crs(spec: str, *clouds) -> None:
                               f"{crs_mod.crs_label(wkt)}; --crs only assigns a CRS to inputs that have none")
 
 
-def _print_notes(clouds) -> None:
-    """What reading changed in the inputs (docs/errors.md), on stderr with the warnings."""
+def _print_notes(clouds, quiet: bool) -> None:
+    """What reading changed in the inputs (docs/errors.md): with the summary, or on stderr with -q."""
     for c in clouds:
         if getattr(c, "dropped_nonfinite", 0):
-            print(f"m3c2: note: dropped {c.dropped_nonfinite} points with non-finite coordinates from {c.path}",
-                  file=sys.stderr)
+            note = f"note: dropped {c.dropped_nonfinite} points with non-finite coordinates from {c.path}"
+            print(f"m3c2: {note}", file=sys.stderr) if quiet else print(note)
 
 
 def _show_warning(message, category, filename, lineno, file=None, line=None) -> None:

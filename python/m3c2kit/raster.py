@@ -32,7 +32,6 @@ from . import engine
 from .errors import CloudWriteError, M3C2Error, UsageError
 from .io.guard import available_memory, format_bytes
 from .limits import usable_length
-from .limits import usable_length
 from .io.crs import looks_like_wkt
 from .optional import require
 
