@@ -15,6 +15,7 @@ if [[ -n "${1:-}" ]]; then
   args+=(-DM3C2_HEADERS=PYPI -DPython3_EXECUTABLE="$1")
   what+=", PyPI's Eigen and Boost"
 fi
+rm -rf build/serial  # no cached Eigen3_DIR of an earlier configuration
 cmake -S . -B build/serial "${args[@]}" | grep -E "^-- m3c2:" | sed 's/^-- /   /'
 cmake --build build/serial -j"$(nproc)" --target m3c2_dump >/dev/null
 if grep -q -- "-fopenmp" build/serial/compile_commands.json; then echo "error: build/serial uses OpenMP" >&2; exit 1; fi

@@ -46,7 +46,7 @@ if ((system > 0 || eigen == 0 || boost == 0)); then
 fi
 
 echo "== 3. auditwheel repair"
-"$work/build-venv/bin/auditwheel" repair -w "$work/wheelhouse" "$work"/dist/*.whl >"$work/repair.log" 2>&1 ||
+PATH="$work/build-venv/bin:$PATH" auditwheel repair -w "$work/wheelhouse" "$work"/dist/*.whl >"$work/repair.log" 2>&1 ||
   { cat "$work/repair.log"; exit 1; }
 wheel=$(ls "$work"/wheelhouse/*.whl)
 echo "   $(basename "$wheel")"

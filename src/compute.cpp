@@ -3,19 +3,11 @@
 
 #include <m3c2/m3c2.hpp>
 
-#include "bootstrap.hpp"
-#include "confidence.hpp"
-#include "octree.hpp"
-#include "normals.hpp"
-#include "orientation.hpp"
+#include "core_point.hpp"
 #include "parallel_for.hpp"
 #include "plane_fit.hpp"
-#include "projection.hpp"
 #include "spatial_order.hpp"
-#include "statistics.hpp"
-#include "threads.hpp"
 #include "uncertainty.hpp"
-#include "validation.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -27,41 +19,16 @@
 namespace m3c2 {
 namespace {
 
+using detail::grid_for;
+using detail::index_of;
+using detail::moments_needed;
+using detail::NormalCloud;
+using detail::NormalEstimate;
 using detail::Octree;
 using detail::OctreeGrid;
-using detail::NormalEstimate;
-using detail::NormalEstimator;
-
-/// The octree grid of a run (octree.hpp): derived from the scales alone, the normal diameters when
-/// there are any, so that compute(), compute_normals() and every tile of a run share it.
-OctreeGrid grid_for(const std::vector<double>& normal_diameters, double projection_diameter) {
-  if (normal_diameters.empty()) return detail::octree_grid(projection_diameter, 0.0);
-  const auto [smallest, largest] = std::minmax_element(normal_diameters.begin(), normal_diameters.end());
-  return detail::octree_grid(*smallest, *largest);
-}
-
-/// Whether the normals of this cloud are summed from its own index (not a thinned copy's).
-bool moments_needed(const Params& params, bool reference) {
-  if (params.normal_subsample_spacing > 0.0) return false;
-  const NormalSource src = params.normal_source;
-  if (src == NormalSource::kMean) return true;
-  return reference ? src == NormalSource::kReference || src == NormalSource::kHorizontal
-                   : src == NormalSource::kCompared;
-}
-
-int thread_count(const RunOptions& run) { return run.threads > 0 ? run.threads : detail::max_threads(); }
-
-/// The index of a cloud named `name` ("reference cloud"). Its one pass over the coordinates
-/// refuses those beyond the grid's range (NaN and Inf among them); only then is the cloud
-/// searched for non-finite ones, to name them first: "NAME has N non-finite coordinates".
-Octree index_of(PointsView cloud, const char* name, OctreeGrid grid, bool with_moments) {
-  try {
-    return Octree(cloud, grid, with_moments, ("the " + std::string(name)).c_str());
-  } catch (const InvalidArgument&) {
-    detail::require_finite_points(name, cloud);
-    throw;
-  }
-}
+using detail::OrientedNormal;
+using detail::Scratch;
+using detail::thread_count;
 
 /// Both clouds' indexes and the core points' processing order (morton_order), the compared
 /// index and the order on a second thread when the run has two: they are independent (the
@@ -109,53 +76,6 @@ std::pair<Octree, Octree> build_indexes(PointsView reference, PointsView compare
   return {std::move(*first), std::move(*second)};
 }
 
-/// A cloud for normals, optionally thinned to params.normal_subsample_spacing (5.1: normals on a
-/// subsampled cloud barely change and cost far less).
-class NormalCloud {
- public:
-  NormalCloud(PointsView cloud, const Octree& full_tree, const Params& params, OctreeGrid grid) {
-    if (params.normal_subsample_spacing > 0.0) {
-      for (const std::uint64_t i : subsample_min_spacing(cloud, params.normal_subsample_spacing))
-        for (int a = 0; a < 3; ++a) thinned_.push_back(cloud.coord(i, a));
-      own_tree_ = std::make_unique<Octree>(PointsView(thinned_.data(), thinned_.size() / 3), grid, true);
-    }
-    estimator_.emplace(own_tree_ ? *own_tree_ : full_tree, params);
-  }
-  NormalEstimate estimate(const Vec3& core, detail::NormalScratch& s) const { return estimator_->estimate(core, s); }
-
- private:
-  std::vector<double> thinned_;
-  std::unique_ptr<Octree> own_tree_;
-  std::optional<NormalEstimator> estimator_;
-};
-
-struct OrientedNormal {
-  Vec3 normal = Vec3::Constant(std::numeric_limits<double>::quiet_NaN());
-  double diameter = std::numeric_limits<double>::quiet_NaN();
-  double roughness = std::numeric_limits<double>::quiet_NaN();
-  PointStatus status = PointStatus::kOk;
-};
-
-OrientedNormal from_estimate(const NormalEstimate& e, const Vec3& core, const Orientation& o) {
-  if (e.status != PointStatus::kOk) return {e.normal, e.diameter, e.roughness, e.status};
-  return {detail::orient(e.normal, core, o), e.diameter, e.roughness, PointStatus::kOk};
-}
-
-/// Rescales `v` to unit length, or reports it unusable (zero, NaN or Inf).
-std::optional<Vec3> unit(const Vec3& v, double min_norm) {
-  const double n = v.norm();
-  if (!std::isfinite(n) || !(n > min_norm)) return std::nullopt;
-  return Vec3(v / n);
-}
-
-struct Scratch {
-  detail::NormalScratch normal;
-  detail::ProjectionScratch projection;
-  std::vector<double> t1, t2, work;
-  std::vector<std::uint32_t> index1, index2;  // per-point uncertainty: the cylinders' points
-  detail::MedianWeightCache median_weights;
-};
-
 class Pipeline {
  public:
   /// `alongside`: the caller's set-up, run while the indexes are built (build_indexes).
@@ -181,7 +101,8 @@ class Pipeline {
   const std::vector<std::uint32_t>& core_order() const { return core_order_; }
 
   void run(const Vec3& core, std::size_t i, Result& r, Scratch& s) const {
-    const OrientedNormal n = normal_at(core, i, s);
+    const OrientedNormal n = detail::normal_at(core, i, params_, reference_normals_ ? &*reference_normals_ : nullptr,
+                                               compared_normals_ ? &*compared_normals_ : nullptr, core_normals_, s.normal);
     for (int a = 0; a < 3; ++a) r.normal[3 * i + a] = n.normal(a);
     r.normal_scale[i] = n.diameter;
     r.roughness[i] = n.roughness;
@@ -192,74 +113,11 @@ class Pipeline {
     }
     detail::project(reference_tree_, compared_tree_, core, n.normal, params_, s.projection, s.t1, s.t2,
                     uncertainty_ ? &s.index1 : nullptr, uncertainty_ ? &s.index2 : nullptr);
-    measure(s, i, r);
+    detail::measure(params_, z_, uncertainty_ != nullptr, s, i, r);
     if (uncertainty_ && r.n1[i] > 0 && r.n2[i] > 0) uncertainty_->measure(core, n.normal, s.index1, s.index2, i, r);
   }
 
  private:
-  OrientedNormal normal_at(const Vec3& core, std::size_t i, Scratch& s) const {
-    const Orientation& o = params_.orientation;
-    switch (params_.normal_source) {
-      case NormalSource::kReference: return from_estimate(reference_normals_->estimate(core, s.normal), core, o);
-      case NormalSource::kCompared: return from_estimate(compared_normals_->estimate(core, s.normal), core, o);
-      case NormalSource::kMean: {
-        const OrientedNormal a = from_estimate(reference_normals_->estimate(core, s.normal), core, o);
-        if (a.status != PointStatus::kOk) return a;
-        const OrientedNormal b = from_estimate(compared_normals_->estimate(core, s.normal), core, o);
-        if (b.status != PointStatus::kOk) return {b.normal, a.diameter, a.roughness, b.status};
-        // Opposite normals (a surface that turned over) have no mean direction.
-        const auto mean = unit(a.normal + b.normal, 1e-6);
-        if (!mean) return {a.normal, a.diameter, a.roughness, PointStatus::kDegenerateNormal};
-        return {*mean, a.diameter, a.roughness, PointStatus::kOk};
-      }
-      case NormalSource::kHorizontal: {
-        const OrientedNormal a = from_estimate(reference_normals_->estimate(core, s.normal), core, o);
-        if (a.status != PointStatus::kOk) return a;
-        // A (near-)horizontal surface has no horizontal direction of its own.
-        const auto flat = unit(Vec3(a.normal.x(), a.normal.y(), 0.0), 1e-6);
-        if (!flat) return {a.normal, a.diameter, a.roughness, PointStatus::kDegenerateNormal};
-        const Vec3 oriented = o.points.empty() ? *flat : detail::orient(*flat, core, o);
-        return {oriented, a.diameter, a.roughness, PointStatus::kOk};
-      }
-      case NormalSource::kVertical: return {detail::orient(Vec3::UnitZ(), core, o), NAN, NAN, PointStatus::kOk};
-      case NormalSource::kCorePoints: {
-        const auto given = unit(Vec3(core_normals_[3 * i], core_normals_[3 * i + 1], core_normals_[3 * i + 2]), 0.0);
-        if (!given) return {Vec3::Constant(NAN), NAN, NAN, PointStatus::kDegenerateNormal};
-        return {*given, NAN, NAN, PointStatus::kOk};
-      }
-    }
-    return {};
-  }
-
-  void measure(Scratch& s, std::size_t i, Result& r) const {
-    const auto n1 = static_cast<std::uint32_t>(s.t1.size()), n2 = static_cast<std::uint32_t>(s.t2.size());
-    r.n1[i] = n1;
-    r.n2[i] = n2;
-    if (n1 == 0 || n2 == 0) {
-      r.status[i] = n1 == 0 ? PointStatus::kEmptyCylinder1 : PointStatus::kEmptyCylinder2;
-      return;
-    }
-    const detail::Spread a = detail::central_spread(s.t1, params_, s.work, &s.median_weights);
-    const detail::Spread b = detail::central_spread(s.t2, params_, s.work, &s.median_weights);
-    r.i1[i] = a.centre, r.i2[i] = b.centre, r.sigma1[i] = a.sigma, r.sigma2[i] = b.sigma;
-    r.distance[i] = b.centre - a.centre;
-    if (uncertainty_) return;  // PM / EP give the LOD (uncertainty_->measure)
-    // Eq. (1) is not defined below two points per cloud whatever min_points says (5.2.1).
-    if (n1 < std::max(params_.min_points, 2u) || n2 < std::max(params_.min_points, 2u) || !std::isfinite(a.sigma) ||
-        !std::isfinite(b.sigma)) {
-      r.status[i] = PointStatus::kTooFewPointsForLod;
-      return;
-    }
-    if (params_.lod == Lod::kBootstrap) {
-      r.lod[i] = z_ * (detail::bootstrap_sigma(s.t1, s.t2, params_, i, s.work) + params_.registration_error);
-    } else {
-      const double critical = detail::critical_value(params_, z_, a.se, n1, b.se, n2);
-      r.lod[i] = detail::lod_parametric(critical, a.se, b.se, params_.registration_error);
-    }
-    r.significant[i] = std::abs(r.distance[i]) > r.lod[i];
-    r.status[i] = PointStatus::kOk;
-  }
-
   const Params& params_;
   const detail::UncertaintyModel* uncertainty_;
   const std::vector<double>& core_normals_;

@@ -164,8 +164,20 @@ void UncertaintyModel::measure(const Vec3& core, const Vec3& normal, std::span<c
     r.status[i] = PointStatus::kOk;
     return;
   }
-  const CentreOfGravity a = centre_of_gravity(0, core, normal, points1),
-                        b = centre_of_gravity(1, core, normal, points2);
+  CentreOfGravity a, b;
+  if (params_.ep_covariance == EpCovariance::kEmpirical) {
+    // eq. (1)'s distance and spreads (already in r), the alignment propagated (docs/algorithm.md §6.5)
+    a.offset = r.i1[i] * normal, b.offset = r.i2[i] * normal;
+    empirical(normal, points2, i, r, a.covariance, b.covariance);
+    a.defined = b.defined = std::isfinite(r.sigma1[i]) && std::isfinite(r.sigma2[i]);
+  } else {
+    a = centre_of_gravity(0, core, normal, points1), b = centre_of_gravity(1, core, normal, points2);
+  }
+  if (!a.defined && params_.ep_covariance == EpCovariance::kEmpirical) {
+    r.lod[i] = kNaN;
+    r.status[i] = PointStatus::kTooFewPointsForLod;
+    return;
+  }
   if (a.defined && b.defined) {
     r.i1[i] = normal.dot(a.offset), r.i2[i] = normal.dot(b.offset);
     r.distance[i] = r.i2[i] - r.i1[i];  // our sign: compared - reference along the normal

@@ -54,6 +54,9 @@ class UncertaintyModel {
   Eigen::Matrix3d alignment_at(const Vec3& d) const;
   /// The mean of J_i C J_i^T over points whose d has mean m and second moment mm.
   Eigen::Matrix3d mean_alignment(const Vec3& m, const Eigen::Matrix3d& mm) const;
+  /// EpCovariance::kEmpirical's covariances of core point i (from eq. (1)'s spreads in r).
+  void empirical(const Vec3& normal, std::span<const std::uint32_t> points2, std::size_t i, Result& r,
+                 Eigen::Matrix3d& s1, Eigen::Matrix3d& s2) const;
 
   const Params& params_;
   const UncertaintyInputs& inputs_;

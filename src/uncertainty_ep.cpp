@@ -100,6 +100,20 @@ Mat3 UncertaintyModel::mean_alignment(const Vec3& m, const Mat3& mm) const {
   return a;
 }
 
+void UncertaintyModel::empirical(const Vec3& normal, std::span<const std::uint32_t> points2, std::size_t i,
+                                 Result& r, Mat3& s1, Mat3& s2) const {
+  // The unweighted mean's variance along n as eq. (1) estimates it (sigma^2 / n: the points'
+  // measurement errors and the surface's sampling, whatever their source), and the alignment
+  // covariance at the compared cylinder's mean (J is linear in the point).
+  const Mat3 nn = normal * normal.transpose();
+  s1 = (r.sigma1[i] * r.sigma1[i] / double(r.n1[i])) * nn;
+  s2 = (r.sigma2[i] * r.sigma2[i] / double(r.n2[i])) * nn;
+  if (!has_alignment_ || points2.empty()) return;
+  Vec3 d = Vec3::Zero();
+  for (const std::uint32_t j : points2) d += original_compared(j) - reduction_;
+  s2 += alignment_at(d / double(points2.size()));
+}
+
 Vec3 UncertaintyModel::original_compared(std::uint32_t j) const {
   const Vec3 p = compared_[j];
   if (!inputs_.transform_applied) return p;

@@ -428,6 +428,10 @@ def main():
     unc = C.REPO / "docs" / "validation" / "uncertainty.md"
     emit(unc.read_text().rstrip("\n") if unc.exists() else "Not generated: run validation/uncertainty_sim.py.")
     emit("")
+    emit("## 8. Time series: 4D objects-by-change on a synthetic series (issue 17)\n")
+    series = C.REPO / "docs" / "validation" / "series.md"  # written by validation/series_validation.py
+    emit(series.read_text().rstrip("\n") if series.exists() else "Not generated: run validation/series_validation.py.")
+    emit("")
     emit("## Runtime\n")
     emit(f"This script ran in {time.perf_counter() - start:.0f} s.")
     DOC.write_text("\n".join(LINES) + "\n")

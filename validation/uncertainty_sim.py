@@ -136,7 +136,8 @@ def ep_campaign(pairs, cores_per_pair, seed=2021, change=0.0, only=None):
     eq. (1) with a single registration error, over `pairs` independent registration draws."""
     rng = np.random.default_rng(seed)
     cxx, tab = alignment_covariance(), table()
-    variants = {"ep": ("normal", "independent", "projected"),
+    variants = {"ep": ("normal", "empirical", "projected"),
+                "ep, independent covariance": ("normal", "independent", "projected"),
                 "ep, published LoD": ("normal", "independent", "published"),
                 "ep, matrix weights": ("matrix", "independent", "projected"),
                 "ep as published (py4dgeo)": ("matrix", "mean_of_points", "published")}

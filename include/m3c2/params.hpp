@@ -101,7 +101,7 @@ struct Params {
   PrecisionRule precision_rule = PrecisionRule::kNearest;  ///< PM: which points give sigma
   double precision_scale1 = 1.0;  ///< PM: scale of the reference cloud's sigmas (qM3C2's PM1Scale)
   double precision_scale2 = 1.0;  ///< PM: scale of the compared cloud's sigmas (PM2Scale)
-  EpCovariance ep_covariance = EpCovariance::kIndependent;  ///< EP: the centres' covariance
+  EpCovariance ep_covariance = EpCovariance::kEmpirical;  ///< EP: the centres' covariance (docs/validation.md §7)
   EpLod ep_lod = EpLod::kProjected;  ///< EP: the level of detection
   EpWeights ep_weights = EpWeights::kNormal;  ///< EP: the weights of the centres of gravity
 };

@@ -26,6 +26,8 @@ enum class PrecisionRule : std::uint8_t {
 enum class EpCovariance : std::uint8_t {
   kIndependent,   ///< (sum of W_i)^-1: the covariance of the weighted mean of independent points
   kMeanOfPoints,  ///< the mean of the points' covariances (py4dgeo's code: errors fully correlated)
+  kEmpirical,     ///< eq. (1)'s sigma^2 / n along n (measurement and surface sampling, as observed),
+                  ///< plus the propagated alignment covariance; the distance is eq. (1)'s
 };
 
 /// How M3C2-EP weighs a cylinder's points in its centre of gravity.

@@ -2,6 +2,8 @@
 // the GIL released while the engine runs, numpy arrays out (the engine's vectors, not copied).
 
 #include <m3c2/m3c2.hpp>
+#include <m3c2/objects_by_change.hpp>
+#include <m3c2/series.hpp>
 
 #include <nanobind/nanobind.h>
 #include <nanobind/ndarray.h>
@@ -242,7 +244,8 @@ NB_MODULE(_core, m) {
       .value("all", m3c2::PrecisionRule::kAllPoints);
   nb::enum_<m3c2::EpCovariance>(m, "EpCovariance")
       .value("independent", m3c2::EpCovariance::kIndependent)
-      .value("mean_of_points", m3c2::EpCovariance::kMeanOfPoints);
+      .value("mean_of_points", m3c2::EpCovariance::kMeanOfPoints)
+      .value("empirical", m3c2::EpCovariance::kEmpirical);
   nb::enum_<m3c2::EpWeights>(m, "EpWeights")
       .value("normal", m3c2::EpWeights::kNormal)
       .value("matrix", m3c2::EpWeights::kMatrix);
@@ -417,4 +420,128 @@ NB_MODULE(_core, m) {
         return d;
       },
       "cloud"_a, "core_points"_a, "diameters"_a, "min_points"_a = 3, "threads"_a = 0, "progress"_a = nb::none());
+
+  // Time series (include/m3c2/series.hpp, docs/series.md): the reference prepared once, one
+  // epoch compared at a time; the reference array is kept alive by the object.
+  struct SeriesComparison {
+    nb::object reference;  // the engine reads the reference's coordinates in place
+    std::optional<m3c2::Comparison> comparison;
+  };
+  nb::class_<SeriesComparison>(m, "Comparison")
+      .def(
+          "__init__",
+          [](SeriesComparison* self, const Points& reference, const Points& core, const m3c2::Params& params,
+             std::optional<Points> core_normals, int threads, nb::object progress) {
+            std::vector<double> normals;
+            if (core_normals) normals.assign(core_normals->data(), core_normals->data() + 3 * core_normals->shape(0));
+            new (self) SeriesComparison{nb::cast(reference), std::nullopt};
+            self->comparison.emplace(run_engine(std::move(progress), threads, [&](const m3c2::RunOptions& run) {
+              return m3c2::Comparison(view(reference), view(core), params, run, normals);
+            }));
+          },
+          "reference"_a, "core_points"_a, "params"_a, "core_normals"_a = nb::none(), "threads"_a = 0,
+          "progress"_a = nb::none())
+      .def(
+          "compare",
+          [](const SeriesComparison& self, const Points& compared, int threads, nb::object progress) {
+            return result_dict(run_engine(std::move(progress), threads, [&](const m3c2::RunOptions& run) {
+              return self.comparison->compare(view(compared), run);
+            }));
+          },
+          "compared"_a, "threads"_a = 0, "progress"_a = nb::none())
+      .def("normals",
+           [](const SeriesComparison& self) {
+             m3c2::NormalsResult r = self.comparison->normals();
+             nb::dict d;
+             d["status"] = status_array(r.status);
+             d["normal"] = to_numpy(std::move(r.normal), 3);
+             d["normal_scale"] = to_numpy(std::move(r.normal_scale));
+             d["roughness"] = to_numpy(std::move(r.roughness));
+             return d;
+           })
+      .def("__len__", [](const SeriesComparison& self) { return self.comparison->size(); });
+
+  // Analysis of a series (include/m3c2/objects_by_change.hpp): smoothing, change points, 4D-OBC.
+  using Series2D = nb::ndarray<const double, nb::ndim<2>, nb::c_contig, nb::device::cpu>;
+  using Series1D = nb::ndarray<const double, nb::ndim<1>, nb::c_contig, nb::device::cpu>;
+  nb::class_<m3c2::ObjectsParams>(m, "ObjectsParams")
+      .def(nb::init<>())
+      .def_prop_rw(
+          "window_width", [](const m3c2::ObjectsParams& p) { return p.change_points.width; },
+          [](m3c2::ObjectsParams& p, std::uint32_t v) { p.change_points.width = v; })
+      .def_prop_rw(
+          "window_min_size", [](const m3c2::ObjectsParams& p) { return p.change_points.min_size; },
+          [](m3c2::ObjectsParams& p, std::uint32_t v) { p.change_points.min_size = v; })
+      .def_prop_rw(
+          "window_jump", [](const m3c2::ObjectsParams& p) { return p.change_points.jump; },
+          [](m3c2::ObjectsParams& p, std::uint32_t v) { p.change_points.jump = v; })
+      .def_prop_rw(
+          "window_penalty", [](const m3c2::ObjectsParams& p) { return p.change_points.penalty; },
+          [](m3c2::ObjectsParams& p, double v) { p.change_points.penalty = v; })
+      .def_rw("min_period", &m3c2::ObjectsParams::min_period)
+      .def_rw("height_threshold", &m3c2::ObjectsParams::height_threshold)
+      .def_rw("use_unfinished", &m3c2::ObjectsParams::use_unfinished)
+      .def_rw("seed_subsampling", &m3c2::ObjectsParams::seed_subsampling)
+      .def_rw("neighbourhood_radius", &m3c2::ObjectsParams::neighbourhood_radius)
+      .def_rw("thresholds", &m3c2::ObjectsParams::thresholds)
+      .def_rw("min_segments", &m3c2::ObjectsParams::min_segments)
+      .def_rw("max_segments", &m3c2::ObjectsParams::max_segments)
+      .def_rw("max_cv", &m3c2::ObjectsParams::max_cv)
+      .def_rw("whole_series", &m3c2::ObjectsParams::whole_series);
+
+  m.def(
+      "temporal_median",
+      [](const Series2D& values, std::uint32_t window, int threads) {
+        const std::size_t rows = values.shape(0), epochs = values.shape(1);
+        auto out = run_engine(nb::none(), threads, [&](const m3c2::RunOptions& run) {
+          return m3c2::temporal_median(values.data(), rows, epochs, window, run);
+        });
+        return to_numpy(std::move(out), epochs);
+      },
+      "values"_a, "window"_a, "threads"_a = 0);
+  m.def(
+      "change_points",
+      [](const Series1D& series, std::uint32_t width, std::uint32_t min_size, std::uint32_t jump, double penalty) {
+        m3c2::ChangePointParams p{width, min_size, jump, penalty};
+        return to_numpy(m3c2::change_points(series.data(), series.shape(0), p));
+      },
+      "series"_a, "width"_a = 24, "min_size"_a = 12, "jump"_a = 1, "penalty"_a = 1.0);
+  m.def(
+      "normalised_dtw",
+      [](const Series1D& a, const Series1D& b, double norm_a, double norm_b, double dmax_origin) {
+        if (a.shape(0) != b.shape(0)) throw m3c2::InvalidArgument("the two series must have the same length");
+        return m3c2::normalised_dtw(a.data(), b.data(), a.shape(0), norm_a, norm_b, dmax_origin);
+      },
+      "a"_a, "b"_a, "norm_a"_a = 0.0, "norm_b"_a = 0.0, "dmax_origin"_a = 0.0);
+  m.def(
+      "objects_by_change",
+      [](const Series2D& distances, const Points& core, const m3c2::ObjectsParams& params, int threads,
+         nb::object progress) {
+        m3c2::ObjectsResult r = run_engine(std::move(progress), threads, [&](const m3c2::RunOptions& run) {
+          return m3c2::objects_by_change(distances.data(), distances.shape(0), distances.shape(1), view(core), params,
+                                         run);
+        });
+        std::vector<std::uint32_t> seed_core, seed_start, seed_end, obj_core, obj_start, obj_end, members;
+        std::vector<std::uint64_t> offsets{0};
+        std::vector<double> seed_score, obj_threshold, obj_score, dtw;
+        for (const auto& s : r.seeds)
+          seed_core.push_back(s.core), seed_start.push_back(s.start), seed_end.push_back(s.end),
+              seed_score.push_back(s.score);
+        for (const auto& o : r.objects) {
+          obj_core.push_back(o.seed.core), obj_start.push_back(o.seed.start), obj_end.push_back(o.seed.end);
+          obj_threshold.push_back(o.threshold), obj_score.push_back(o.seed.score);
+          members.insert(members.end(), o.cores.begin(), o.cores.end());
+          dtw.insert(dtw.end(), o.dtw.begin(), o.dtw.end());
+          offsets.push_back(members.size());
+        }
+        nb::dict d;
+        d["seed_core"] = to_numpy(std::move(seed_core)), d["seed_start"] = to_numpy(std::move(seed_start));
+        d["seed_end"] = to_numpy(std::move(seed_end)), d["seed_score"] = to_numpy(std::move(seed_score));
+        d["object_seed"] = to_numpy(std::move(obj_core)), d["object_start"] = to_numpy(std::move(obj_start));
+        d["object_end"] = to_numpy(std::move(obj_end)), d["object_threshold"] = to_numpy(std::move(obj_threshold));
+        d["object_score"] = to_numpy(std::move(obj_score)), d["member_offsets"] = to_numpy(std::move(offsets));
+        d["members"] = to_numpy(std::move(members)), d["member_dtw"] = to_numpy(std::move(dtw));
+        return d;
+      },
+      "distances"_a, "core_points"_a, "params"_a, "threads"_a = 0, "progress"_a = nb::none());
 }

@@ -10,7 +10,7 @@ from typing import Callable
 
 import numpy as np
 
-from . import engine, uncertainty_inputs
+from . import diagnostics, engine, uncertainty_inputs
 from .errors import CloudReadError, M3C2Error, UsageError
 from .io.guard import available_memory, format_bytes
 from .result import Result
@@ -82,6 +82,22 @@ _COMPARE_INPUTS = ("core_points", "core", "core_normals", "progress", "read_poin
 
 def compare(reference, compared, core_points=None, *, core=None, core_normals=None,
             progress: Callable[[int, int], object] | None = None, read_points=None, **params) -> Result:
+    """M3C2 distance, level of detection and significance at each core point, with the run's
+    data-quality warnings (m3c2kit.diagnostics) emitted as M3C2Warning. Arguments: compare_quietly."""
+    result, values = _compare(reference, compared, core_points, core=core, core_normals=core_normals,
+                              progress=progress, read_points=read_points, **params)
+    ref, cmp_ = as_points("reference", reference), as_points("compared", compared)
+    diagnostics.warn(result, values, ref, cmp_)
+    return result
+
+
+def compare_quietly(reference, compared, core_points=None, **kwargs) -> Result:
+    """compare() without the warnings: for runs made to diagnose another one (m3c2kit.quality)."""
+    return _compare(reference, compared, core_points, **kwargs)[0]
+
+
+def _compare(reference, compared, core_points=None, *, core=None, core_normals=None,
+             progress: Callable[[int, int], object] | None = None, read_points=None, **params):
     """M3C2 distance, level of detection and significance at each core point.
 
     reference, compared, core_points (or ``core``, the command line's name): (N, 3) float64
@@ -95,6 +111,7 @@ def compare(reference, compared, core_points=None, *, core=None, core_normals=No
         raise UsageError("give core_points or core (the same parameter), not both")
     core_points = core if core_points is None else core_points
     values = resolve(params, "compare", api=True)
+    reference, compared = _vegetation_removed(values, reference, compared)
     ref = as_points("reference", reference)
     cmp_ = as_points("compared", compared)
     for name, cloud in (("reference", ref), ("compared", cmp_)):
@@ -122,7 +139,22 @@ def compare(reference, compared, core_points=None, *, core=None, core_normals=No
     uncertainty = uncertainty_inputs.inputs_for(values, reference, compared)
     raw = engine.compute(ref, cmp_, core_xyz, engine_p, normals, threads=values["threads"], progress=progress,
                          **uncertainty)
-    return Result.from_engine(core_xyz, raw, run_record(params, engine_p))
+    return Result.from_engine(core_xyz, raw, run_record(params, engine_p)), values
+
+
+def _vegetation_removed(values: dict, reference, compared):
+    """--classifier FILE --keep CLASS: both clouds reduced to the points classified as a kept class
+    (section 4.3, CANUPO; m3c2kit.classify), each classified with its own neighbourhoods."""
+    if (values["classifier"] is None) != (values["keep"] is None):
+        raise UsageError("--classifier and --keep go together: the classifier's classes to keep, e.g. "
+                         "--classifier veg.json --keep ground")
+    if values["classifier"] is None:
+        return reference, compared
+    from .classify import filtered, read_classifier
+    clf = read_classifier(values["classifier"])
+    keep = [k.strip() for k in str(values["keep"]).split(",") if k.strip()]
+    return tuple(filtered(clf, cloud, keep, name, threads=values["threads"])
+                 for name, cloud in (("reference", reference), ("compared", compared)))
 
 
 def run_record(given: dict, engine_p) -> dict:

@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 import signal
 import sys
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -12,12 +13,14 @@ import numpy as np
 from . import api, raster
 from .analysis.cli import analysis_parsers
 from .classify.cli import classify_parsers
-from .errors import M3C2Error, UsageError
+from .errors import M3C2Error, M3C2Warning, UsageError
 from .io import read_cloud, write_cloud_table
 from .io import crs as crs_mod
+from .io.collisions import check_outputs
 from .io.describe import describe, describe_text
+from .phases import Phases
 from .progress import ProgressBar
-from .report.outputs import write_compare_outputs
+from .report.outputs import CompareOutputs, write_compare_outputs
 from .settings import by_name, parameters_of
 from .settings.cloudcompare_params import read_cloudcompare_params
 from .summary import summary_lines
@@ -73,8 +76,17 @@ def _compare_parser(sub) -> None:
     p.add_argument("--dask-scheduler", metavar="ADDRESS",
                    help="run the tiles as tasks on this Dask distributed scheduler; every worker must be able to "
                         "read the inputs and the work folder beside the output (docs/scaling.md)")
-    p.add_argument("--quiet", action="store_true", help="no progress bar or summary")
+    _verbosity_options(p)
+    p.add_argument("--progress", action="store_true",
+                   help="show the progress bars on stderr even when it is not a terminal (default: only on a terminal)")
     p.set_defaults(run=run_compare)
+
+
+def _verbosity_options(parser) -> None:
+    talk = parser.add_mutually_exclusive_group()
+    talk.add_argument("-q", "--quiet", action="store_true",
+                      help="no progress bar or summary (warnings and errors still go to stderr)")
+    talk.add_argument("--verbose", action="store_true", help="also print the parameters the run used")
 
 
 def add_table_options(parser, command: str, groups: dict | None = None) -> None:
@@ -97,7 +109,7 @@ def _normals_parser(sub) -> None:
     p.add_argument("-o", "--output", type=Path, required=True)
     p.add_argument("--core", type=Path, help="core points (default: every point)")
     add_table_options(p, "normals")
-    p.add_argument("--quiet", action="store_true")
+    _verbosity_options(p)
     p.set_defaults(run=run_normals)
 
 
@@ -122,7 +134,9 @@ def make_parser() -> argparse.ArgumentParser:
     from . import __version__
     parser.add_argument("--version", action="version", version=f"m3c2 (m3c2kit) {__version__}")
     sub = parser.add_subparsers(dest="command", required=True, parser_class=ArgumentParser)
-    for build in (_compare_parser, _normals_parser, _subsample_parser, _info_parser, analysis_parsers, classify_parsers):
+    from .series.cli import series_parsers  # noqa: PLC0415 - m3c2 series (docs/series.md)
+    for build in (_compare_parser, _normals_parser, _subsample_parser, _info_parser, analysis_parsers, classify_parsers,
+                  series_parsers):
         build(sub)
     return parser
 
@@ -139,9 +153,9 @@ def compare_settings(args) -> dict:
             settings[param.name] = value
     if args.core is not None:
         settings.pop("core_spacing", None)  # as CloudCompare: given core points win over subsampling
-    for required, flag in (("projection_scale", "--projection-scale"), ("max_depth", "--max-depth")):
-        if required not in settings:
-            raise UsageError(f"{flag} is required (or a --params file that sets it)")
+    if getattr(args, "grid", None) is not None:
+        explicit = {p.name: getattr(args, p.name, None) for p in parameters_of("compare")}
+        settings = raster.grid_settings(args.grid, settings, dict(explicit, core_normals=args.core_normals))
     return settings
 
 
@@ -156,24 +170,96 @@ def _orient_spec(args, settings: dict, reference):
     return positions if positions is not None and len(positions) else "+z"
 
 
+def run_compare_tiled(args, settings: dict, grid=None) -> int:
+    """`m3c2 compare ... --tile-size S | --memory-limit M [--dask-scheduler ADDRESS]` (m3c2kit.tiling)."""
+    from .io.streaming import PointSource
+    from .tiling import run_tiled
+
+    for flag, value in (("--grid", grid), ("--report", getattr(args, "report", None)),
+                        ("--report-png", getattr(args, "report_png", None))):
+        if value is not None:
+            raise UsageError(f"{flag} cannot be combined with tiling (--tile-size, --memory-limit, --dask-scheduler)")
+    if args.tile_size is None and args.memory_limit is None:
+        raise UsageError("--dask-scheduler needs --tile-size S or --memory-limit SIZE to cut the work into tiles")
+
+    settings = dict(settings)
+    for name, default in (("field_names", "m3c2"), ("float64", False)):
+        if settings.pop(name, default) not in (default, None):
+            raise UsageError(f"{by_name()[name].flag} cannot be combined with tiling (--tile-size, --memory-limit, "
+                             f"--dask-scheduler): the tiled writer writes m3c2's columns")
+    position = settings.pop("position", "core")
+    threads = settings.pop("threads", 0)
+    core_spacing = settings.pop("core_spacing", None)
+    drop = bool(getattr(args, "drop_nonfinite", False))
+    ref_src = PointSource(args.reference, drop_nonfinite=drop)
+    cmp_src = PointSource(args.compared, drop_nonfinite=drop)
+    if "orient" not in settings:
+        positions = ref_src.cloud.scan_positions if ref_src.cloud is not None else None
+        settings["orient"] = positions if positions is not None and len(positions) else "+z"
+    core_cloud = read_cloud(args.core, drop_nonfinite=drop) if args.core is not None else None
+    check_same_crs(ref_src.like(), cmp_src.like(), core_cloud, ignore=getattr(args, "ignore_crs", False))
+    core_normals = _core_normals(args, core_cloud) if settings.get("normal_source") == "core" else None
+    say = (lambda s: None) if args.quiet else (lambda s: print(f"m3c2: {s}", flush=True))
+    report = run_tiled(ref_src, cmp_src, output=args.output,
+                       core=core_cloud.xyz if core_cloud is not None else None, core_spacing=core_spacing,
+                       core_normals=core_normals, tile_size=args.tile_size, memory_limit=args.memory_limit,
+                       dask_scheduler=args.dask_scheduler, threads=threads or 0, projected=args.projected,
+                       position=position, drop_nonfinite=drop, log=say,
+                       read_points=lambda p: read_cloud(p, drop_nonfinite=drop).xyz, **settings)
+    if not args.quiet:
+        for line in report.lines(args.output):
+            print(line)
+    return 0
+
+
+def _inputs(args, settings: dict | None = None) -> dict:
+    """Every file a command reads, by the name its messages use."""
+    files = {"reference cloud": getattr(args, "reference", None), "compared cloud": getattr(args, "compared", None),
+             "input cloud": getattr(args, "input", None), "core points file": getattr(args, "core", None),
+             "core normals file": getattr(args, "core_normals", None), "params file": getattr(args, "params", None)}
+    orient = (settings or {}).get("orient", getattr(args, "orient", None))
+    if isinstance(orient, (str, Path)) and str(orient) and Path(orient).exists():
+        files["orientation file"] = orient
+    return files
+
+
+def _compare_outputs(args) -> dict:
+    """Every file `m3c2 compare` writes, by its option."""
+    from .report import png_paths
+
+    outputs = {"-o": args.output}
+    if args.grid is not None:
+        outputs.update({f"--grid raster {name}": path for name, path in raster.raster_paths(args.output).items()})
+    outputs["--report"] = args.report
+    if args.report_png is not None:
+        outputs.update({f"--report-png {key}": path for key, path in png_paths(args.report_png).items()})
+    return outputs
+
+
 def run_compare(args) -> int:
-    cell = raster.grid_mode(args)  # --grid: checks its options, d = 1.1 CELL by default
-    settings = compare_settings(args)
+    cell = args.grid
+    settings = compare_settings(args)  # with --grid: 2D mode's settings (raster.grid_settings)
+    check_outputs(_compare_outputs(args), _inputs(args, settings))  # before any work (docs/errors.md)
     if args.tile_size is not None or args.memory_limit is not None or args.dask_scheduler is not None:
         if getattr(args, "crs", None):
             raise UsageError("--crs is not available with --tile-size, --memory-limit or --dask-scheduler; "
                              "give the inputs a CRS (e.g. convert them to LAS with one) or run in memory")
-        from .tiling import run_compare_tiled  # out-of-core / Dask (docs/scaling.md)
-        return run_compare_tiled(args, settings, grid=cell)
-    reference, compared = _read(args.reference, args), _read(args.compared, args)
-    core_cloud = _read(args.core, args) if args.core is not None else None
+        return run_compare_tiled(args, settings, grid=cell)  # out-of-core / Dask (docs/scaling.md)
+    phases = Phases(enabled=False if args.quiet else (True if getattr(args, "progress", False) else None))
+    files = [f for f in (args.reference, args.compared, args.core) if f is not None]
+    with phases.phase("reading", total=len(files)) as step:
+        reference = _read(args.reference, args)
+        step(1, len(files))
+        compared = _read(args.compared, args)
+        step(2, len(files))
+        core_cloud = _read(args.core, args) if args.core is not None else None
+        step(len(files), len(files))
     if getattr(args, "crs", None):
         assign_crs(args.crs, reference, compared, core_cloud)
     check_same_crs(reference, compared, core_cloud, ignore=getattr(args, "ignore_crs", False),
                    allow_angular=getattr(args, "allow_angular", False))  # docs/errors.md
     grid = None
     if cell is not None:
-        settings = raster.grid_settings(settings)
         grid = raster.grid_core_points(reference, cell)
         core_cloud = grid.core_points
     settings["orient"] = _orient_spec(args, settings, reference)
@@ -184,18 +270,27 @@ def run_compare(args) -> int:
     core_normals = None
     if settings.get("normal_source") == "core":
         core_normals = _core_normals(args, core_cloud)
-    bar = ProgressBar("M3C2", enabled=not args.quiet)
-    result = api.compare(reference, compared, core_cloud, core_normals=core_normals, threads=threads,
-                         progress=bar.update, read_points=lambda p: _read(p, args).xyz, **settings)
-    bar.close()
-    extra = write_compare_outputs(args, result, reference, grid=grid, position=position, field_names=field_names,
-                                  float64=float64, core_spacing=settings.get("core_spacing"))
+    # The engine indexes both clouds, fits the normals and measures the distances in one call,
+    # reporting core points done: one bar for the three.
+    with phases.phase("indexing, normals, distances") as step:
+        result = api.compare(reference, compared, core_cloud, core_normals=core_normals, threads=threads,
+                             progress=step, read_points=lambda p: _read(p, args).xyz, **settings)
+    outputs = CompareOutputs(table=args.output, report=args.report, report_png=args.report_png,
+                             projected=args.projected, position=position, field_names=field_names,
+                             float64=float64, core_spacing=settings.get("core_spacing"),
+                             inputs={"reference": args.reference, "compared": args.compared})
+    with phases.phase("writing", total=1) as step:
+        extra = write_compare_outputs(outputs, result, reference, grid=grid)
+        step(1, 1)
     if not args.quiet:
         for line in summary_lines(result, args.output):
             print(line)
         for path in extra:
             print(f"wrote {path}")
-    _print_warnings(args, settings, result, reference, compared, core_cloud)  # docs/errors.md
+    if args.verbose:
+        for name, value in sorted(result.params.items()):
+            print(f"parameter {name}: {value}")
+    _print_notes((reference, compared, core_cloud))  # the warnings: m3c2kit.diagnostics, through main()
     return 0
 
 
@@ -221,63 +316,17 @@ def assign_crs(spec: str, *clouds) -> None:
                               f"{crs_mod.crs_label(wkt)}; --crs only assigns a CRS to inputs that have none")
 
 
-#: Share of computed core points with an empty cylinder in one cloud only above which
-#: `compare` warns that --max-depth may be shorter than the change.
-EMPTY_ONE_SIDE_WARNING = 0.10
+def _print_notes(clouds) -> None:
+    """What reading changed in the inputs (docs/errors.md), on stderr with the warnings."""
+    for c in clouds:
+        if getattr(c, "dropped_nonfinite", 0):
+            print(f"m3c2: note: dropped {c.dropped_nonfinite} points with non-finite coordinates from {c.path}",
+                  file=sys.stderr)
 
 
-def result_warnings(result, min_points: int, max_depth=None, projection_scale=None) -> list[str]:
-    """Warnings for runs that are legitimate but likely mis-parameterised (docs/errors.md):
-    the median n1 or n2 below `min_points` (cylinder too thin for the point spacing), and more
-    than 10 % of core points with a searched cylinder having it empty in one cloud only (the
-    change reaches beyond --max-depth)."""
-    searched = np.isin(result.status, (0, 3, 4, 5))  # a normal was found: cylinders were searched
-    if not searched.any():
-        return []
-    lines = []
-    n1, n2 = np.asarray(result.n1)[searched], np.asarray(result.n2)[searched]
-    m1, m2 = float(np.median(n1)), float(np.median(n2))
-    if min(m1, m2) < min_points:
-        lines.append(f"warning: the median cylinder holds n1 = {m1:g}, n2 = {m2:g} points, fewer than "
-                     f"--min-points {min_points}: the projection scale d = {projection_scale} is small for "
-                     f"the point spacing and most LODs are NaN; consider a larger --projection-scale")
-    # Empty cylinders in one cloud: m3c2kit.quality tells no overlap from a depth too short.
-    return lines
-
-
-def quality_warnings(settings: dict, result, reference, compared) -> list[str]:
-    """m3c2kit.quality's diagnoses: normals that fail (D given as a radius?), and empty cylinders
-    split into no overlap (no depth helps) and a depth too short (the depth that reaches)."""
-    from . import quality
-
-    lines = []
-    failed = quality.normal_failure_message(result, settings.get("normal_scale") or 0.0)
-    if failed:
-        lines.append(f"warning: {failed}")
-    status = np.asarray(result.status)
-    with_normal = np.count_nonzero(np.isin(status, (0, 3, 4, 5)))
-    empty = np.count_nonzero(np.isin(status, (3, 4)))
-    if with_normal and empty / with_normal > quality.EMPTY_SHARE:
-        diagnoses = quality.cylinder_diagnosis(reference.xyz, compared.xyz, result,
-                                               projection_scale=float(settings["projection_scale"]),
-                                               max_depth=float(settings["max_depth"]),
-                                               threads=int(settings.get("threads", 0) or 0))
-        lines += [f"warning: {m}" for m in quality.cylinder_messages(diagnoses, float(settings["max_depth"]))]
-    return lines
-
-
-def _print_warnings(args, settings: dict, result, *clouds) -> None:
-    """Warnings go to stderr (docs/errors.md), with --quiet too: they are about the numbers."""
-    min_points = settings.get("min_points")
-    lines = [f"note: dropped {c.dropped_nonfinite} points with non-finite coordinates from {c.path}"
-             for c in clouds if getattr(c, "dropped_nonfinite", 0)]
-    lines += result_warnings(result, by_name()["min_points"].default_for(settings.get("compat")) if min_points is None
-                             else int(min_points),
-                             settings.get("max_depth"), settings.get("projection_scale"))
-    if len(clouds) >= 2 and clouds[0] is not None and clouds[1] is not None:
-        lines += quality_warnings(settings, result, clouds[0], clouds[1])
-    for line in lines:
-        print(f"m3c2: {line}", file=sys.stderr)
+def _show_warning(message, category, filename, lineno, file=None, line=None) -> None:
+    """The run's warnings (m3c2kit.diagnostics' M3C2Warning and any other) as one line on stderr."""
+    print(f"m3c2: warning: {message}", file=sys.stderr)
 
 
 def _core_normals(args, core_cloud) -> np.ndarray:
@@ -293,6 +342,7 @@ def _core_normals(args, core_cloud) -> np.ndarray:
 
 
 def run_normals(args) -> int:
+    check_outputs({"-o": args.output}, _inputs(args))
     cloud = _read(args.input, args)
     core = _read(args.core, args).xyz if args.core is not None else None
     bar = ProgressBar("normals", enabled=not args.quiet)
@@ -312,6 +362,7 @@ def run_normals(args) -> int:
 
 
 def run_subsample(args) -> int:
+    check_outputs({"-o": args.output}, _inputs(args))
     cloud = _read(args.input, args)
     kept = api.subsample(cloud.xyz, args.spacing)
     fields = {name: np.asarray(values)[kept] for name, values in cloud.fields.items()}
@@ -328,6 +379,9 @@ def run_info(args) -> int:
     else:
         print(describe_text(d))
     return 0
+
+
+_CLEAN_EXIT_SIGNALS = tuple(getattr(signal, name) for name in ("SIGHUP", "SIGQUIT", "SIGTERM") if hasattr(signal, name))
 
 
 def _raise_interrupted(signum, frame):
@@ -354,7 +408,20 @@ def join_dash_values(argv: list[str]) -> list[str]:
 
 
 def main(argv=None) -> int:
-    previous = signal.signal(signal.SIGTERM, _raise_interrupted)
+    # SIGHUP, SIGQUIT and SIGTERM end the run as SIGINT does: an exception that unwinds through
+    # the atomic writer, which removes its private folders (no partial output, no leftover).
+    previous = {s: signal.signal(s, _raise_interrupted) for s in _CLEAN_EXIT_SIGNALS}
+    with warnings.catch_warnings():
+        warnings.simplefilter("always", M3C2Warning)
+        warnings.showwarning = _show_warning
+        try:
+            return _main(argv)
+        finally:
+            for number, handler in previous.items():
+                signal.signal(number, handler)
+
+
+def _main(argv) -> int:
     try:
         argv = join_dash_values([str(a) for a in (sys.argv[1:] if argv is None else argv)])
         args = make_parser().parse_args(argv)
@@ -371,8 +438,6 @@ def main(argv=None) -> int:
     except MemoryError:
         print("m3c2: error: out of memory; use fewer or subsampled core points", file=sys.stderr)
         return 1
-    finally:
-        signal.signal(signal.SIGTERM, previous)
 
 
 if __name__ == "__main__":

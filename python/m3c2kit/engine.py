@@ -150,3 +150,53 @@ def tile_halo(params: _core.Params) -> float:
 
 
 _DEFAULT = _core.Params()
+
+
+# ----------------------------------------------------------------------------------------------
+# Time series (include/m3c2/series.hpp, include/m3c2/objects_by_change.hpp; docs/series.md)
+
+
+class Comparison:
+    """A reference prepared once (its index, the core points' normals) to compare epochs one at a
+    time; each compare() equals compute(reference, epoch, core) bit for bit."""
+
+    def __init__(self, reference: np.ndarray, core: np.ndarray, params: _core.Params, core_normals=None, *,
+                 threads: int = 0):
+        with translated():
+            self._impl = _core.Comparison(reference, core, params, core_normals, threads=threads)
+
+    def compare(self, compared: np.ndarray, *, threads: int = 0) -> dict:
+        with translated():
+            return self._impl.compare(compared, threads=threads)
+
+    def normals(self) -> dict:
+        return self._impl.normals()
+
+
+def temporal_median(values: np.ndarray, window: int, *, threads: int = 0) -> np.ndarray:
+    with translated("--window"):
+        return _core.temporal_median(values, window, threads=threads)
+
+
+def change_points(series: np.ndarray, width: int, min_size: int, jump: int, penalty: float) -> np.ndarray:
+    with translated():
+        return _core.change_points(series, width, min_size, jump, penalty)
+
+
+def normalised_dtw(a: np.ndarray, b: np.ndarray, norm_a=0.0, norm_b=0.0, dmax_origin=0.0) -> float:
+    with translated():
+        return float(_core.normalised_dtw(a, b, norm_a, norm_b, dmax_origin))
+
+
+def objects_params(**fields):
+    p = _core.ObjectsParams()
+    with translated():
+        for name, value in fields.items():
+            if value is not None:
+                setattr(p, name, value)
+    return p
+
+
+def objects_by_change(distances: np.ndarray, core: np.ndarray, params, *, threads: int = 0, progress=None) -> dict:
+    with translated():
+        return _core.objects_by_change(distances, core, params, threads=threads, progress=progress)

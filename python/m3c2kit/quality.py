@@ -63,7 +63,7 @@ def _extent(*clouds: np.ndarray) -> float:
 def cylinder_diagnosis(reference: np.ndarray, compared: np.ndarray, result, *, projection_scale: float,
                        max_depth: float, threads: int = 0) -> list[CylinderDiagnosis]:
     """One :class:`CylinderDiagnosis` per cloud with empty cylinders (see the module docstring)."""
-    from .api import compare  # the engine run; lazily, so that this module stays light
+    from .api import compare_quietly as compare  # the engine run, lazily; no warnings of its own
 
     status = np.asarray(result.status)
     with_normal = int(np.count_nonzero(~np.isin(status, _NO_NORMAL)))

@@ -15,18 +15,15 @@ square pixel") unless --projection-scale is given, and writes, beside the point 
     <stem>_status.tif    uint8 status code (0 = ok, see README), 255 = nodata
 
 Nodata marks a cell with no reference point (no core point) or a value that was not computed.
-Every output of one run is staged in temporary files and renamed at the end
-(:func:`staged_outputs`), so a failed run leaves none of them. See docs/report.md.
+Every output of one run is staged and renamed at the end (m3c2kit.io.atomic.staged_outputs), so a
+failed run leaves none of them. See docs/report.md.
 """
 from __future__ import annotations
 
 import os
 import sys
-import tempfile
-from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Iterator
 
 import numpy as np
 
@@ -35,8 +32,8 @@ from .errors import CloudWriteError, UsageError
 from .io.crs import looks_like_wkt
 from .optional import require
 
-__all__ = ["Grid", "RASTERS", "PROJECTION_FACTOR", "grid_core_points", "grid_mode", "grid_settings",
-           "raster_paths", "rasters", "write_rasters", "staged_outputs"]
+__all__ = ["Grid", "RASTERS", "PROJECTION_FACTOR", "grid_core_points", "grid_settings",
+           "raster_paths", "rasters", "write_rasters"]
 
 #: d = PROJECTION_FACTOR x cell when --projection-scale is not given (section 6.1.2).
 PROJECTION_FACTOR = 1.1
@@ -93,49 +90,30 @@ def grid_core_points(points, cell: float) -> Grid:
                 np.asarray(g["core_points"]).reshape(-1, 3), np.asarray(g["row"]), np.asarray(g["col"]))
 
 
-def grid_mode(args) -> float | None:
-    """Checks the command-line options of 2D mode and fills in its defaults on `args`.
-
-    Returns the cell size, or None without --grid. Normals are vertical in this mode, so
-    --normal-scale (which would only choose the normal) and any --normal-source but vertical
-    are usage errors, as are --position reference/compared (the rasters are at cell centres)
-    and --core-normals. d defaults to 1.1 x CELL.
-    """
-    cell = getattr(args, "grid", None)
-    if cell is None:
-        return None
+def grid_settings(cell, settings: dict, explicit: dict) -> dict:
+    """The compare settings of 2D mode (section 6.1.2) for a --grid `cell`: vertical normals, and
+    d = 1.1 x CELL unless a projection scale is set. `explicit` holds what the user gave on the
+    command line: there a --normal-scale (which would only choose the normal), a --normal-source
+    but vertical, --core-normals and --position reference/compared are usage errors; from a params
+    file the normal scale and core point options are dropped (the grid is the core points)."""
     if not (np.isfinite(cell) and cell > 0):
         raise UsageError(f"--grid must be a positive cell size, got {cell!r}")
-    if getattr(args, "normal_scale", None) is not None:
+    if explicit.get("normal_scale") is not None:
         raise UsageError("--grid imposes vertical normals (section 6.1.2): --normal-scale has no effect; "
                          "leave it out")
-    if getattr(args, "normal_source", None) not in (None, "vertical"):
-        raise UsageError(f"--grid imposes vertical normals: --normal-source {args.normal_source} is not allowed")
-    if getattr(args, "core_normals", None) is not None:
+    if explicit.get("normal_source") not in (None, "vertical"):
+        raise UsageError(f"--grid imposes vertical normals: --normal-source {explicit['normal_source']} is not allowed")
+    if explicit.get("core_normals") is not None:
         raise UsageError("--grid imposes vertical normals: --core-normals is not allowed")
-    if getattr(args, "position", None) not in (None, "core"):
+    if explicit.get("position") not in (None, "core"):
         raise UsageError("--grid writes values at the cell centres: --position must be core")
-    if getattr(args, "projection_scale", None) is None and not _params_set(args, "projection_scale"):
-        args.projection_scale = PROJECTION_FACTOR * cell
-    return float(cell)
-
-
-def _params_set(args, name: str) -> bool:
-    if getattr(args, "params", None) is None:
-        return False
-    from .settings.cloudcompare_params import read_cloudcompare_params
-    return name in read_cloudcompare_params(args.params)
-
-
-def grid_settings(settings: dict) -> dict:
-    """The compare settings of 2D mode: vertical normals; a --params file's normal scale and core
-    point options are dropped (the grid is the core points, normals are vertical)."""
+    if settings.get("position", "core") != "core":
+        raise UsageError("--grid writes values at the cell centres: the position must be core")
     settings = dict(settings)
     settings["normal_source"] = "vertical"
     for name in ("normal_scale", "core_spacing", "normal_subsample"):
         settings.pop(name, None)
-    if settings.get("position", "core") != "core":
-        raise UsageError("--grid writes values at the cell centres: the position must be core")
+    settings.setdefault("projection_scale", PROJECTION_FACTOR * float(cell))
     return settings
 
 
@@ -216,61 +194,3 @@ def write_rasters(paths: dict[str, Path], images: dict[str, np.ndarray], grid: G
 
 def _warn(message: str) -> None:
     print(f"m3c2: warning: {message}", file=sys.stderr)
-
-
-def _temp_name(target: Path) -> Path:
-    # Same directory (rename stays on one filesystem); the target's extension last, so writers
-    # that dispatch on the extension (LAS, PLY, CSV) pick the right format.
-    suffix = "".join(target.suffixes[-2:]) if target.name.lower().endswith(".copc.laz") else target.suffix
-    fd, name = tempfile.mkstemp(prefix=f".{target.name}.", suffix=f".part{suffix}", dir=target.parent)
-    os.close(fd)
-    return Path(name)
-
-
-@contextmanager
-def staged_outputs(targets) -> Iterator[dict[Path, Path]]:
-    """All-or-nothing output of several files: yields {target: temporary path} (temporaries in
-    each target's directory, ending with the target's extension); when the body returns, each
-    temporary is renamed onto its target. If the body raises, every temporary is removed, no
-    target is touched, and the exception propagates (an OSError as CloudWriteError).
-
-    Every directory is checked before the body runs, so a bad output path fails before any
-    computation is wasted on writing."""
-    staged: dict[Path, Path] = {}
-    try:
-        for target in dict.fromkeys(Path(t) for t in targets):
-            if target.is_dir():
-                raise CloudWriteError(f"{target}: is a directory")
-            if not target.parent.is_dir():
-                raise CloudWriteError(f"{target}: cannot write: directory {str(target.parent)!r} does not exist")
-            try:
-                staged[target] = _temp_name(target)
-            except OSError as e:
-                raise CloudWriteError(f"{target}: cannot write in {str(target.parent)!r}: "
-                                      f"{e.strerror or e}") from None
-        yield staged
-        for target, tmp in staged.items():
-            if not tmp.exists():
-                raise CloudWriteError(f"{target}: was not written")
-            _set_mode(tmp, target)
-        for target, tmp in staged.items():
-            os.replace(tmp, target)
-    except BaseException as e:
-        for tmp in staged.values():
-            try:
-                tmp.unlink()
-            except OSError:
-                pass
-        if isinstance(e, OSError) and not isinstance(e, CloudWriteError):
-            raise CloudWriteError(f"{e.filename or 'output'}: {e.strerror or e}") from e
-        raise
-
-
-def _set_mode(tmp: Path, target: Path) -> None:
-    try:
-        mode = target.stat().st_mode & 0o7777
-    except OSError:
-        umask = os.umask(0)
-        os.umask(umask)
-        mode = 0o666 & ~umask
-    os.chmod(tmp, mode)

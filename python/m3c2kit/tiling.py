@@ -30,13 +30,15 @@ import tempfile
 import time
 import uuid
 from dataclasses import dataclass, field
+from types import SimpleNamespace
 from pathlib import Path
 from typing import Callable
 
 import numpy as np
 
-from . import api, engine
+from . import api, diagnostics, engine
 from .errors import M3C2Error, UsageError
+from .io.atomic import private_folder
 from .io.streaming import DEFAULT_CHUNK, PointSource, TableWriter, _in_box
 from .io.fields import typed_columns
 from .optional import require
@@ -327,6 +329,8 @@ class TiledReport:
     significant: int = 0
     with_distance: int = 0
     result: Result | None = None
+    warnings: list = field(default_factory=list)  # m3c2kit.diagnostics' messages, also emitted
+    evidence: SimpleNamespace | None = None  # the columns the warnings were drawn from
 
     def lines(self, output) -> list[str]:
         where = f"Dask cluster ({self.workers} workers)" if self.dask else "one machine"
@@ -419,6 +423,10 @@ def run_tiled(reference, compared, *, output=None, core=None, core_spacing=None,
     if values["lod"] == "bootstrap":
         raise UsageError("--bootstrap cannot be combined with tiling: the bootstrap stream is seeded by the "
                          "core point's index in the run, which a tile does not know")
+    if values.get("classifier") is not None or values.get("keep") is not None:
+        raise UsageError("--classifier / --keep run in memory only: a tile would classify its points without "
+                         "the neighbourhoods beyond its halo; drop --tile-size, --memory-limit and "
+                         "--dask-scheduler, or classify first (m3c2 classify apply) and compare the kept points")
     if values["uncertainty"] != "eq1":
         raise UsageError(f"--uncertainty {values['uncertainty']} runs in memory only: tiled and Dask runs do not "
                          "carry the per-point fields it reads (precisions, scan-position ids); drop --tile-size, "
@@ -511,7 +519,7 @@ def run_tiled(reference, compared, *, output=None, core=None, core_spacing=None,
     own_dir = work_dir is None
     if own_dir:
         parent = Path(output).resolve().parent if output is not None else None
-        work = Path(tempfile.mkdtemp(prefix=".m3c2-tiles-", dir=parent))
+        work = private_folder(parent if parent is not None else Path(tempfile.gettempdir()))
     else:
         work = Path(work_dir)
         work.mkdir(parents=True, exist_ok=True)
@@ -521,7 +529,7 @@ def run_tiled(reference, compared, *, output=None, core=None, core_spacing=None,
                        projected=projected, position=position, return_result=return_result,
                        origin=origin, stream_rows=stream_rows, merge_rows=merge_rows, retries=retries,
                        task_fn=task_fn or compute_tile, log=log,
-                       record=api.run_record(given, engine_p), t_start=t_start)
+                       record=api.run_record(given, engine_p), t_start=t_start, values=values)
     finally:
         if own_dir:
             shutil.rmtree(work, ignore_errors=True)
@@ -611,7 +619,8 @@ def _distribute(src: PointSource, spill: "_Spills", ids: dict, lo, hi, origin, s
 
 def _run_in(work: Path, report: TiledReport, ref_src, cmp_src, cores: _CoreStream, with_normals: bool, size: float,
             hp: float, engine_p, *, output, dask_scheduler, client, threads, projected, position,
-            return_result, origin, stream_rows, merge_rows, retries, task_fn, log, record, t_start) -> TiledReport:
+            return_result, origin, stream_rows, merge_rows, retries, task_fn, log, record, t_start,
+            values) -> TiledReport:
     # Each phase runs in its own function, so that its buffers are gone (and handed back to the
     # system, _release_memory) before the next phase's peak.
     # 2. plan: tile of every core point, per-tile core spills and bounding boxes
@@ -700,6 +709,7 @@ def _run_in(work: Path, report: TiledReport, ref_src, cmp_src, cores: _CoreStrea
            projected=projected, position=position, return_result=return_result, chunk_size=merge_rows,
            record=record)
     report.seconds["merge_write"] = time.perf_counter() - t0
+    report.warnings = diagnostics.warn(report.evidence, values)  # the same as an in-memory run's
     report.seconds["total"] = time.perf_counter() - t_start
     return report
 
@@ -742,6 +752,10 @@ def _run_dask(tasks, engine_p, threads, retries, task_fn, accept, address, clien
     finally:
         if own:
             client.close()
+
+
+#: The columns m3c2kit.diagnostics reads, gathered over the tiles (about 17 B per core point).
+_EVIDENCE = ("status", "n1", "n2", "normal_scale", "roughness")
 
 
 def _output_xyz(chunk: Result, projected: bool, position: str) -> np.ndarray:
@@ -787,6 +801,7 @@ def _merge(work: Path, result_spill: _Spills, dtype: np.dtype, counts, n_core: i
                                                       initial=np.inf))
             del chunk
     gathered = []
+    evidence = {k: [] for k in _EVIDENCE}
     status = np.zeros(256, dtype=np.int64)
     rows_written = 0
 
@@ -796,6 +811,8 @@ def _merge(work: Path, result_spill: _Spills, dtype: np.dtype, counts, n_core: i
         status[:] += np.bincount(chunk.status, minlength=256)
         report.significant += int(chunk.significant.sum())
         report.with_distance += int(np.isfinite(chunk.distance).sum())
+        for k in _EVIDENCE:
+            evidence[k].append(np.asarray(getattr(chunk, k)))
         if writer is not None:
             table = chunk.columns(projected=projected, position=position)
             xyz = np.column_stack([table.pop("x"), table.pop("y"), table.pop("z")])
@@ -815,47 +832,10 @@ def _merge(work: Path, result_spill: _Spills, dtype: np.dtype, counts, n_core: i
             del chunk
     if rows_written != n_core:
         raise M3C2Error(f"wrote {rows_written} rows for {n_core} core points")
+    report.evidence = SimpleNamespace(**{k: np.concatenate(v) for k, v in evidence.items()})
     from .result import STATUS_NAMES
     report.status_counts = {STATUS_NAMES[c]: int(n) for c, n in enumerate(status) if n}
     if return_result:
         arrays = {k: np.concatenate([getattr(c, k) for c in gathered]) for k in ("core",) + _RESULT_KEYS}
         core_xyz = arrays.pop("core")
         report.result = Result(core=core_xyz, params=record, **arrays)
-
-
-def run_compare_tiled(args, settings: dict, grid=None) -> int:
-    """`m3c2 compare ... --tile-size S | --memory-limit M [--dask-scheduler ADDRESS]` (cli.py)."""
-    from .cli import _core_normals, check_same_crs
-    from .io import read_cloud
-
-    for flag, value in (("--grid", grid), ("--report", getattr(args, "report", None)),
-                        ("--report-png", getattr(args, "report_png", None))):
-        if value is not None:
-            raise UsageError(f"{flag} cannot be combined with tiling (--tile-size, --memory-limit, --dask-scheduler)")
-    if args.tile_size is None and args.memory_limit is None:
-        raise UsageError("--dask-scheduler needs --tile-size S or --memory-limit SIZE to cut the work into tiles")
-
-    settings = dict(settings)
-    position = settings.pop("position", "core")
-    threads = settings.pop("threads", 0)
-    core_spacing = settings.pop("core_spacing", None)
-    drop = bool(getattr(args, "drop_nonfinite", False))
-    ref_src = PointSource(args.reference, drop_nonfinite=drop)
-    cmp_src = PointSource(args.compared, drop_nonfinite=drop)
-    if "orient" not in settings:
-        positions = ref_src.cloud.scan_positions if ref_src.cloud is not None else None
-        settings["orient"] = positions if positions is not None and len(positions) else "+z"
-    core_cloud = read_cloud(args.core, drop_nonfinite=drop) if args.core is not None else None
-    check_same_crs(ref_src.like(), cmp_src.like(), core_cloud, ignore=getattr(args, "ignore_crs", False))
-    core_normals = _core_normals(args, core_cloud) if settings.get("normal_source") == "core" else None
-    say = (lambda s: None) if args.quiet else (lambda s: print(f"m3c2: {s}", flush=True))
-    report = run_tiled(ref_src, cmp_src, output=args.output,
-                       core=core_cloud.xyz if core_cloud is not None else None, core_spacing=core_spacing,
-                       core_normals=core_normals, tile_size=args.tile_size, memory_limit=args.memory_limit,
-                       dask_scheduler=args.dask_scheduler, threads=threads or 0, projected=args.projected,
-                       position=position, drop_nonfinite=drop, log=say,
-                       read_points=lambda p: read_cloud(p, drop_nonfinite=drop).xyz, **settings)
-    if not args.quiet:
-        for line in report.lines(args.output):
-            print(line)
-    return 0

@@ -21,3 +21,10 @@ def shared_data() -> Path:
     if not path.is_dir():
         pytest.skip(f"shared test data not found at {path}")
     return path
+
+
+@pytest.fixture(scope="session")
+def autzen_pair() -> Path:
+    """The autzen-bmx pair with CloudCompare's and PDAL's outputs, copied into the repository
+    (tests/data/pairs/autzen-bmx, PROVENANCE.md there): tests that need only it run from a clone."""
+    return REPO / "tests" / "data" / "pairs" / "autzen-bmx"

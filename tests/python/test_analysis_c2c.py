@@ -97,8 +97,8 @@ def test_command_line(tmp_path, capsys):
                  "--model-radius", "1"]) == 2
 
 
-def test_real_pair(shared_data, tmp_path):
-    pair = shared_data / "pairs" / "autzen-bmx"
+def test_real_pair(autzen_pair, tmp_path):
+    pair = autzen_pair
     out = tmp_path / "autzen.laz"
     assert main(["c2c", str(pair / "autzen-bmx-2010.las"), str(pair / "autzen-bmx-2023.las"), "-o", str(out),
                  "--model", "plane", "--quiet"]) == 0

@@ -76,8 +76,8 @@ def test_command_line(plane, tmp_path, capsys):
                  "-o", str(out)]) == 2
 
 
-def test_real_cloud(shared_data, tmp_path, capsys):
-    cloud = shared_data / "pairs" / "autzen-bmx" / "autzen-bmx-2010.las"
+def test_real_cloud(autzen_pair, tmp_path, capsys):
+    cloud = autzen_pair / "autzen-bmx-2010.las"
     out = tmp_path / "autzen.csv"
     assert main(["calibrate", str(cloud), "--projection-scales", "3,4,6", "--bootstrap", "10", "-o", str(out)]) == 0
     assert len(list(csv.DictReader(out.open()))) == 3

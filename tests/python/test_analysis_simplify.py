@@ -57,8 +57,8 @@ def test_command_line(plane_with_outliers, tmp_path, capsys):
     assert all(float(r["normal_scale"]) == 1.0 for r in rows)  # default D = 2 d
 
 
-def test_real_cloud(shared_data, tmp_path):
-    cloud = shared_data / "pairs" / "autzen-bmx" / "autzen-bmx-2010.las"
+def test_real_cloud(autzen_pair, tmp_path):
+    cloud = autzen_pair / "autzen-bmx-2010.las"
     out = tmp_path / "autzen.laz"
     assert main(["simplify", str(cloud), "--core-spacing", "3", "--projection-scale", "4", "-o", str(out),
                  "--quiet"]) == 0

@@ -60,8 +60,8 @@ def test_command_line(pair, tmp_path, capsys):
         assert needle in text
 
 
-def test_real_pair(shared_data, capsys):
-    pair = shared_data / "pairs" / "autzen-bmx"
+def test_real_pair(autzen_pair, capsys):
+    pair = autzen_pair
     assert main(["suggest", str(pair / "autzen-bmx-2010.las"), str(pair / "autzen-bmx-2023.las"), "--sample",
                  "300"]) == 0
     assert "=> --max-depth" in capsys.readouterr().out
@@ -89,7 +89,7 @@ def test_proposal_is_rounded_and_printed_as_a_command(pair, tmp_path, capsys):
 
 
 def test_multiscale_proposal_has_few_round_scales():
-    from m3c2kit.options import normal_scales
+    from m3c2kit.settings.parsers import normal_scales
     res = {"normal_scale": "0.3:4.80833:0.3", "projection_scale": 0.4242, "projection_table": {"d": [0.4242]},
            "depth": {"max_depth": 0.1234}}
     p = S.proposal(res)

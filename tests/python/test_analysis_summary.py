@@ -6,6 +6,8 @@ import numpy as np
 import pytest
 
 from m3c2kit.result import Result
+from m3c2kit.diagnostics import normal_accuracy_warnings, warn
+from m3c2kit.errors import M3C2Warning
 from m3c2kit.summary import normal_accuracy, summary_lines
 
 
@@ -46,8 +48,9 @@ def test_warning_when_most_points_are_below_20():
     r = make_result([1.0] * 5, 1.0 / xi)
     acc = normal_accuracy(r)
     assert acc["xi_over_20"] == pytest.approx(0.25)
-    lines = summary_lines(r, "out.las")
-    assert any(line.startswith("warning: most core points have xi") for line in lines)
+    assert normal_accuracy_warnings(r)[0].startswith("most core points have xi")
+    with pytest.warns(M3C2Warning, match="most core points have xi"):
+        warn(r, {"min_points": 4})
 
 
 def test_boundary_is_strict_and_no_roughness_gives_nothing():

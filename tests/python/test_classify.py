@@ -208,3 +208,30 @@ def test_command_line_errors(tmp_path, capsys, monkeypatch):
     (tmp_path / "bad.json").write_text("{}")
     assert main(["classify", "apply", s, "--classifier", str(tmp_path / "bad.json"), "-o", str(tmp_path / "o.laz")]) == 1
     assert "not an m3c2kit classifier" in capsys.readouterr().err
+
+
+def test_compare_keeps_the_ground_of_both_clouds(tmp_path, capsys):
+    # Epoch 2: the same ground raised by 0.10 m, and other shrubs and trees. Without the filter the
+    # vegetation is measured as change (the paper's Fig. 1a); with it every distance is the 0.10 m.
+    import m3c2kit
+    a, la = scene(11, size=12)
+    b, lb = scene(11, size=12)
+    veg2, _ = scene(12, size=12)
+    ground1 = a[la == GROUND]
+    epoch2 = np.vstack([b[lb == GROUND] + [0, 0, 0.10], veg2[len(ground1):]])
+    clf, _ = small_classifier()
+    write_classifier(tmp_path / "c.json", clf)
+    core = ground1[::40]
+    kept = m3c2kit.compare(a, epoch2, core, normal_scale=1.0, projection_scale=0.5, max_depth=1.0,
+                           classifier=str(tmp_path / "c.json"), keep="2")
+    ok = np.isfinite(kept.distance)
+    assert ok.mean() > 0.9
+    assert np.abs(np.median(kept.distance[ok]) - 0.10) < 0.01
+    with pytest.raises(UsageError, match="go together"):
+        m3c2kit.compare(a, epoch2, core, normal_scale=1.0, projection_scale=0.5, max_depth=1.0, keep="2")
+    write_cloud_table(tmp_path / "e1.laz", a, {})
+    write_cloud_table(tmp_path / "e2.laz", epoch2, {})
+    assert main(["compare", str(tmp_path / "e1.laz"), str(tmp_path / "e2.laz"), "-o", str(tmp_path / "d.laz"),
+                 "--normal-scale", "1", "--projection-scale", "0.5", "--max-depth", "1",
+                 "--classifier", str(tmp_path / "c.json"), "--keep", "3,2", "--tile-size", "5"]) == 2
+    assert "in memory only" in capsys.readouterr().err

@@ -75,8 +75,8 @@ def test_every_output_format_reads_back_field_by_field(xyz_pair, ext):
                                       np.asarray(stored[name], dtype=float), err_msg=name)
 
 
-def test_real_las_pair_with_cloudcompare_params(tmp_path, shared_data):
-    pair = shared_data / "pairs" / "autzen-bmx"
+def test_real_las_pair_with_cloudcompare_params(tmp_path, autzen_pair):
+    pair = autzen_pair
     params = tmp_path / "m3c2_params.txt"
     params.write_text("[General]\nM3C2VER=1\nNormalScale=2.780864\nNormalMode=0\nNormalPreferedOri=4\n"
                       "SearchScale=5.780864\nSearchDepth=5.5\nUseSinglePass4Depth=true\nSubsampleEnabled=false\n"

@@ -12,6 +12,7 @@ import pytest
 import m3c2kit
 from m3c2kit.cli import join_dash_values, main
 from m3c2kit.io import Cloud, write_cloud_table
+from m3c2kit.io.crs import assign_crs
 
 REPO = Path(__file__).resolve().parents[2]
 TORONTO = REPO / "data" / "toronto-ttp"
@@ -64,7 +65,7 @@ def test_crs_assignment_info_json_and_field_names(tmp_path, capsys):
     assert m3c2kit.read(tmp_path / "w.laz").fields["distance"].dtype == np.float64
     # --crs on a file that has another CRS is refused.
     las = tmp_path / "ref26917.las"
-    write_cloud_table(las, np.loadtxt(ref), {}, like=Cloud(np.zeros((1, 3)), crs="EPSG:26917"))
+    write_cloud_table(las, np.loadtxt(ref), {}, like=Cloud(np.zeros((1, 3)), crs=assign_crs("EPSG:26917")))
     capsys.readouterr()
     assert main(["compare", las, cmp_, "-o", tmp_path / "x.csv", "--crs", "EPSG:32617", *BASE]) == 1
     assert "already has a CRS" in capsys.readouterr().err
@@ -73,7 +74,7 @@ def test_crs_assignment_info_json_and_field_names(tmp_path, capsys):
 def test_one_crs_only_and_angular_units(tmp_path, capsys):
     ref, cmp_ = _pair(tmp_path)
     las = tmp_path / "ref.las"
-    write_cloud_table(las, np.loadtxt(ref), {}, like=Cloud(np.zeros((1, 3)), crs="EPSG:32617"))
+    write_cloud_table(las, np.loadtxt(ref), {}, like=Cloud(np.zeros((1, 3)), crs=assign_crs("EPSG:32617")))
     assert main(["compare", las, cmp_, "-o", tmp_path / "a.csv", *BASE]) == 1
     err = capsys.readouterr().err
     assert "only one cloud has a CRS" in err and str(cmp_) in err
@@ -81,7 +82,7 @@ def test_one_crs_only_and_angular_units(tmp_path, capsys):
     assert main(["compare", las, cmp_, "-o", tmp_path / "b.csv", "--crs", "EPSG:32617", *BASE]) == 0
     geo = np.loadtxt(ref) * [1e-5, 1e-5, 1] + [-79.0 - 6.3, 43.0, 0]
     for name, xyz in (("g1.las", geo), ("g2.las", geo + [0, 0, 0.1])):
-        write_cloud_table(tmp_path / name, xyz, {}, like=Cloud(np.zeros((1, 3)), crs="EPSG:4326",
+        write_cloud_table(tmp_path / name, xyz, {}, like=Cloud(np.zeros((1, 3)), crs=assign_crs("EPSG:4326"),
                                                              scale=(1e-7, 1e-7, 0.001), offset=(0, 0, 0)))
     capsys.readouterr()
     argv = ["compare", tmp_path / "g1.las", tmp_path / "g2.las", "-o", tmp_path / "g.csv",
@@ -106,3 +107,16 @@ def test_toronto_no_overlap_warning_never_advises_depth(tmp_path, capsys):
         assert captured.out == ""
         assert "the surveys do not overlap there" in captured.err and "cannot help" in captured.err
         assert "consider a larger --max-depth" not in captured.err
+
+
+def test_progress_over_every_phase_when_forced(tmp_path, capsys):
+    ref, cmp_ = _pair(tmp_path)
+    args = ["compare", ref, cmp_, "-o", tmp_path / "p.csv", "--normal-scale", "2", "--projection-scale", "1",
+            "--max-depth", "1"]
+    assert main(args) == 0
+    assert "reading" not in capsys.readouterr().err  # stderr is not a terminal here: no bars
+    assert main(args + ["--progress"]) == 0
+    err = capsys.readouterr().err
+    for phase in ("reading", "indexing, normals, distances", "writing"):
+        assert phase in err, phase
+    assert "3000/3000" in err  # the engine's core points done

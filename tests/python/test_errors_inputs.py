@@ -197,7 +197,7 @@ def test_one_or_two_point_reference_runs_and_statuses_explain(pair, capsys, n):
 def test_one_or_two_point_compared_cloud(pair, capsys, n):
     # The reference's normals are fine; the compared cloud has one or two points near the corner.
     write_xyz(pair / "few.xyz", grid(z=0.1)[:n])
-    code, out, _ = run(capsys, "compare", pair / "ref.xyz", pair / "few.xyz", "-o", pair / "out.csv", *BASE)
+    code, out, err = run(capsys, "compare", pair / "ref.xyz", pair / "few.xyz", "-o", pair / "out.csv", *BASE)
     assert code == 0
     cols = read_csv(pair / "out.csv")
     status = cols["status"]
@@ -207,7 +207,7 @@ def test_one_or_two_point_compared_cloud(pair, capsys, n):
     assert np.all(cols["n2"][near] <= n) and np.isnan(cols["lod"]).all()
     np.testing.assert_allclose(cols["distance"][near], 0.1, atol=1e-12)
     assert np.isnan(cols["distance"][~near]).all()
-    assert "warning: " in out  # the cylinders are mostly empty in the compared cloud
+    assert "m3c2: warning: " in err  # the cylinders are mostly empty in the compared cloud (warnings: stderr)
 
 
 @pytest.mark.parametrize("n", [1, 2])
@@ -302,11 +302,11 @@ def test_drop_nonfinite_runs_and_reports_the_drop(pair, capsys):
     bad = grid()
     bad[[3, 50]] = np.nan
     write_xyz(pair / "bad.xyz", bad)
-    code, out, _ = run(capsys, "compare", pair / "bad.xyz", pair / "cmp.xyz", "-o", pair / "out.csv",
+    code, out, err = run(capsys, "compare", pair / "bad.xyz", pair / "cmp.xyz", "-o", pair / "out.csv",
                        "--drop-nonfinite", *BASE)
     assert code == 0
     assert len(read_csv(pair / "out.csv")["distance"]) == 398
-    assert f"note: dropped 2 points with non-finite coordinates from {pair / 'bad.xyz'}" in out
+    assert f"m3c2: note: dropped 2 points with non-finite coordinates from {pair / 'bad.xyz'}" in err
 
 
 def test_all_nonfinite_with_drop_is_an_error(pair, capsys):

@@ -43,8 +43,9 @@ def run(capsys, *argv):
 
 
 def stray(directory: Path) -> list[str]:
-    """Outputs or temporary files (.NAME.*.part) left in `directory`."""
-    return sorted(p.name for p in directory.rglob("*") if p.name.startswith(("out", ".out")) or p.suffix == ".part")
+    """Outputs, temporary files or private folders of the atomic writer left in `directory`."""
+    return sorted(p.name for p in directory.rglob("*")
+                  if p.name.startswith(("out", ".out", ".m3c2-tmp-")) or p.suffix == ".part")
 
 
 # ------------------------------------------------------------------------- unwritable paths
@@ -180,15 +181,20 @@ def test_failed_write_keeps_the_previous_output(pair, capsys, monkeypatch):
 # Runs the real command line, announcing on stderr when the engine's first progress callback
 # fires (so the signal is sent while the engine runs, not while Python starts up).
 _HOOK = textwrap.dedent("""
+    import contextlib
     import sys
-    import m3c2kit.progress as progress
-    original = progress.ProgressBar.update
-    def update(self, done, total):
-        if not getattr(update, "seen", False):
-            update.seen = True
-            print("ENGINE-RUNNING", file=sys.stderr, flush=True)
-        return original(self, done, total)
-    progress.ProgressBar.update = update
+    import m3c2kit.phases as phases
+    original = phases.Phases.phase
+    @contextlib.contextmanager
+    def phase(self, name, total=None):
+        with original(self, name, total) as step:
+            def update(done, total_now=None):
+                if name.startswith("indexing") and not getattr(update, "seen", False):
+                    update.seen = True
+                    print("ENGINE-RUNNING", file=sys.stderr, flush=True)
+                return step(done, total_now)
+            yield update
+    phases.Phases.phase = phase
     from m3c2kit.cli import main
     sys.exit(main(sys.argv[1:]))
 """)
@@ -237,7 +243,8 @@ def test_signal_during_the_run(big_pair, tmp_path, sig, ext):
     assert stray(tmp_path) == []
 
 
-@pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM], ids=["SIGINT", "SIGTERM"])
+@pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM, signal.SIGHUP, signal.SIGQUIT],
+                         ids=["SIGINT", "SIGTERM", "SIGHUP", "SIGQUIT"])
 def test_signal_while_writing_removes_the_temporary_file(pair, capsys, monkeypatch, sig):
     real = io_ascii._text_column
     calls = []
@@ -245,7 +252,7 @@ def test_signal_while_writing_removes_the_temporary_file(pair, capsys, monkeypat
     def interrupted_column(values):
         calls.append(1)
         if len(calls) == 3:  # the temporary file exists and holds the header by now
-            assert [p.name for p in pair.iterdir() if p.suffix == ".part"]
+            assert [p.name for p in pair.iterdir() if p.name.startswith(".m3c2-tmp-")]  # the private folder
             os.kill(os.getpid(), sig)
         return real(values)
 

@@ -12,7 +12,8 @@ import pytest
 
 import m3c2kit
 from m3c2kit import api, cli
-from m3c2kit.cli import main, result_warnings
+from m3c2kit.cli import main
+from m3c2kit.diagnostics import cylinder_warnings as result_warnings
 from m3c2kit.errors import CloudReadError
 from m3c2kit.io import Cloud, files as io_files, guard, write_cloud_table
 from m3c2kit.io.crs import crs_label, same_crs
@@ -197,7 +198,7 @@ def test_warning_thresholds():
     assert result_warnings(_fake(np.where(n2 == 0, 4, 0), n1, n2), 4) == []
     # Both clouds empty is not "one cloud only" (the surface is absent in both: a gap).
     assert result_warnings(_fake(np.full(n, 3), np.zeros(n), np.zeros(n)), 4)[:1] == [
-        "warning: the median cylinder holds n1 = 0, n2 = 0 points, fewer than --min-points 4: the projection scale "
+        "the median cylinder holds n1 = 0, n2 = 0 points, fewer than --min-points 4: the projection scale "
         "d = None is small for the point spacing and most LODs are NaN; consider a larger --projection-scale"]
     # Median exactly min_points: no warning.
     assert result_warnings(_fake(np.zeros(3), [4, 4, 3], [4, 5, 4]), 4) == []
@@ -257,17 +258,22 @@ def test_core_points_crs_is_checked_too(tmp_path, capsys):
     assert code == 1 and f"core points {core} in 'WGS 84 / UTM zone 31N' (EPSG:32631)" in err
 
 
-def test_same_crs_spelled_differently_and_unknown_crs_pass(shared_data, tmp_path, capsys):
-    pair = shared_data / "pairs/autzen-bmx"
+def test_same_crs_spelled_differently_and_unknown_crs_pass(autzen_pair, tmp_path, capsys):
+    pair = autzen_pair
     a, b = m3c2kit.read(pair / "autzen-bmx-2010.las"), m3c2kit.read(pair / "autzen-bmx-2023.las")
     assert a.crs != b.crs and same_crs(a.crs, b.crs) is True  # two WKT spellings of one compound CRS
     cli.check_same_crs(a, b)
-    # A cloud without CRS (text) against one with a CRS: nothing to compare, the run goes on.
+    # A cloud without CRS (text) against one with a CRS: refused (issue 13), unless --ignore-crs
+    # or --crs gives it the reference's.
     write_xyz(tmp_path / "cmp.xyz", grid(z=0.1))
     ref = _las(tmp_path / "ref.las", grid(), _wkt("WGS 84 / UTM zone 32N", 32632))
-    code, _, err = run(capsys, "compare", ref, tmp_path / "cmp.xyz", "-o", tmp_path / "out.csv", "--quiet",
-                       *[x for kv in BASE.items() for x in kv])
-    assert code == 0, err
+    argv = ["compare", ref, tmp_path / "cmp.xyz", "-o", tmp_path / "out.csv", "--quiet",
+            *[x for kv in BASE.items() for x in kv]]
+    code, _, err = run(capsys, *argv)
+    assert code == 1 and "only one cloud has a CRS" in err and str(tmp_path / "cmp.xyz") in err, err
+    for extra in (["--ignore-crs"], ["--crs", "EPSG:32632"]):
+        code, _, err = run(capsys, *argv, *extra)
+        assert code == 0, err
 
 
 def test_same_crs_rules():

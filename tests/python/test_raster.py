@@ -9,6 +9,7 @@ from rasterio.crs import CRS  # noqa: E402
 from rasterio.transform import rowcol, xy  # noqa: E402
 
 import m3c2kit  # noqa: E402
+from m3c2kit.io.fields import typed_columns  # noqa: E402
 from m3c2kit import raster  # noqa: E402
 from m3c2kit.cli import main  # noqa: E402
 from m3c2kit.errors import CloudWriteError  # noqa: E402
@@ -192,8 +193,9 @@ def test_projection_scale_defaults_to_1_1_cell(grid_run):
     np.testing.assert_array_equal(np.column_stack([table["x"], table["y"], table["z"]]), g.core_points)
     want = m3c2kit.compare(ref, cmp, g.core_points, normal_source="vertical", projection_scale=1.1 * CELL,
                         max_depth=2).columns()
+    stored = typed_columns(want)  # the table's stored types (float32 measures: m3c2kit.io.fields)
     for name in ("distance", "lod", "n1", "n2", "status"):
-        np.testing.assert_array_equal(table[name], np.asarray(want[name], float), err_msg=name)
+        np.testing.assert_array_equal(table[name], np.asarray(stored[name], float), err_msg=name)
     other = m3c2kit.compare(ref, cmp, g.core_points, normal_source="vertical", projection_scale=CELL, max_depth=2)
     assert not np.array_equal(other.n1, want["n1"])
 

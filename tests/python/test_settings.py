@@ -31,11 +31,13 @@ def _struct_fields(header: str, struct: str) -> list[str]:
     body = re.sub(r"//[^\n]*", "", body)
     while "<" in body:
         body = re.sub(r"<[^<>]*>", "", body)  # template arguments hold commas
+    body = re.sub(r"\{[^{}]*\}", "", body)  # brace initialisers hold commas
     names = []
     for statement in body.split(";"):
-        statement = statement.split("=")[0].strip()
-        if statement and "(" not in statement and "}" not in statement:
-            names += [n.strip() for n in statement.split(None, 1)[1].split(",")]
+        statement = re.sub(r"=[^,]*", "", statement).strip()  # "double a = 1.0, b = 1.0" -> "double a, b"
+        if statement and "(" not in statement:
+            first, *rest = statement.split(",")
+            names += [first.split()[-1]] + [n.strip() for n in rest]
     return names
 
 

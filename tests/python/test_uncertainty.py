@@ -240,3 +240,24 @@ def test_e57_scan_index_and_poses(tmp_path):
     t = ui.load_scan_positions(tmp_path / "sps.json", poses=cloud.scan_positions)
     np.testing.assert_array_equal(t[:, 1:4], [[1, 2, 3], [-4, 0.5, 1]])
     np.testing.assert_array_equal(ui.scan_position_ids(cloud.fields, "scan_index"), [1, 1, 1, 2, 2])
+
+
+def test_ep_empirical_is_eq1_plus_the_propagated_alignment():
+    """--ep-covariance empirical: eq. (1)'s sigma^2/n along n plus J(mean) Cxx J(mean)^T."""
+    ref, cmp_, ids1, ids2, table, tfm, cxx, red = ep_case(13)
+    p = params("ep")
+    p.ep_covariance = _core.EpCovariance.empirical
+    out = ui.compute(ref, cmp_, CORES, p, ep=ui.EpInputs(table, table, ids1, ids2, tfm, cxx, red))
+    moved = (cmp_ - red) @ tfm[:, :3].T + tfm[:, 3] + red
+    for k, core in enumerate(CORES):
+        t1 = (ref[cylinder(ref, core, N, 0.5, 0.5)] - core) @ N
+        idx2 = cylinder(moved, core, N, 0.5, 0.5)
+        t2 = (moved[idx2] - core) @ N
+        d = cmp_[idx2].mean(0) - red
+        J = np.zeros((3, 12))
+        for a in range(3):
+            J[a, 3 * a:3 * a + 3] = d
+            J[a, 9 + a] = 1.0
+        var = t1.var(ddof=1) / len(t1) + t2.var(ddof=1) / len(t2) + N @ J @ cxx @ J.T @ N
+        assert out["distance"][k] == pytest.approx(t2.mean() - t1.mean(), abs=1e-12)
+        assert out["lod"][k] == pytest.approx(Z95 * np.sqrt(var), rel=1e-9)

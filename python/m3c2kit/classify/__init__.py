@@ -11,10 +11,10 @@ Training needs scikit-learn (``pip install m3c2kit[classify]``); applying a clas
 docs/algorithm.md ("Multi-scale dimensionality") gives the equations, docs/classify.md the
 command line and the classifier files.
 """
-from .apply import classify, keep_mask
+from .apply import classify, filtered, keep_mask
 from .features import Features, features
 from .model import Classifier, read_classifier, write_classifier
 from .train import train
 
 __all__ = ["Features", "features", "Classifier", "read_classifier", "write_classifier", "train", "classify",
-           "keep_mask"]
+           "keep_mask", "filtered"]

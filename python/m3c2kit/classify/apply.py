@@ -82,3 +82,14 @@ def keep_mask(clf: Classifier, cloud_xyz, keep, *, threads: int = 0, progress=No
     p = classify(clf, cloud_xyz, threads=threads, progress=progress)
     wanted = np.array([clf.labels.index(k) for k in keep])
     return np.isin(p.index, wanted)
+
+
+def filtered(clf: Classifier, cloud, keep, name: str = "cloud", *, threads: int = 0):
+    """`cloud` (an (N, 3) array or an object with ``xyz`` and ``select``, such as m3c2kit.io.Cloud)
+    reduced to its points classified as one of `keep`; UsageError naming `name` when none is left."""
+    xyz = np.ascontiguousarray(getattr(cloud, "xyz", cloud), dtype=np.float64)
+    mask = keep_mask(clf, xyz, keep, threads=threads)
+    if not mask.any():
+        raise UsageError(f"the {name} cloud has no point classified as {', '.join(map(str, keep))} "
+                         f"({len(xyz)} points classified)")
+    return cloud.select(mask) if hasattr(cloud, "select") else xyz[mask]

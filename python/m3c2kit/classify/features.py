@@ -1,4 +1,5 @@
-"""The CANUPO features of a cloud: the only module of m3c2kit.classify that calls the engine."""
+"""The CANUPO features of a cloud: the only module of m3c2kit.classify that calls the engine
+(m3c2kit.engine.dimensionality)."""
 from __future__ import annotations
 
 from dataclasses import dataclass

@@ -1,7 +1,23 @@
-"""All-or-nothing file output: write a temporary file beside the target, then rename it."""
+"""The one atomic writer of the package: every file any command writes (point tables, rasters, the
+report and its PNGs, analysis tables) goes through :func:`staged_outputs` (several files, all or
+nothing) or :func:`atomic_output` (one file).
+
+Each temporary lives inside a PRIVATE folder created beside its target (``mkdtemp``, mode 0700,
+named ``.m3c2-tmp-<pid>-XXXXXXXX``): nobody else can enter it, so no one can swap the temporary for
+a symbolic link while a writer that insists on a path writes it (issue 15), its short name
+(``part`` plus the target's extension, which writers dispatching on it need) fits beside any legal
+output name, and no ``*.laz`` glob in the target's folder matches it. When the body returns, each
+temporary is opened without following links, given its final mode with ``fchmod`` (the replaced
+file's, else the umask's default) and fsynced through that descriptor, renamed onto its target,
+and the target's folder fsynced. A failure removes every private folder and leaves each target as
+it was. Private folders that a killed run left behind are removed by the next run writing there
+(:func:`remove_stale`): their pid is no longer alive.
+"""
 from __future__ import annotations
 
 import os
+import re
+import shutil
 import tempfile
 from contextlib import contextmanager
 from pathlib import Path
@@ -9,28 +25,81 @@ from typing import Iterator
 
 from ..errors import CloudWriteError
 
-__all__ = ["atomic_output"]
+__all__ = ["atomic_output", "staged_outputs", "private_folder", "remove_stale", "PRIVATE_PREFIX"]
+
+PRIVATE_PREFIX = ".m3c2-tmp-"
+_PRIVATE = re.compile(re.escape(PRIVATE_PREFIX) + r"(\d+)-")
 
 
 def _describe(err: OSError) -> str:
     return err.strerror or str(err)
 
 
-def _new_file_mode(target: Path) -> int:
-    # mkstemp creates 0600 files; give the result the permissions a plain open() would have
-    # (or keep the mode of the file being replaced).
+def _alive(pid: int) -> bool:
     try:
-        return target.stat().st_mode & 0o7777
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:
+        return True  # someone else's live process
+    return True
+
+
+def remove_stale(directory: Path) -> None:
+    """Removes the private folders in `directory` whose run (pid in the name) is dead."""
+    try:
+        names = os.listdir(directory)
+    except OSError:
+        return
+    for name in names:
+        match = _PRIVATE.match(name)
+        if match and int(match.group(1)) != os.getpid() and not _alive(int(match.group(1))):
+            shutil.rmtree(Path(directory) / name, ignore_errors=True)
+
+
+def private_folder(directory: Path, target: Path | None = None) -> Path:
+    """A new folder only this process can enter (0700), beside `target`, in `directory`."""
+    label = target if target is not None else directory
+    remove_stale(directory)
+    try:
+        return Path(tempfile.mkdtemp(prefix=f"{PRIVATE_PREFIX}{os.getpid()}-", dir=directory))
+    except FileNotFoundError:
+        raise CloudWriteError(f"{label}: cannot write: directory {str(directory)!r} does not exist") from None
+    except NotADirectoryError:
+        raise CloudWriteError(f"{label}: cannot write: {str(directory)!r} is not a directory") from None
+    except OSError as e:
+        raise CloudWriteError(f"{label}: cannot write in {str(directory)!r}: {_describe(e)}") from None
+
+
+def _suffix(target: Path) -> str:
+    name = target.name.lower()
+    return "".join(target.suffixes[-2:]) if name.endswith(".copc.laz") else target.suffix
+
+
+def _final_mode(target: Path) -> int:
+    # The replaced file's permissions, else those a plain open() would give (mkdtemp's are 0700).
+    try:
+        return os.stat(target).st_mode & 0o7777
     except OSError:
         umask = os.umask(0)
         os.umask(umask)
         return 0o666 & ~umask
 
 
+def _seal(tmp: Path, target: Path) -> None:
+    """Final mode and fsync through one descriptor opened without following a link."""
+    fd = os.open(tmp, os.O_RDONLY | os.O_NOFOLLOW)
+    try:
+        os.fchmod(fd, _final_mode(target))
+        os.fsync(fd)
+    finally:
+        os.close(fd)
+
+
 def _fsync_dir(directory: Path) -> None:
     # Makes the rename itself durable; not every filesystem allows fsync on a directory.
     try:
-        fd = os.open(directory, os.O_RDONLY)
+        fd = os.open(directory, os.O_RDONLY | os.O_DIRECTORY)
     except OSError:
         return
     try:
@@ -42,42 +111,43 @@ def _fsync_dir(directory: Path) -> None:
 
 
 @contextmanager
-def atomic_output(path: str | os.PathLike) -> Iterator[Path]:
-    """Yields a temporary path in the target's directory; on normal exit the file written there
-    is fsync'ed and renamed onto `path` (``os.replace``), so readers see either the old file or
-    the complete new one.
-
-    If the body raises, the temporary file is removed, nothing appears at `path` (an existing
-    file there is left untouched) and the exception propagates; an OSError is re-raised as
-    :class:`CloudWriteError`. A missing or unwritable directory, or a directory at `path`,
-    raises :class:`CloudWriteError` naming `path` before the body runs.
-    """
-    target = Path(path)
-    if target.is_dir():
-        raise CloudWriteError(f"{path}: is a directory")
-    directory = target.parent
+def staged_outputs(targets) -> Iterator[dict[Path, Path]]:
+    """All-or-nothing output of several files: yields {target: temporary path}, each temporary in a
+    private folder beside its target and ending with the target's extension; when the body
+    returns, each is sealed and renamed onto its target. If the body raises, every private folder
+    is removed, no target is touched, and the exception propagates (an OSError as CloudWriteError
+    naming the target). Every target's folder is checked before the body runs."""
+    staged: dict[Path, Path] = {}
+    folders: list[Path] = []
     try:
-        fd, tmp_name = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".part", dir=directory)
-    except FileNotFoundError:
-        raise CloudWriteError(f"{path}: cannot write: directory {str(directory)!r} does not exist") from None
-    except NotADirectoryError:
-        raise CloudWriteError(f"{path}: cannot write: {str(directory)!r} is not a directory") from None
+        for target in dict.fromkeys(Path(t) for t in targets):
+            if target.is_dir():
+                raise CloudWriteError(f"{target}: is a directory")
+            folder = private_folder(target.parent, target)
+            folders.append(folder)
+            staged[target] = folder / f"part{_suffix(target)}"
+        yield staged
+        for target, tmp in staged.items():
+            if not tmp.exists():
+                raise CloudWriteError(f"{target}: was not written")
+            _seal(tmp, target)
+        for target, tmp in staged.items():
+            os.replace(tmp, target)
+            _fsync_dir(target.parent)
     except OSError as e:
-        raise CloudWriteError(f"{path}: cannot write in {str(directory)!r}: {_describe(e)}") from None
-    os.close(fd)
-    tmp = Path(tmp_name)
-    try:
-        yield tmp
-        with open(tmp, "rb+") as f:
-            os.fsync(f.fileno())
-        os.chmod(tmp, _new_file_mode(target))
-        os.replace(tmp, target)
-    except BaseException as e:
-        try:
-            tmp.unlink()
-        except OSError:
-            pass
-        if isinstance(e, OSError):
-            raise CloudWriteError(f"{path}: {_describe(e)}") from e
-        raise
-    _fsync_dir(directory)
+        if isinstance(e, CloudWriteError):
+            raise
+        target = next((t for t, tmp in staged.items() if e.filename in (str(tmp), tmp)), None)
+        target = target or (next(iter(staged)) if len(staged) == 1 else None)
+        raise CloudWriteError(f"{target or e.filename or 'output'}: {_describe(e)}") from e
+    finally:
+        for folder in folders:
+            shutil.rmtree(folder, ignore_errors=True)
+
+
+@contextmanager
+def atomic_output(path: str | os.PathLike) -> Iterator[Path]:
+    """One file through :func:`staged_outputs`: yields its temporary path."""
+    target = Path(path)
+    with staged_outputs([target]) as staged:
+        yield staged[target]

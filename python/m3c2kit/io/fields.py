@@ -58,6 +58,8 @@ FIELDS: tuple[Field, ...] = (
     Field("normal_scale", "normal scale", None, "measure", "the diameter D the normal was fitted at"),
     Field("roughness", None, None, "measure", "sigma(D), the spread of the normal neighbourhood about its plane"),
     Field("status", None, None, "uint8", "reason code: 0 ok, 1-5 why a value is NaN (README)"),
+    Field("spread1", None, None, "measure", "sqrt(n^T S_1 n), the reference mean's propagated spread along the normal (pm / ep, algorithm.md 6.5)"),
+    Field("spread2", None, None, "measure", "sqrt(n^T S_2 n), the compared mean's propagated spread along the normal (pm / ep)"),
     Field("x1", None, None, "coordinate", "projection on the reference, x (--projected)"),
     Field("y1", None, None, "coordinate", "projection on the reference, y"),
     Field("z1", None, None, "coordinate", "projection on the reference, z"),

@@ -225,7 +225,7 @@ def render_html(rep: Report) -> str:
 def write_report(result: Result, html_path=None, png_prefix=None, *, staged: dict | None = None, **kwargs) -> list:
     """Builds the report and writes the HTML to `html_path` and/or the PNGs to
     `<png_prefix>_<figure>.png`. `staged` maps each final path to the (temporary) path to write
-    (m3c2kit.raster.staged_outputs); without it, files are written in place. Returns the final paths."""
+    (m3c2kit.io.atomic.staged_outputs); without it, files are written in place. Returns the final paths."""
     rep = build_report(result, **kwargs)
     staged = staged or {}
     written = []

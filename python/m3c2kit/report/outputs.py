@@ -3,15 +3,33 @@
 failed run leaves none of them (and leaves any older files at those paths untouched)."""
 from __future__ import annotations
 
+from dataclasses import dataclass, field
 from pathlib import Path
 
 from .. import raster
+from ..io.atomic import staged_outputs
 from ..result import Result
 from ..writing import write
 
 
-def _inputs(args, reference, grid) -> dict:
-    out = {"reference": str(args.reference), "compared": str(args.compared), "output": str(args.output),
+@dataclass(frozen=True)
+class CompareOutputs:
+    """What a compare run writes: the point table, and as asked the report and its PNGs (the
+    rasters come with a grid). `inputs` are the run's input files, named in the report."""
+
+    table: Path
+    report: Path | None = None
+    report_png: Path | None = None
+    projected: bool = False
+    position: str = "core"
+    field_names: str = "m3c2"   # the columns' names: m3c2's or a peer's (writing.write)
+    float64: bool = False
+    core_spacing: float | None = None
+    inputs: dict = field(default_factory=dict)
+
+
+def _inputs(outputs: CompareOutputs, reference, grid) -> dict:
+    out = {**{k: str(v) for k, v in outputs.inputs.items()}, "output": str(outputs.table),
            "reference points": len(reference)}
     if grid is not None:
         out["grid cell (2D mode, vertical normals)"] = grid.cell
@@ -21,28 +39,25 @@ def _inputs(args, reference, grid) -> dict:
     return out
 
 
-def write_compare_outputs(args, result: Result, reference, *, grid=None, position: str = "core",
-                          field_names: str = "m3c2", float64: bool = False, core_spacing=None) -> list[Path]:
-    """Writes the point table to args.output and, as asked, the rasters (grid) and the report.
-    Returns the paths written besides args.output."""
-    html_path = getattr(args, "report", None)
-    png_prefix = getattr(args, "report_png", None)
-    projected = getattr(args, "projected", False)
+def write_compare_outputs(outputs: CompareOutputs, result: Result, reference, *, grid=None) -> list[Path]:
+    """Writes the point table and, as asked, the rasters (grid) and the report. Returns the paths
+    written besides the table."""
+    html_path, png_prefix, table = outputs.report, outputs.report_png, Path(outputs.table)
+    projected, position = outputs.projected, outputs.position
+    columns = {"field_names": outputs.field_names, "float64": outputs.float64}
     if grid is None and html_path is None and png_prefix is None:
-        write(args.output, result, like=reference, projected=projected, position=position,
-              field_names=field_names, float64=float64)
+        write(table, result, like=reference, projected=projected, position=position, **columns)
         return []
     from . import png_paths, write_report
 
-    rasters = raster.raster_paths(args.output) if grid is not None else {}
+    rasters = raster.raster_paths(table) if grid is not None else {}
     pngs = png_paths(png_prefix) if png_prefix is not None else {}
     extra = list(rasters.values()) + ([Path(html_path)] if html_path is not None else []) + list(pngs.values())
-    targets = [Path(args.output)] + extra
+    targets = [table] + extra
     if len(set(targets)) != len(targets):
         raise raster.UsageError("the output, raster, report and PNG paths must all differ")
-    with raster.staged_outputs(targets) as staged:
-        write(staged[Path(args.output)], result, like=reference, projected=projected, position=position,
-              field_names=field_names, float64=float64)
+    with staged_outputs(targets) as staged:
+        write(staged[table], result, like=reference, projected=projected, position=position, **columns)
         images = None
         if grid is not None:
             images = raster.rasters(result, grid)
@@ -51,6 +66,5 @@ def write_compare_outputs(args, result: Result, reference, *, grid=None, positio
         if html_path is not None or png_prefix is not None:
             write_report(result, html_path, png_prefix, staged=staged, grid=grid, images=images,
                          crs=getattr(reference, "crs", None), units=getattr(reference, "units_hint", None),
-                         core_spacing=core_spacing,
-                         inputs=_inputs(args, reference, grid))
+                         core_spacing=outputs.core_spacing, inputs=_inputs(outputs, reference, grid))
     return extra

@@ -212,7 +212,7 @@ PARAMETERS: tuple[Parameter, ...] = (
                    "every point in it"),
     Parameter("precision_scales", "--precision-scales", Positives(2), section="6.2", engine=PRECISION_SCALES,
               cli_type=str, cloudcompare_keys=("PM1Scale", "PM2Scale"), metavar="S1,S2", help="M3C2-PM: scale of each cloud's precisions"),
-    Parameter("ep_covariance", "--ep-covariance", Choice("independent", "mean-of-points"), section="6.2",
+    Parameter("ep_covariance", "--ep-covariance", Choice("independent", "mean-of-points", "empirical"), section="6.2",
               engine=enum("ep_covariance"), cli_type=str, help="M3C2-EP: the covariance of a centre of gravity"),
     Parameter("ep_lod", "--ep-lod", Choice("projected", "published"), section="6.2", engine=enum("ep_lod"),
               cli_type=str, help="M3C2-EP: the level of detection, projected on the normal or as published"),
@@ -244,6 +244,14 @@ PARAMETERS: tuple[Parameter, ...] = (
     Parameter("reduction_point", "--reduction-point", Text("X,Y,Z or a file"), section="6.2", default=None,
               cli_type=str, metavar="X,Y,Z", scope="run",
               help="M3C2-EP: the point the transformation rotates about (default 0,0,0)"),
+    # Vegetation removal before comparing (4.3; CANUPO: m3c2kit.classify, docs/classify.md)
+    Parameter("classifier", "--classifier", Text("a classifier file"), section="4.3", default=None, cli_type=str,
+              metavar="FILE", scope="run",
+              help="CANUPO classifier (m3c2 classify train, or qCANUPO's .prm): both clouds are classified and "
+                   "only the points of the --keep classes compared"),
+    Parameter("keep", "--keep", Text("class labels, comma separated"), section="4.3", default=None, cli_type=str,
+              metavar="CLASS[,CLASS]", scope="run",
+              help="with --classifier: the classes kept in both clouds (e.g. ground)"),
     # How the run is made (not what the engine computes)
     Parameter("core_spacing", "--core-spacing", Real(), section="3.1.1", default=None,
               cloudcompare_keys=("SubsampleRadius", "SubsampleEnabled"), scope="run",

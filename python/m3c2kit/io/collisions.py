@@ -1,0 +1,55 @@
+"""One rule checked before any work, for every command (issue 15): no output of a run may be, be a
+hard link to, or be reached through a symbolic link to any of its inputs, and an existing output
+that is read-only is refused rather than replaced (docs/errors.md, "Outputs")."""
+from __future__ import annotations
+
+import os
+import stat
+from typing import Mapping
+
+from ..errors import UsageError
+
+__all__ = ["check_outputs"]
+
+
+def _identity(path) -> tuple[int, int] | None:
+    """(device, inode) of the file `path` names, through any symbolic link; None if there is none."""
+    try:
+        info = os.stat(path)
+    except (OSError, ValueError):
+        return None
+    return info.st_dev, info.st_ino
+
+
+def check_outputs(outputs: Mapping[str, object], inputs: Mapping[str, object]) -> None:
+    """Raises a UsageError naming both when an output (label -> path) is the same file as an input
+    (same device and inode, so also a hard link or a symlink to it, or the same resolved path), or
+    when an existing output is read-only. None paths are skipped."""
+    known = {}
+    for label, path in inputs.items():
+        if path is None:
+            continue
+        key = _identity(path)
+        if key is not None:
+            known[key] = (label, path)
+        known[os.path.realpath(path)] = (label, path)
+    for label, path in outputs.items():
+        if path is None:
+            continue
+        for key in (_identity(path), os.path.realpath(path)):
+            if key is not None and key in known:
+                in_label, in_path = known[key]
+                raise UsageError(f"{label} {os.fspath(path)!r} is the {in_label} {os.fspath(in_path)!r} (the same "
+                                 f"file, a hard link or a link to it): writing it would destroy the input; choose "
+                                 f"another output path")
+        _refuse_read_only(label, path)
+
+
+def _refuse_read_only(label: str, path) -> None:
+    try:
+        info = os.stat(path)
+    except (OSError, ValueError):
+        return
+    if stat.S_ISREG(info.st_mode) and not info.st_mode & (stat.S_IWUSR | stat.S_IWGRP | stat.S_IWOTH):
+        raise UsageError(f"{label} {os.fspath(path)!r} exists and is read-only (mode {stat.filemode(info.st_mode)}); "
+                         f"remove it or make it writable first, or choose another output path")

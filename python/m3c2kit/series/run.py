@@ -1,0 +1,265 @@
+"""Computing a series into its store: ``m3c2 series REFERENCE EPOCH... -o STORE`` (create) and
+``m3c2 series add STORE EPOCH...`` (append). Core points and normals come from the reference once;
+then one epoch at a time is read, compared and committed, so memory is bounded by the reference
+and the largest epoch. With a Dask scheduler the epochs are tasks and their results are
+committed in epoch order: the same store, bit for bit."""
+from __future__ import annotations
+
+import datetime as dt
+import hashlib
+import json
+import os
+import uuid
+from pathlib import Path
+
+import numpy as np
+
+from .. import api
+from ..errors import M3C2Error, UsageError
+from ..io import read_cloud
+from ..result import Result
+from . import epochs as epochs_mod
+from . import store as st
+from .engine import Comparison
+
+
+def _version() -> str:
+    try:
+        from importlib.metadata import version
+        return version("m3c2kit")
+    except Exception:  # noqa: BLE001 - an uninstalled tree
+        return "unknown"
+
+
+def file_digest(path: Path) -> str:
+    h = hashlib.sha256()
+    with open(path, "rb") as f:
+        for block in iter(lambda: f.read(1 << 20), b""):
+            h.update(block)
+    return h.hexdigest()
+
+
+def epoch_columns(core: np.ndarray, raw: dict) -> dict:
+    """The store's per-epoch columns: those of m3c2 compare's table (Result.columns)."""
+    table = Result.from_engine(core, raw, {}).columns()
+    return {name: table[name] for name in st.EPOCH_COLUMNS}
+
+
+def _orient(settings: dict, reference) -> dict:
+    """As m3c2 compare: --orient, else the reference's scan positions, else +z."""
+    if "orient" not in settings:
+        positions = getattr(reference, "scan_positions", None)
+        settings = dict(settings, orient=positions.tolist() if positions is not None and len(positions) else "+z")
+    return settings
+
+
+def _engine_settings(settings: dict) -> dict:
+    """The keywords of api.build_params (orientation points given as a list become an array)."""
+    out = {k: v for k, v in settings.items() if k not in ("core_spacing",)}
+    if isinstance(out.get("orient"), list):
+        out["orient"] = np.asarray(out["orient"], dtype=np.float64).reshape(-1, 3)
+    return out
+
+
+def create(reference_path: Path, epoch_args, store: Path, settings: dict, *, core_path=None, core_normals=None,
+           threads=0, dask_scheduler=None, client=None, core_chunk=16384, epoch_chunk=8, drop_nonfinite=False,
+           ignore_crs=False, log=print) -> int:
+    """Creates STORE from the reference and adds the epochs; returns the epochs added."""
+    st.require_extra()
+    store = Path(store)
+    if (store / "zarr.json").exists():
+        try:
+            st.open_group(store)
+            raise UsageError(f"{store} already holds a series; add epochs with: m3c2 series add {store} EPOCH...")
+        except st.StoreError:
+            pass  # a store whose creation never committed: created again below
+    elif store.exists():
+        raise UsageError(f"{store} exists and is not a series store; choose another -o")
+    resolved = epochs_mod.resolve(epoch_args)  # bad epoch names fail before any work
+    reference = read_cloud(reference_path, drop_nonfinite=drop_nonfinite)
+    core_cloud = read_cloud(core_path, drop_nonfinite=drop_nonfinite) if core_path is not None else None
+    settings = _orient(settings, reference)
+    core = api.core_points_for(reference.xyz, core_cloud.xyz if core_cloud is not None else None,
+                               settings.get("core_spacing"))
+    if len(core) == 0:
+        raise UsageError("no core points: there is nothing to compute")
+    core = np.ascontiguousarray(core)
+    comparison = Comparison(reference.xyz, core, _engine_settings(settings), core_normals, threads)
+    ref_time = epochs_mod.metadata_epoch(Path(reference_path))
+    attrs = {
+        "format": st.FORMAT, "format_version": st.FORMAT_VERSION, "Conventions": "CF-1.8",
+        "title": "M3C2 time series (m3c2kit)",
+        "parameters": st.canonical(settings),
+        "reference": str(Path(reference_path).resolve()),
+        "reference_sha256": file_digest(Path(reference_path)),
+        "reference_time": "" if ref_time.time is None else str(ref_time.time),
+        "core_points": "file " + str(Path(core_path).resolve()) if core_path is not None else (
+            f"reference subsampled to {settings['core_spacing']}" if settings.get("core_spacing") else "reference"),
+        "history": f"{dt.datetime.now(dt.timezone.utc).isoformat(timespec='seconds')} m3c2kit {_version()}: "
+                   f"m3c2 series",
+    }
+    st.create(store, core, comparison.normals(), attrs, core_chunk=core_chunk, epoch_chunk=epoch_chunk,
+              core_normals_input=core_normals)
+    return _add_epochs(store, resolved, comparison, core, reference, threads=threads, dask_scheduler=dask_scheduler,
+                       client=client, settings=settings, drop_nonfinite=drop_nonfinite, ignore_crs=ignore_crs,
+                       log=log, sort=True)
+
+
+def stored_settings(store: Path) -> dict:
+    return json.loads(st.attributes(store)["parameters"])
+
+
+def check_settings(store: Path, stored: dict, given: dict) -> None:
+    """A store holds one parameter set: an option given to `add` must equal the stored one."""
+    for name, value in given.items():
+        if name == "threads":
+            continue
+        if st.canonical(stored.get(name)) != st.canonical(value):
+            raise UsageError(f"{store} was computed with {name} = {stored.get(name)!r}, not {value!r}: a store holds "
+                             f"epochs of one parameter set; create a new store for other parameters")
+
+
+def add(store: Path, epoch_args, *, given_settings=None, threads=0, dask_scheduler=None, client=None,
+        drop_nonfinite=False, ignore_crs=False, log=print) -> int:
+    """Appends the epochs not yet in STORE (a killed run resumes here); returns the epochs added."""
+    xr, zarr = st.require_extra()
+    store = Path(store)
+    attrs = st.attributes(store)
+    if attrs.get("imported_from"):
+        raise UsageError(f"{store} was imported ({attrs['imported_from']}): its M3C2 parameters are unknown, so no "
+                         f"epoch can be added that matches them; compute a new store with m3c2 series")
+    settings = json.loads(attrs["parameters"])
+    check_settings(store, settings, given_settings or {})
+    reference_path = Path(attrs["reference"])
+    if not reference_path.is_file():
+        raise M3C2Error(f"{store}: its reference {reference_path} is gone; a series needs its reference")
+    if file_digest(reference_path) != attrs["reference_sha256"]:
+        raise M3C2Error(f"{store}: its reference {reference_path} changed since the store was created "
+                        f"(SHA-256 differs); create a new store")
+    resolved = epochs_mod.resolve(epoch_args)
+    group = st.open_group(store)
+    core = np.column_stack([np.asarray(group[a][:]) for a in "xyz"])
+    normals_input = np.asarray(group["core_normals_input"][:]) if "core_normals_input" in group else None
+    reference = read_cloud(reference_path, drop_nonfinite=drop_nonfinite)
+    comparison = Comparison(reference.xyz, np.ascontiguousarray(core), _engine_settings(settings), normals_input,
+                            threads)
+    return _add_epochs(store, resolved, comparison, core, reference, threads=threads, dask_scheduler=dask_scheduler,
+                       client=client, settings=settings, drop_nonfinite=drop_nonfinite, ignore_crs=ignore_crs,
+                       log=log, sort=False)
+
+
+def _identity(path: Path) -> tuple[str, int, int]:
+    s = os.stat(path)
+    return str(Path(path).resolve()), int(s.st_size), int(s.st_mtime_ns)
+
+
+def _todo(store: Path, resolved, sort: bool, log):
+    info = st.epoch_info(store)
+    done = {(s, int(z), int(m)) for s, z, m in zip(info["source"], info["source_size"], info["source_mtime_ns"])}
+    if sort and all(e.time is not None for e in resolved):
+        resolved = sorted(resolved, key=lambda e: e.time)  # stable: equal times keep their order
+    todo, seen = [], set()
+    for e in resolved:
+        ident = _identity(e.path)
+        if ident in done or ident in seen:
+            continue
+        seen.add(ident)
+        todo.append(e)
+    skipped = len(resolved) - len(todo)
+    if skipped:
+        log(f"{skipped} epoch(s) already in {store}: skipped")
+    known = info["time"][~np.isnat(info["time"])] if len(info["time"]) else np.array([], "datetime64[us]")
+    last = known.max() if len(known) else None
+    for e in todo:
+        if e.time is not None:
+            if last is not None and e.time < last:
+                raise UsageError(f"the epoch {e.path} ({e.time}) is older than the store's last epoch ({last}): "
+                                 f"epochs are added in time order")
+            last = e.time
+    return todo, len(info["time"])
+
+
+def _info(epoch, points: int) -> dict:
+    path, size, mtime = _identity(epoch.path)
+    return {"time": epoch.time, "source": path, "source_size": size, "source_mtime_ns": mtime,
+            "time_source": epoch.time_source, "points": points}
+
+
+def _add_epochs(store, resolved, comparison, core, reference, *, threads, dask_scheduler, client, settings,
+                drop_nonfinite, ignore_crs, log, sort) -> int:
+    todo, index = _todo(store, resolved, sort, log)
+    if dask_scheduler is not None or client is not None:
+        return _add_dask(store, todo, index, core, settings, threads, dask_scheduler, client, drop_nonfinite,
+                         ignore_crs, log)
+    from ..cli import check_same_crs
+    for k, epoch in enumerate(todo):
+        cloud = read_cloud(epoch.path, drop_nonfinite=drop_nonfinite)
+        check_same_crs(reference, cloud, ignore=ignore_crs)
+        raw = comparison.compare(cloud.xyz, cloud, threads)
+        st.append(store, index + k, epoch_columns(core, raw), _info(epoch, len(cloud)))
+        log(f"epoch {index + k}: {epoch.path} committed")
+        del cloud, raw
+    return len(todo)
+
+
+# Dask: a worker prepares the reference once per store and parameter set, then compares epochs.
+_WORKER_CACHE: dict = {}
+
+
+def dask_epoch(store: str, reference: str, settings: dict, normals_input, epoch: str, threads: int,
+               drop_nonfinite: bool, ignore_crs: bool) -> dict:
+    key = (store, reference, st.canonical(settings))
+    if key not in _WORKER_CACHE:
+        _WORKER_CACHE.clear()
+        ref = read_cloud(reference, drop_nonfinite=drop_nonfinite)
+        group = st.open_group(Path(store))
+        core = np.ascontiguousarray(np.column_stack([np.asarray(group[a][:]) for a in "xyz"]))
+        _WORKER_CACHE[key] = (ref, core, Comparison(ref.xyz, core, _engine_settings(settings), normals_input, threads))
+    ref, core, comparison = _WORKER_CACHE[key]
+    from ..cli import check_same_crs
+    cloud = read_cloud(epoch, drop_nonfinite=drop_nonfinite)
+    check_same_crs(ref, cloud, ignore=ignore_crs)
+    out = epoch_columns(core, comparison.compare(cloud.xyz, cloud, threads))
+    out["points"] = len(cloud)
+    return out
+
+
+def _add_dask(store, todo, index, core, settings, threads, address, client, drop_nonfinite, ignore_crs, log) -> int:
+    from distributed import Client
+    own = client is None
+    if own:
+        try:
+            client = Client(address)
+        except Exception as e:  # noqa: BLE001 - any connection failure is the user's address
+            raise M3C2Error(f"--dask-scheduler {address}: cannot connect: {e}") from None
+    try:
+        group = st.open_group(store)
+        normals_input = np.asarray(group["core_normals_input"][:]) if "core_normals_input" in group else None
+        reference = st.attributes(store)["reference"]
+        run_id = uuid.uuid4().hex[:8]
+        window = max(2, 2 * len(client.scheduler_info().get("workers", {})))
+        futures = []
+        submitted = 0
+
+        def submit():
+            nonlocal submitted
+            e = todo[submitted]
+            futures.append(client.submit(dask_epoch, str(Path(store).resolve()), reference, settings, normals_input,
+                                         str(e.path), threads, drop_nonfinite, ignore_crs, pure=False,
+                                         key=f"m3c2-series-{run_id}-{submitted}"))
+            submitted += 1
+
+        while submitted < min(window, len(todo)):
+            submit()
+        for k, epoch in enumerate(todo):  # committed in epoch order, whatever order they finish in
+            out = futures[k].result()
+            futures[k].release()
+            futures[k] = None
+            if submitted < len(todo):
+                submit()
+            st.append(store, index + k, out, _info(epoch, out["points"]))
+            log(f"epoch {index + k}: {epoch.path} committed")
+        return len(todo)
+    finally:
+        if own:
+            client.close()

@@ -1,0 +1,291 @@
+// 4D objects-by-change (Anders et al. 2021): seeds from change points (2.3.1), sorted by their
+// similarity to their neighbourhood, grown by region growing on the normalised DTW with the
+// adaptive threshold (2.3.2), filtered (2.3.3). The rules follow py4dgeo's RegionGrowingAlgorithm,
+// the reference implementation; where this differs it says so (docs/series.md).
+
+#include <m3c2/errors.hpp>
+#include <m3c2/objects_by_change.hpp>
+
+#include "kdtree.hpp"
+#include "parallel_for.hpp"
+#include "threads.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <map>
+#include <optional>
+#include <set>
+#include <string>
+#include <unordered_map>
+#include <unordered_set>
+
+namespace m3c2 {
+namespace {
+
+void validate(const ObjectsParams& p, std::size_t epochs) {
+  if (p.min_period < 1) throw InvalidArgument("--min-period must be >= 1 epoch");
+  if (p.seed_subsampling < 1) throw InvalidArgument("--seed-subsampling must be >= 1");
+  if (!(p.neighbourhood_radius > 0.0) || !std::isfinite(p.neighbourhood_radius))
+    throw InvalidArgument("--neighbourhood-radius must be > 0");
+  if (p.thresholds.empty()) throw InvalidArgument("--thresholds needs at least one value");
+  for (const double t : p.thresholds)
+    if (!(t > 0.0) || t > 1.0) throw InvalidArgument("--thresholds must lie in (0, 1], got " + std::to_string(t));
+  if (p.change_points.width >= epochs)
+    throw InvalidArgument("the change-point window (" + std::to_string(p.change_points.width) +
+                          " epochs) must be shorter than the series (" + std::to_string(epochs) + " epochs)");
+}
+
+/// np.interp of the NaN epochs from the finite ones (constant beyond the first and last).
+void interpolate_gaps(std::vector<double>& ts) {
+  std::vector<std::size_t> good;
+  for (std::size_t k = 0; k < ts.size(); ++k)
+    if (!std::isnan(ts[k])) good.push_back(k);
+  if (good.size() == ts.size() || good.empty()) return;
+  std::size_t g = 0;
+  for (std::size_t k = 0; k < ts.size(); ++k) {
+    if (!std::isnan(ts[k])) continue;
+    while (g + 1 < good.size() && good[g + 1] < k) ++g;
+    if (k < good.front()) ts[k] = ts[good.front()];
+    else if (k > good.back()) ts[k] = ts[good.back()];
+    else {
+      const std::size_t l = good[g], r = good[g + 1];
+      ts[k] = ts[l] + (ts[r] - ts[l]) * (double(k - l) / double(r - l));
+    }
+  }
+}
+
+/// The seeds of one series (py4dgeo's find_seedpoints): from each change point, the volume
+/// sum (x - x_start) of the change (the series flipped when it falls) grows until it decreases.
+void seeds_of(std::uint32_t core, std::vector<double> ts, const ObjectsParams& p, std::vector<Seed>& out) {
+  const std::size_t n = ts.size();
+  std::size_t nans = 0;
+  for (const double v : ts) nans += std::isnan(v);
+  if (nans + 3 > n) return;  // fewer than 3 finite epochs
+  interpolate_gaps(ts);
+  const std::vector<std::uint32_t> starts = change_points(ts.data(), n, p.change_points);
+  const double lowest = *std::min_element(ts.begin(), ts.end());
+  for (double& v : ts) v += std::abs(lowest + 0.1);
+  const double highest = *std::max_element(ts.begin(), ts.end());
+  std::vector<double> flipped(n);
+  for (std::size_t k = 0; k < n; ++k) flipped[k] = -ts[k] + std::abs(highest) + 0.1;
+  const std::size_t first = out.size();
+  for (const std::uint32_t start : starts) {
+    if (out.size() > first && start <= out.back().end) continue;
+    if (start + p.min_period >= n) break;
+    const std::vector<double>& used = ts[start] >= ts[start + p.min_period] ? flipped : ts;
+    double previous = -999.9, volume = 0.0, hi = used[start], lo = used[start];
+    const double height = used[start];
+    for (std::size_t target = start + 1; target < n; ++target) {
+      volume += used[target] - height;  // (used[start] - height) is 0
+      hi = std::max(hi, used[target]), lo = std::min(lo, used[target]);
+      if (previous > volume) {
+        if (target - start >= p.min_period && std::abs(hi - lo) >= p.height_threshold)
+          out.push_back({core, start, static_cast<std::uint32_t>(target), 0.0});
+        break;
+      }
+      previous = volume;
+      if (target == n - 1 && p.use_unfinished) out.push_back({core, start, static_cast<std::uint32_t>(n - 1), 0.0});
+    }
+  }
+}
+
+/// The series of 4D-OBC's DTW for one seed: the epochs compared and each series' origin.
+struct Span {
+  std::size_t begin, length;
+  bool whole;
+  double norm(const double* row) const { return whole ? row[0] : row[begin]; }
+  double dmax_origin(const double* row) const { return whole ? 0.0 : row[begin]; }
+};
+
+Span span_of(const Seed& s, std::size_t epochs, const ObjectsParams& p) {
+  if (p.whole_series) return {0, epochs, true};
+  return {s.start, std::size_t(s.end) - s.start + 1, false};
+}
+
+struct Grown {
+  std::map<std::uint32_t, double> members;  // core -> DTW to the seed
+  double threshold = 0.0;
+};
+
+/// Region growing at one threshold (py4dgeo's fixed_threshold_region_growing): candidates in
+/// ascending DTW; a neighbour under the threshold joins, and grows the object further only if
+/// its DTW is under the 95th percentile of the distinct DTW values so far (once the object has
+/// min_segments members). `dtw(core)` is the memoised DTW to the seed.
+template <class Dtw>
+Grown grow(const Seed& seed, double threshold, const detail::KdTree& tree, const ObjectsParams& p, Dtw&& dtw,
+           std::vector<std::uint32_t>& neighbours) {
+  Grown g;
+  g.threshold = threshold;
+  std::unordered_set<std::uint32_t> rejected;
+  std::multimap<double, std::uint32_t> candidates{{0.0, seed.core}};
+  std::set<double, std::greater<double>> used{0.0};
+  g.members[seed.core] = 0.0;
+  double residual = threshold;
+  const PointsView core = tree.points();
+  while (!candidates.empty()) {
+    const std::uint32_t candidate = candidates.begin()->second;
+    candidates.erase(candidates.begin());
+    neighbours.clear();
+    tree.ball(core[candidate], p.neighbourhood_radius, neighbours);
+    std::sort(neighbours.begin(), neighbours.end());
+    for (const std::uint32_t nb : neighbours) {
+      if (rejected.count(nb) || g.members.count(nb)) continue;
+      const double d = dtw(nb);
+      if (d < threshold) {
+        g.members[nb] = d;
+        used.insert(d);
+      } else {
+        rejected.insert(nb);
+      }
+      if (d < residual) candidates.insert({d, nb});
+      if (g.members.size() >= p.min_segments) {
+        auto it = used.begin();
+        std::advance(it, static_cast<std::ptrdiff_t>(0.05 * double(used.size())));
+        residual = *it;
+      }
+    }
+  }
+  return g;
+}
+
+}  // namespace
+
+std::vector<Seed> find_seeds(const double* distances, std::size_t rows, std::size_t epochs, const ObjectsParams& p,
+                             const RunOptions& run) {
+  validate(p, epochs);
+  const std::size_t candidates = (rows + p.seed_subsampling - 1) / p.seed_subsampling;
+  std::vector<std::vector<Seed>> per_core(candidates);
+  detail::parallel_blocks<int>(candidates, run, [&](std::size_t begin, std::size_t end, int&) {
+    for (std::size_t k = begin; k < end; ++k) {
+      const std::size_t r = k * p.seed_subsampling;
+      const double* row = distances + r * epochs;
+      seeds_of(static_cast<std::uint32_t>(r), std::vector<double>(row, row + epochs), p, per_core[k]);
+    }
+  });
+  std::vector<Seed> out;
+  for (auto& s : per_core) out.insert(out.end(), s.begin(), s.end());
+  return out;
+}
+
+ObjectsResult objects_by_change(const double* distances, std::size_t rows, std::size_t epochs, PointsView core,
+                                const ObjectsParams& p, const RunOptions& run) {
+  if (core.size() != rows)
+    throw InvalidArgument("the distances have " + std::to_string(rows) + " core points, the coordinates " +
+                          std::to_string(core.size()));
+  ObjectsResult result;
+  result.seeds = find_seeds(distances, rows, epochs, p, run);
+  const detail::KdTree tree(core);
+  const auto row = [&](std::size_t r) { return distances + r * epochs; };
+
+  // Seed score: the mean normalised DTW to its neighbours over the seed's epochs (py4dgeo's
+  // neighborhood_similarity; raw series in py4dgeo's mode, series from the start otherwise).
+  auto& seeds = result.seeds;
+  detail::parallel_blocks<std::vector<std::uint32_t>>(
+      seeds.size(), run, [&](std::size_t begin, std::size_t end, std::vector<std::uint32_t>& nbs) {
+        for (std::size_t k = begin; k < end; ++k) {
+          Seed& s = seeds[k];
+          nbs.clear();
+          tree.ball(core[s.core], p.neighbourhood_radius, nbs);
+          if (nbs.size() < 2) {
+            s.score = 9999999.0;
+            continue;
+          }
+          std::sort(nbs.begin(), nbs.end());
+          const std::size_t len = std::size_t(s.end) - s.start + 1;
+          const double* a = row(s.core) + s.start;
+          const double origin = p.whole_series ? 0.0 : a[0];
+          double sum = 0.0;
+          for (const std::uint32_t nb : nbs) {
+            const double* b = row(nb) + s.start;
+            sum += normalised_dtw(a, b, len, origin, p.whole_series ? 0.0 : b[0], origin);
+          }
+          s.score = sum / double(nbs.size() - 1);
+        }
+      });
+  std::stable_sort(seeds.begin(), seeds.end(), [](const Seed& a, const Seed& b) { return a.score < b.score; });
+
+  std::vector<double> thresholds = p.thresholds;
+  std::sort(thresholds.begin(), thresholds.end());
+  const std::uint64_t max_segments = p.max_segments > 0 ? p.max_segments : rows + 1;
+  // A seed's growth depends on the seed alone; only whether it is skipped depends on the objects
+  // before it. So the seeds are grown in parallel, a batch at a time, and then taken in order:
+  // a seed inside an object accepted before it (in this batch too) is dropped, as in a serial run.
+  const auto inside = [&](const Seed& seed) {
+    for (const ChangeObject& o : result.objects)
+      if (o.seed.end > seed.start && seed.end > o.seed.start &&
+          std::binary_search(o.cores.begin(), o.cores.end(), seed.core))
+        return true;
+    return false;
+  };
+  const auto grow_seed = [&](const Seed& seed, std::vector<std::uint32_t>& neighbours) -> std::optional<ChangeObject> {
+    const Span span = span_of(seed, epochs, p);
+    const double* a = row(seed.core) + span.begin;
+    const double norm_a = span.norm(row(seed.core)), origin = span.dmax_origin(row(seed.core));
+    std::unordered_map<std::uint32_t, double> memo;
+    const auto dtw = [&](std::uint32_t nb) {
+      const auto it = memo.find(nb);
+      if (it != memo.end()) return it->second;
+      // Values >= the largest threshold only ever fail the comparisons: stop early there.
+      const double d =
+          normalised_dtw(a, row(nb) + span.begin, span.length, norm_a, span.norm(row(nb)), origin, thresholds.back());
+      memo.emplace(nb, d);
+      return d;
+    };
+    // Adaptive threshold: the first threshold whose object is at most half the next one's
+    // (by a ratio no larger than the previous one), or the first reaching max_segments.
+    std::vector<Grown> grown;
+    for (const double t : thresholds) grown.push_back(grow(seed, t, tree, p, dtw, neighbours));
+    const Grown* chosen = &grown.back();
+    double last_ratio = 0.5;
+    for (std::size_t i = 0; i + 1 < grown.size(); ++i) {
+      if (grown[i].members.size() >= max_segments) {
+        chosen = &grown[i];
+        break;
+      }
+      const double ratio = double(grown[i].members.size()) / double(grown[i + 1].members.size());
+      if (ratio <= last_ratio) {
+        chosen = &grown[i];
+        break;
+      }
+      last_ratio = ratio;
+    }
+    // Filters (2.3.3): the object's size, and the coefficient of variation of its DTW values.
+    if (chosen->members.size() < p.min_segments) return std::nullopt;
+    double mean = 0.0;
+    for (const auto& [c, d] : chosen->members) mean += d;
+    mean /= double(chosen->members.size());
+    double var = 0.0;
+    for (const auto& [c, d] : chosen->members) var += (d - mean) * (d - mean);
+    const double sd = std::sqrt(var / double(chosen->members.size()));
+    if (!(sd / (mean == 0.0 ? 1e-10 : mean) <= p.max_cv)) return std::nullopt;
+    ChangeObject o;
+    o.seed = seed;
+    o.threshold = chosen->threshold;
+    for (const auto& [c, d] : chosen->members) o.cores.push_back(c), o.dtw.push_back(d);
+    return o;
+  };
+  const std::size_t batch = std::size_t(4) * std::max(1, run.threads > 0 ? run.threads : detail::max_threads());
+  for (std::size_t first = 0; first < seeds.size(); first += batch) {
+    if (run.progress && !run.progress(first, seeds.size())) throw Cancelled();
+    const std::size_t last = std::min(seeds.size(), first + batch);
+    std::vector<std::optional<ChangeObject>> grown(last - first);
+    std::vector<char> skipped(last - first);
+    for (std::size_t k = first; k < last; ++k) skipped[k - first] = inside(seeds[k]);
+    RunOptions quiet = run;
+    quiet.progress = nullptr;
+    detail::parallel_blocks<std::vector<std::uint32_t>>(
+        last - first, quiet,
+        [&](std::size_t begin, std::size_t end, std::vector<std::uint32_t>& nbs) {
+          for (std::size_t k = begin; k < end; ++k)
+            if (!skipped[k]) grown[k] = grow_seed(seeds[first + k], nbs);
+        },
+        1);
+    for (std::size_t k = first; k < last; ++k)
+      if (!skipped[k - first] && grown[k - first] && !inside(seeds[k]))
+        result.objects.push_back(std::move(*grown[k - first]));
+  }
+  return result;
+}
+
+}  // namespace m3c2

@@ -1,0 +1,73 @@
+"""Issue 15, point 1: no output of a run may be, hard-link to or be reached through a symlink to
+any of its inputs; a read-only existing output is refused, not replaced. Checked before any work:
+the exit status is 2 and every input is left byte-identical."""
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from m3c2kit.cli import main
+from m3c2kit.io import Cloud, write_cloud_table
+from synthetic import noisy_plane_pair
+
+PARAMS = ["--normal-scale", "0.3", "--projection-scale", "0.2", "--max-depth", "0.5"]
+
+
+@pytest.fixture
+def pair(tmp_path):
+    ref, cmp = noisy_plane_pair(n=20)
+    like = Cloud(ref[:1], scale=(0.001,) * 3, offset=(0.0,) * 3)
+    write_cloud_table(tmp_path / "ref.las", ref, {}, like=like)
+    write_cloud_table(tmp_path / "cmp.las", cmp, {}, like=like)
+    return tmp_path
+
+
+def _refused(capsys, *argv, protected) -> str:
+    before = {p: Path(p).read_bytes() for p in protected}
+    code = main([str(a) for a in argv])
+    err = capsys.readouterr().err
+    assert code == 2, err
+    for p, data in before.items():
+        assert Path(p).read_bytes() == data, f"{p} was changed"
+    return err
+
+
+@pytest.mark.parametrize("how", ["same", "hardlink", "symlink"])
+def test_output_equal_to_the_reference_is_refused(pair, capsys, how):
+    ref = pair / "ref.las"
+    out = ref
+    if how == "hardlink":
+        out = pair / "link.las"
+        os.link(ref, out)
+    elif how == "symlink":
+        out = pair / "sym.las"
+        out.symlink_to(ref)
+    err = _refused(capsys, "compare", ref, pair / "cmp.las", "-o", out, *PARAMS, protected=[ref])
+    assert f"-o '{out}' is the reference cloud '{ref}'" in err
+
+
+def test_report_over_the_compared_cloud_is_refused(pair, capsys):
+    err = _refused(capsys, "compare", pair / "ref.las", pair / "cmp.las", "-o", pair / "out.las", "--report",
+                   pair / "cmp.las", *PARAMS, protected=[pair / "cmp.las"])
+    assert "--report" in err and "compared cloud" in err
+    assert not (pair / "out.las").exists()
+
+
+def test_subsample_and_normals_in_place_are_refused(pair, capsys):
+    ref = pair / "ref.las"
+    _refused(capsys, "subsample", ref, "-o", ref, "--spacing", "5", protected=[ref])
+    _refused(capsys, "normals", ref, "-o", ref, "--normal-scale", "0.3", protected=[ref])
+
+
+def test_a_read_only_output_is_refused_not_replaced(pair, capsys):
+    out = pair / "out.las"
+    out.write_bytes(b"older result")
+    out.chmod(0o444)
+    err = _refused(capsys, "compare", pair / "ref.las", pair / "cmp.las", "-o", out, *PARAMS, protected=[out])
+    assert "read-only" in err
+    out.chmod(0o644)
+    assert main([str(a) for a in ("compare", pair / "ref.las", pair / "cmp.las", "-o", out, *PARAMS, "-q")]) == 0
+    assert out.read_bytes() != b"older result" and np.isfinite(out.stat().st_size)
