@@ -12,6 +12,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import UsageError
+from ..optional import require
 
 #: GPS time 0 (1980-01-06 UTC); LAS "adjusted standard GPS time" is GPS seconds - 1e9.
 GPS_EPOCH = dt.datetime(1980, 1, 6)
@@ -116,7 +117,7 @@ def _las_time(path: Path):
 
 
 def _e57_time(path: Path):
-    import pye57
+    pye57 = require("pye57", extra="e57", purpose="reading .e57 files")
     e57 = pye57.E57(str(path))
     try:
         scan = e57.root["data3D"][0]

@@ -9,7 +9,11 @@ import html
 from pathlib import Path
 
 import numpy as np
-from matplotlib.figure import Figure
+
+from ..optional import require
+
+require("matplotlib", extra="report", purpose="the series report's figures")
+from matplotlib.figure import Figure  # noqa: E402
 
 from ..report.figures import png
 from . import store as st

@@ -17,6 +17,7 @@ import numpy as np
 from .. import api
 from ..errors import M3C2Error, UsageError
 from ..io import read_cloud
+from ..optional import require
 from ..result import Result
 from . import epochs as epochs_mod
 from . import store as st
@@ -225,7 +226,7 @@ def dask_epoch(store: str, reference: str, settings: dict, normals_input, epoch:
 
 
 def _add_dask(store, todo, index, core, settings, threads, address, client, drop_nonfinite, ignore_crs, log) -> int:
-    from distributed import Client
+    Client = require("distributed", extra="dask", purpose="running on a Dask cluster (--dask-scheduler)").Client
     own = client is None
     if own:
         try:
