@@ -14,6 +14,7 @@ import numpy as np
 from . import api, raster
 from .analysis.cli import analysis_parsers
 from .classify.cli import classify_parsers
+from .cli_parser import ArgumentParser
 from .errors import M3C2Error, M3C2Warning, UsageError, printable
 from .io import read_cloud, write_cloud_table
 from .io import crs as crs_mod
@@ -30,12 +31,6 @@ from .summary import summary_lines
 
 class Interrupted(M3C2Error):
     """SIGINT or SIGTERM during a run."""
-
-
-class ArgumentParser(argparse.ArgumentParser):
-    def error(self, message):  # argparse's own usage errors: exit 2 with one clear line
-        self.print_usage(sys.stderr)
-        raise UsageError(message)
 
 
 def _compare_parser(sub) -> None:
@@ -291,7 +286,7 @@ def run_compare(args) -> int:
     if args.verbose:
         for name, value in sorted(result.params.items()):
             print(f"parameter {name}: {value}")
-    _print_notes((reference, compared, core_cloud), args.quiet)  # the warnings: m3c2kit.diagnostics, through main()
+    _print_notes((reference, compared, core_cloud))  # the warnings: m3c2kit.diagnostics, through main()
     return 0
 
 
@@ -317,12 +312,12 @@ def assign_crs(spec: str, *clouds) -> None:
                               f"{crs_mod.crs_label(wkt)}; --crs only assigns a CRS to inputs that have none")
 
 
-def _print_notes(clouds, quiet: bool) -> None:
-    """What reading changed in the inputs (docs/errors.md): with the summary, or on stderr with -q."""
+def _print_notes(clouds) -> None:
+    """What reading changed in the inputs (docs/errors.md), on stderr beside the warnings."""
     for c in clouds:
         if getattr(c, "dropped_nonfinite", 0):
-            note = f"note: dropped {c.dropped_nonfinite} points with non-finite coordinates from {c.path}"
-            print(f"m3c2: {note}", file=sys.stderr) if quiet else print(note)
+            print(f"m3c2: note: dropped {c.dropped_nonfinite} points with non-finite coordinates from "
+                  f"{printable(str(c.path))}", file=sys.stderr)
 
 
 def _show_warning(message, category, filename, lineno, file=None, line=None) -> None:
@@ -335,10 +330,9 @@ def _core_normals(args, core_cloud) -> np.ndarray:
         return _read(args.core_normals, args).xyz
     if core_cloud is None:
         raise UsageError("--normal-source core needs --core with normal fields (nx, ny, nz) or --core-normals FILE")
-    fields = {k.lower(): v for k, v in core_cloud.fields.items()}
-    for names in (("nx", "ny", "nz"), ("normalx", "normaly", "normalz"), ("normal_x", "normal_y", "normal_z")):
-        if all(n in fields for n in names):
-            return np.column_stack([fields[n] for n in names]).astype(float)
+    normals = core_cloud.normals()
+    if normals is not None:
+        return normals
     raise UsageError(f"{args.core}: no normal fields (nx, ny, nz) for --normal-source core; use --core-normals FILE")
 
 

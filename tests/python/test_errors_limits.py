@@ -91,14 +91,16 @@ def test_bootstrap_above_the_maximum_is_refused_before_the_run():
 
 _HOOK = textwrap.dedent("""
     import sys
-    import m3c2kit.progress as progress
-    original = progress.ProgressBar.update
-    def update(self, done, total):
-        if not getattr(update, "seen", False):
-            update.seen = True
-            print("ENGINE-RUNNING", file=sys.stderr, flush=True)
-        return original(self, done, total)
-    progress.ProgressBar.update = update
+    import m3c2kit.engine as engine
+    original = engine.compute
+    def compute(*args, progress=None, **kwargs):
+        def first_poll(done, total):
+            if not getattr(first_poll, "seen", False):
+                first_poll.seen = True
+                print("ENGINE-RUNNING", file=sys.stderr, flush=True)
+            return True if progress is None else progress(done, total)
+        return original(*args, progress=first_poll, **kwargs)
+    engine.compute = compute
     from m3c2kit.cli import main
     sys.exit(main(sys.argv[1:]))
 """)

@@ -14,11 +14,11 @@ ORDER = ("errors", "io", "engine", "settings", "run", "report", "cli")
 LAYERS = {
     "errors": "errors", "optional": "errors", "io": "io",
     "_core": "engine", "engine": "engine", "result": "engine",
-    "settings": "settings",
+    "settings": "settings", "limits": "settings",
     "api": "run", "tiling": "run", "raster": "run", "diagnostics": "run", "uncertainty_inputs": "run",
     "analysis": "run", "compat": "run", "classify": "run", "lod_rates": "run", "lod_table": "run", "quality": "run", "phases": "run",
     "report": "report", "summary": "report", "writing": "report",
-    "cli": "cli", "analysis.cli": "cli", "classify.cli": "cli", "progress": "cli", "__main__": "cli",
+    "cli": "cli", "cli_parser": "cli", "analysis.cli": "cli", "classify.cli": "cli", "series": "run", "series.cli": "cli", "progress": "cli", "__main__": "cli",
 }
 
 

@@ -65,6 +65,17 @@ class Cloud:
     def __len__(self) -> int:
         return len(self.xyz)
 
+    #: Spellings of per-point normal fields (ours, CloudCompare's, PDAL's), first match wins.
+    NORMAL_FIELDS = (("nx", "ny", "nz"), ("normalx", "normaly", "normalz"), ("normal_x", "normal_y", "normal_z"))
+
+    def normals(self) -> np.ndarray | None:
+        """(N, 3) float64 normals from the cloud's normal fields, or None when it has none."""
+        fields = {k.lower(): v for k, v in self.fields.items()}
+        for names in self.NORMAL_FIELDS:
+            if all(n in fields for n in names):
+                return np.column_stack([fields[n] for n in names]).astype(float)
+        return None
+
     def select(self, mask: np.ndarray) -> "Cloud":
         """A copy holding only the points where `mask` (bool, length N) is True."""
         kept = {name: np.asarray(v)[mask] for name, v in self.fields.items()}

@@ -7,7 +7,7 @@ import os
 import stat
 from typing import Mapping
 
-from ..errors import UsageError
+from ..errors import CloudWriteError, UsageError
 
 __all__ = ["check_outputs"]
 
@@ -24,7 +24,8 @@ def _identity(path) -> tuple[int, int] | None:
 def check_outputs(outputs: Mapping[str, object], inputs: Mapping[str, object]) -> None:
     """Raises a UsageError naming both when an output (label -> path) is the same file as an input
     (same device and inode, so also a hard link or a symlink to it, or the same resolved path), or
-    when an existing output is read-only. None paths are skipped."""
+    when an existing output is read-only; a CloudWriteError when an output is a folder. None
+    paths are skipped. Every command calls it before any work."""
     known = {}
     for label, path in inputs.items():
         if path is None:
@@ -42,6 +43,8 @@ def check_outputs(outputs: Mapping[str, object], inputs: Mapping[str, object]) -
                 raise UsageError(f"{label} {os.fspath(path)!r} is the {in_label} {os.fspath(in_path)!r} (the same "
                                  f"file, a hard link or a link to it): writing it would destroy the input; choose "
                                  f"another output path")
+        if os.path.isdir(path):
+            raise CloudWriteError(f"{os.fspath(path)}: is a directory")
         _refuse_read_only(label, path)
 
 

@@ -28,7 +28,7 @@ SERIES_RUN_PARAMETERS = ("core_spacing", "compat")
 
 
 def _parser(prog: str, description: str):
-    from ..cli import ArgumentParser  # the CLI's parser class: usage errors exit 2 with one line
+    from ..cli_parser import ArgumentParser  # usage errors exit 2 with one line
     return ArgumentParser(prog=prog, description=description)
 
 
@@ -194,10 +194,14 @@ def run_series(outer) -> int:
 def _core_normals(args):
     if getattr(args, "normal_source", None) != "core":
         return None
-    from ..cli import _core_normals as read_normals
+    from ..errors import UsageError
     from ..io import read_cloud
-    core_cloud = read_cloud(args.core) if args.core is not None else None
-    return read_normals(args, core_cloud)
+    if getattr(args, "core_normals", None) is not None:
+        return read_cloud(args.core_normals).xyz
+    normals = read_cloud(args.core).normals() if args.core is not None else None
+    if normals is None:
+        raise UsageError("--normal-source core needs --core with normal fields (nx, ny, nz) or --core-normals FILE")
+    return normals
 
 
 def _run_create(args) -> int:

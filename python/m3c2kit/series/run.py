@@ -192,10 +192,10 @@ def _add_epochs(store, resolved, comparison, core, reference, *, threads, dask_s
     if dask_scheduler is not None or client is not None:
         return _add_dask(store, todo, index, core, settings, threads, dask_scheduler, client, drop_nonfinite,
                          ignore_crs, log)
-    from ..cli import check_same_crs
+    from ..io.crs import check_crs
     for k, epoch in enumerate(todo):
         cloud = read_cloud(epoch.path, drop_nonfinite=drop_nonfinite)
-        check_same_crs(reference, cloud, ignore=ignore_crs)
+        check_crs(reference, cloud, None, ignore=ignore_crs)
         raw = comparison.compare(cloud.xyz, cloud, threads)
         st.append(store, index + k, epoch_columns(core, raw), _info(epoch, len(cloud)))
         log(f"epoch {index + k}: {epoch.path} committed")
@@ -217,9 +217,9 @@ def dask_epoch(store: str, reference: str, settings: dict, normals_input, epoch:
         core = np.ascontiguousarray(np.column_stack([np.asarray(group[a][:]) for a in "xyz"]))
         _WORKER_CACHE[key] = (ref, core, Comparison(ref.xyz, core, _engine_settings(settings), normals_input, threads))
     ref, core, comparison = _WORKER_CACHE[key]
-    from ..cli import check_same_crs
+    from ..io.crs import check_crs
     cloud = read_cloud(epoch, drop_nonfinite=drop_nonfinite)
-    check_same_crs(ref, cloud, ignore=ignore_crs)
+    check_crs(ref, cloud, None, ignore=ignore_crs)
     out = epoch_columns(core, comparison.compare(cloud.xyz, cloud, threads))
     out["points"] = len(cloud)
     return out
