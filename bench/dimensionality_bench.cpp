@@ -60,9 +60,12 @@ struct Adaptor {
   std::size_t kdtree_get_point_count() const { return xyz.size() / 3; }
   double kdtree_get_pt(std::size_t i, std::size_t d) const { return xyz[3 * i + d]; }
   template <class B>
-  bool kdtree_get_bbox(B&) const { return false; }
+  bool kdtree_get_bbox(B&) const {
+    return false;
+  }
 };
-using Tree = nanoflann::KDTreeSingleIndexAdaptor<nanoflann::L2_Simple_Adaptor<double, Adaptor>, Adaptor, 3, std::uint32_t>;
+using Tree =
+    nanoflann::KDTreeSingleIndexAdaptor<nanoflann::L2_Simple_Adaptor<double, Adaptor>, Adaptor, 3, std::uint32_t>;
 
 /// The reference: proportions [i][k][3] (descending), NaN with fewer than 3 neighbours.
 std::vector<double> reference(const std::vector<double>& xyz, const std::vector<double>& diameters, int threads) {
@@ -113,9 +116,10 @@ int main(int argc, char** argv) {
   for (int k = 1; k <= 10; ++k) diameters.push_back(0.25 * k);
   const std::vector<double> xyz = scene(n, 18);
   std::setvbuf(stdout, nullptr, _IOLBF, 0);
-  std::printf("dimensionality bench: %zu points (seeded synthetic scene, 100 m x 100 m, ~%.0f points/m2 "
-              "on the ground), %zu scales 0.25..2.5 m, %d threads, every point a core point\n",
-              n, 0.8 * n / 1e4, diameters.size(), threads);
+  std::printf(
+      "dimensionality bench: %zu points (seeded synthetic scene, 100 m x 100 m, ~%.0f points/m2 "
+      "on the ground), %zu scales 0.25..2.5 m, %d threads, every point a core point\n",
+      n, 0.8 * n / 1e4, diameters.size(), threads);
 
   m3c2::RunOptions run;
   run.threads = threads;
@@ -145,7 +149,9 @@ int main(int argc, char** argv) {
               n / t_ours, c_ours);
   std::printf("reference (nanoflann + Eigen, index included): %8.2f s  %10.0f points/s  (CPU %.2f s)\n", t_ref,
               n / t_ref, c_ref);
-  std::printf("speed-up: %.2fx wall, %.2fx CPU; largest |difference| of the eigenvalue shares over %zu (point, scale) pairs: %.2e\n",
-              t_ref / t_ours, c_ref / c_ours, compared, worst);
+  std::printf(
+      "speed-up: %.2fx wall, %.2fx CPU; largest |difference| of the eigenvalue shares over %zu (point, scale) pairs: "
+      "%.2e\n",
+      t_ref / t_ours, c_ref / c_ours, compared, worst);
   return 0;
 }

@@ -50,7 +50,8 @@ struct Scratch {
 };
 
 /// The smallest (squared distance, index) in scratch.ball; ball must not be empty.
-std::pair<double, std::uint32_t> closest_in_ball(PointsView pts, const Vec3& q, const std::vector<std::uint32_t>& ball) {
+std::pair<double, std::uint32_t> closest_in_ball(PointsView pts, const Vec3& q,
+                                                 const std::vector<std::uint32_t>& ball) {
   std::pair<double, std::uint32_t> best{std::numeric_limits<double>::infinity(), 0};
   for (const std::uint32_t j : ball) {
     const std::pair<double, std::uint32_t> c{detail::squared_distance(pts, j, q), j};
@@ -171,7 +172,8 @@ C2CResult c2c(PointsView reference, PointsView compared, const C2CParams& params
     if (!(params.model_radius >= 0) || !std::isfinite(params.model_radius))
       throw InvalidArgument("model radius must be >= 0 and finite, got " + std::to_string(params.model_radius));
     if (params.model_radius == 0 && params.model_neighbours < 3)
-      throw InvalidArgument("a plane model needs at least 3 neighbours, got " + std::to_string(params.model_neighbours));
+      throw InvalidArgument("a plane model needs at least 3 neighbours, got " +
+                            std::to_string(params.model_neighbours));
   }
   const KdTree tree(reference);
   const double r0 = spacing_guess(reference);

@@ -21,9 +21,7 @@ class SplitMix64 {
     return z ^ (z >> 31);
   }
   /// Uniform index in [0, n) by multiply-shift (Lemire 2019); bias below 2^-40 for n < 2^24.
-  std::size_t below(std::size_t n) {
-    return static_cast<std::size_t>(mul_high(next(), n));
-  }
+  std::size_t below(std::size_t n) { return static_cast<std::size_t>(mul_high(next(), n)); }
 
  private:
   std::uint64_t state_;
@@ -41,8 +39,8 @@ double selected_median(std::vector<double>& v) {
   return v[lo] + (h - double(lo)) * (upper - v[lo]);
 }
 
-double resampled_stat(std::span<const double> values, const Params& params, SplitMix64& rng,
-                      std::vector<double>& draw, std::vector<double>& work) {
+double resampled_stat(std::span<const double> values, const Params& params, SplitMix64& rng, std::vector<double>& draw,
+                      std::vector<double>& work) {
   draw.resize(values.size());
   for (double& v : draw) v = values[rng.below(values.size())];
   if (params.statistic == Statistic::kMedian) return selected_median(draw);

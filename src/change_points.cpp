@@ -59,8 +59,10 @@ std::vector<std::uint32_t> change_points(const double* series, std::size_t n, co
   if (p.jump < 1) throw InvalidArgument("the change-point jump must be >= 1 epoch");
   if (!(p.penalty > 0.0)) throw InvalidArgument("the change-point penalty must be > 0");
   if (p.width >= n)
-    throw InvalidArgument("the change-point window (" + std::to_string(p.width) + " epochs) must be shorter than the "
-                          "series (" + std::to_string(n) + " epochs)");
+    throw InvalidArgument("the change-point window (" + std::to_string(p.width) +
+                          " epochs) must be shorter than the "
+                          "series (" +
+                          std::to_string(n) + " epochs)");
   std::vector<double> work;
   const std::size_t half = p.width / 2;
   std::vector<double> score;
@@ -71,7 +73,8 @@ std::vector<std::uint32_t> change_points(const double* series, std::size_t n, co
     score.push_back(whole - (l1_cost(series, i - half, i, work) + l1_cost(series, i, i + half, work)));
     at.push_back(i);
   }
-  const std::size_t order = std::max<std::size_t>(std::max<std::size_t>(p.width, 2 * std::size_t(p.min_size)) / (2 * p.jump), 1);
+  const std::size_t order =
+      std::max<std::size_t>(std::max<std::size_t>(p.width, 2 * std::size_t(p.min_size)) / (2 * p.jump), 1);
   std::vector<std::size_t> peaks = local_maxima(score, order);
   // The peaks by decreasing gain (ties: the later first), each kept while it pays the penalty.
   std::stable_sort(peaks.begin(), peaks.end(), [&](std::size_t a, std::size_t b) { return score[a] < score[b]; });

@@ -103,8 +103,9 @@ class Pipeline {
   const std::vector<std::uint32_t>& core_order() const { return core_order_; }
 
   void run(const Vec3& core, std::size_t i, Result& r, Scratch& s, detail::Pulse& pulse) const {
-    const OrientedNormal n = detail::normal_at(core, i, params_, reference_normals_ ? &*reference_normals_ : nullptr,
-                                               compared_normals_ ? &*compared_normals_ : nullptr, core_normals_, s.normal);
+    const OrientedNormal n =
+        detail::normal_at(core, i, params_, reference_normals_ ? &*reference_normals_ : nullptr,
+                          compared_normals_ ? &*compared_normals_ : nullptr, core_normals_, s.normal);
     for (int a = 0; a < 3; ++a) r.normal[3 * i + a] = n.normal(a);
     r.normal_scale[i] = n.diameter;
     r.roughness[i] = n.roughness;
@@ -190,21 +191,21 @@ NormalsResult compute_normals(PointsView cloud, PointsView core_points, const Pa
   NormalsResult out;
   out.resize(core_points.size());
   const auto order = detail::morton_order(core_points);
-  detail::parallel_blocks<detail::NormalScratch>(
-      core_points.size(), run, [&](std::size_t begin, std::size_t end, detail::NormalScratch& s) {
-        for (std::size_t k = begin; k < end; ++k) {
-          const std::size_t i = order[k];
-          const Vec3 core = core_points[i];
-          const NormalEstimate e = normals.estimate(core, s);
-          out.status[i] = e.status;
-          out.count[i] = e.count;
-          if (e.status != PointStatus::kOk) continue;
-          const Vec3 n = detail::orient(e.normal, core, params.orientation);
-          for (int a = 0; a < 3; ++a) out.normal[3 * i + a] = n(a);
-          out.normal_scale[i] = e.diameter;
-          out.roughness[i] = e.roughness;
-        }
-      });
+  detail::parallel_blocks<detail::NormalScratch>(core_points.size(), run,
+                                                 [&](std::size_t begin, std::size_t end, detail::NormalScratch& s) {
+                                                   for (std::size_t k = begin; k < end; ++k) {
+                                                     const std::size_t i = order[k];
+                                                     const Vec3 core = core_points[i];
+                                                     const NormalEstimate e = normals.estimate(core, s);
+                                                     out.status[i] = e.status;
+                                                     out.count[i] = e.count;
+                                                     if (e.status != PointStatus::kOk) continue;
+                                                     const Vec3 n = detail::orient(e.normal, core, params.orientation);
+                                                     for (int a = 0; a < 3; ++a) out.normal[3 * i + a] = n(a);
+                                                     out.normal_scale[i] = e.diameter;
+                                                     out.roughness[i] = e.roughness;
+                                                   }
+                                                 });
   return out;
 }
 
@@ -213,7 +214,8 @@ std::vector<double> roughness_by_scale(PointsView cloud, PointsView core_points,
   Params check;
   check.normal_diameters = diameters;
   detail::validate_normal_params(check);
-  if (min_points < 3) throw InvalidArgument("min_points must be >= 3 for a plane fit, got " + std::to_string(min_points));
+  if (min_points < 3)
+    throw InvalidArgument("min_points must be >= 3 for a plane fit, got " + std::to_string(min_points));
   detail::require_finite_points("core points", core_points);
   std::vector<std::size_t> by_size(diameters.size());
   for (std::size_t k = 0; k < by_size.size(); ++k) by_size[k] = k;

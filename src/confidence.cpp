@@ -23,8 +23,7 @@ double welch_dof(double se1, std::uint32_t n1, double se2, std::uint32_t n2) {
   return (a + b) * (a + b) / (a * a / (double(n1) - 1.0) + b * b / (double(n2) - 1.0));
 }
 
-double critical_value(const Params& params, double z, double se1, std::uint32_t n1, double se2,
-                      std::uint32_t n2) {
+double critical_value(const Params& params, double z, double se1, std::uint32_t n1, double se2, std::uint32_t n2) {
   switch (params.lod) {
     case Lod::kZ:
     case Lod::kBootstrap: return z;

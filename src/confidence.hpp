@@ -21,8 +21,7 @@ double welch_dof(double se1, std::uint32_t n1, double se2, std::uint32_t n2);
 /// (kT), or the paper's rule (kAuto): t when n1 or n2 < 30, else z; the median with the
 /// Maritz-Jarrett standard error always takes z under kAuto (its calibration, docs/validation.md).
 /// `z` is z_critical(params.confidence), computed once per run.
-double critical_value(const Params& params, double z, double se1, std::uint32_t n1, double se2,
-                      std::uint32_t n2);
+double critical_value(const Params& params, double z, double se1, std::uint32_t n1, double se2, std::uint32_t n2);
 
 /// Eq. (1): critical * (sqrt(se1^2 + se2^2) + reg), se_k the standard error of centre k.
 double lod_parametric(double critical, double se1, double se2, double registration_error);

@@ -44,7 +44,6 @@ inline bool moments_needed(const Params& params, bool reference) {
                    : src == NormalSource::kCompared;
 }
 
-
 /// The index of a cloud named `name` ("reference cloud"). Its one pass over the coordinates
 /// refuses those beyond the grid's range (NaN and Inf among them); only then is the cloud
 /// searched for non-finite ones, to name them first: "NAME has N non-finite coordinates".

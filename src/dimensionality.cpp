@@ -89,34 +89,35 @@ DimensionalityResult dimensionality(PointsView cloud, PointsView core_points, co
   out.count.assign(n * scales, 0);
   out.status.assign(n, PointStatus::kTooFewNormalPoints);
   const auto order = detail::morton_order(core_points);
-  detail::parallel_blocks<detail::NormalScratch>(n, run, [&](std::size_t begin, std::size_t end,
-                                                             detail::NormalScratch& s) {
-    for (std::size_t j = begin; j < end; ++j) {
-      const std::size_t i = order[j];
-      detail::moments_by_scale(tree, core_points[i], radii, s);
-      // From the largest scale down: a scale without usable neighbours (too few, or coincident)
-      // repeats the next larger scale's values, CANUPO's rule. Neighbourhoods are nested, so when
-      // the largest scale is unusable every scale is: the point keeps NaN and says why.
-      double p[3], abc[3];
-      for (std::size_t r = scales; r-- > 0;) {
-        const std::size_t k = by_size[r];
-        const auto& m = s.moments[r];
-        out.count[i * scales + k] = m.count;
-        const bool usable = m.count >= min_points && eigen_proportions(m.comoment, p);
-        if (r == scales - 1) {
-          if (!usable) {
-            out.status[i] = m.count >= min_points ? PointStatus::kDegenerateNormal : PointStatus::kTooFewNormalPoints;
-            for (std::size_t q = 0; q < r; ++q) out.count[i * scales + by_size[q]] = s.moments[q].count;
-            break;
+  detail::parallel_blocks<detail::NormalScratch>(
+      n, run, [&](std::size_t begin, std::size_t end, detail::NormalScratch& s) {
+        for (std::size_t j = begin; j < end; ++j) {
+          const std::size_t i = order[j];
+          detail::moments_by_scale(tree, core_points[i], radii, s);
+          // From the largest scale down: a scale without usable neighbours (too few, or coincident)
+          // repeats the next larger scale's values, CANUPO's rule. Neighbourhoods are nested, so when
+          // the largest scale is unusable every scale is: the point keeps NaN and says why.
+          double p[3], abc[3];
+          for (std::size_t r = scales; r-- > 0;) {
+            const std::size_t k = by_size[r];
+            const auto& m = s.moments[r];
+            out.count[i * scales + k] = m.count;
+            const bool usable = m.count >= min_points && eigen_proportions(m.comoment, p);
+            if (r == scales - 1) {
+              if (!usable) {
+                out.status[i] =
+                    m.count >= min_points ? PointStatus::kDegenerateNormal : PointStatus::kTooFewNormalPoints;
+                for (std::size_t q = 0; q < r; ++q) out.count[i * scales + by_size[q]] = s.moments[q].count;
+                break;
+              }
+              out.status[i] = PointStatus::kOk;
+            }
+            if (usable) barycentric_of(p, abc);
+            std::copy(p, p + 3, &out.proportions[(i * scales + k) * 3]);
+            std::copy(abc, abc + 3, &out.barycentric[(i * scales + k) * 3]);
           }
-          out.status[i] = PointStatus::kOk;
         }
-        if (usable) barycentric_of(p, abc);
-        std::copy(p, p + 3, &out.proportions[(i * scales + k) * 3]);
-        std::copy(abc, abc + 3, &out.barycentric[(i * scales + k) * 3]);
-      }
-    }
-  });
+      });
   return out;
 }
 

@@ -11,8 +11,8 @@
 
 namespace m3c2 {
 
-double normalised_dtw(const double* a, const double* b, std::size_t n, double norm_a, double norm_b,
-                      double dmax_origin, double at_least) {
+double normalised_dtw(const double* a, const double* b, std::size_t n, double norm_a, double norm_b, double dmax_origin,
+                      double at_least) {
   double dmax = 0.0;
   for (std::size_t k = 0; k < n; ++k)
     if (!std::isnan(a[k])) dmax += std::abs(a[k] - dmax_origin);

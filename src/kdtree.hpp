@@ -37,8 +37,8 @@ class KdTree {
   void visit(Prune&& prune, Accept&& accept) const;
 
   PointsView points_;
-  std::vector<double> xyz_;            // 3 per slot, in leaf order
-  std::vector<std::uint32_t> index_;   // original index of each slot
+  std::vector<double> xyz_;           // 3 per slot, in leaf order
+  std::vector<std::uint32_t> index_;  // original index of each slot
   std::vector<Node> nodes_;
 };
 

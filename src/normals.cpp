@@ -12,8 +12,7 @@ namespace {
 /// its score 2 s0 + 4 s1 - 2, s_k the squared eigenvalues' shares, largest first. kPy4dgeo: minus
 /// py4dgeo's planarity (lambda2 - lambda3) / lambda1.
 double planarity_cost(const Eigen::Vector3d& ascending, ScaleSelection selection) {
-  const double l1 = std::max(ascending(2), 0.0), l2 = std::max(ascending(1), 0.0),
-               l3 = std::max(ascending(0), 0.0);
+  const double l1 = std::max(ascending(2), 0.0), l2 = std::max(ascending(1), 0.0), l3 = std::max(ascending(0), 0.0);
   if (selection == ScaleSelection::kMostPlanar) return l3 / (l1 + l2 + l3);
   if (selection == ScaleSelection::kPy4dgeo) return -(l2 - l3) / l1;
   const double sum2 = l1 * l1 + l2 * l2 + l3 * l3;
@@ -68,10 +67,7 @@ void moments_by_scale(const Octree& tree, const Vec3& core, const std::vector<do
 }
 
 NormalEstimator::NormalEstimator(const Octree& tree, const Params& params)
-    : tree_(tree),
-      diameters_(params.normal_diameters),
-      selection_(params.scale_selection),
-      variance_(params.variance) {
+    : tree_(tree), diameters_(params.normal_diameters), selection_(params.scale_selection), variance_(params.variance) {
   std::sort(diameters_.begin(), diameters_.end());
   diameters_.erase(std::unique(diameters_.begin(), diameters_.end()), diameters_.end());
   for (const double d : diameters_) radii_.push_back(0.5 * d);

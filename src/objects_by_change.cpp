@@ -46,8 +46,10 @@ void interpolate_gaps(std::vector<double>& ts) {
   for (std::size_t k = 0; k < ts.size(); ++k) {
     if (!std::isnan(ts[k])) continue;
     while (g + 1 < good.size() && good[g + 1] < k) ++g;
-    if (k < good.front()) ts[k] = ts[good.front()];
-    else if (k > good.back()) ts[k] = ts[good.back()];
+    if (k < good.front())
+      ts[k] = ts[good.front()];
+    else if (k > good.back())
+      ts[k] = ts[good.back()];
     else {
       const std::size_t l = good[g], r = good[g + 1];
       ts[k] = ts[l] + (ts[r] - ts[l]) * (double(k - l) / double(r - l));

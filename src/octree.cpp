@@ -195,8 +195,10 @@ void require_within_grid(const char* what, PointsView points, OctreeGrid grid) {
     for (int a = 0; a < 3; ++a)
       if (!(std::abs(points.coord(i, a)) < limit))
         throw InvalidArgument(std::string(what) + " has a coordinate (" + std::to_string(points.coord(i, a)) +
-                              ") beyond +-" + std::to_string(limit) + ", the range of the spatial index for these "
-                              "scales (2^41 cells of " + std::to_string(grid.cell) +
+                              ") beyond +-" + std::to_string(limit) +
+                              ", the range of the spatial index for these "
+                              "scales (2^41 cells of " +
+                              std::to_string(grid.cell) +
                               "); remove far outliers or shift the coordinates to a local origin");
 }
 
@@ -285,9 +287,10 @@ void Octree::build(const std::vector<K>& keys, std::vector<std::uint32_t>& order
       std::uint32_t begin = node.begin;
       while (begin < node.end) {
         const auto d = std::uint32_t(keys[begin] >> shift) & 7u;
-        const auto end = std::uint32_t(std::partition_point(keys.begin() + begin, keys.begin() + node.end,
-                                                            [&](K x) { return (std::uint32_t(x >> shift) & 7u) <= d; }) -
-                                       keys.begin());
+        const auto end =
+            std::uint32_t(std::partition_point(keys.begin() + begin, keys.begin() + node.end,
+                                               [&](K x) { return (std::uint32_t(x >> shift) & 7u) <= d; }) -
+                          keys.begin());
         M3C2_ASSERT(end > begin && differing_level(keys[begin], keys[end - 1]) < node.level,
                     "a child's level is below its parent's (the depth bound)");
         nodes_.push_back({{}, {}, begin, end});
@@ -326,7 +329,8 @@ void Octree::bound_nodes() {
     node.hi.fill(-std::numeric_limits<double>::infinity());
     if (node.first_child == 0) {
       for (std::uint32_t s = node.begin; s < node.end; ++s)
-        for (int a = 0; a < 3; ++a) node.lo[a] = std::min(node.lo[a], slot_xyz(s)[a]), node.hi[a] = std::max(node.hi[a], slot_xyz(s)[a]);
+        for (int a = 0; a < 3; ++a)
+          node.lo[a] = std::min(node.lo[a], slot_xyz(s)[a]), node.hi[a] = std::max(node.hi[a], slot_xyz(s)[a]);
     } else {
       for (std::uint32_t c = node.first_child; c < node.first_child + node.children; ++c)
         for (int a = 0; a < 3; ++a)
@@ -435,8 +439,7 @@ bool Octree::ball_holds(const Vec3& centre, double radius, std::uint32_t n, Desc
   return false;
 }
 
-void Octree::ball_offsets(const Vec3& centre, double radius, std::vector<double>& offsets,
-                          DescentCache* cache) const {
+void Octree::ball_offsets(const Vec3& centre, double radius, std::vector<double>& offsets, DescentCache* cache) const {
   const std::uint32_t start = covering_node(centre, radius, cache);
   if (start == kNoNode) return;
   const double r2 = radius * radius, prune_r2 = r2 * (1.0 + kRelativeMargin) + 1e-300;
@@ -480,8 +483,10 @@ Moments Octree::radix_fold(const std::uint32_t* slots, std::uint32_t n, Level&& 
         current = stack.back().second;
         stack.pop_back();
       }
-      if (!stack.empty() && stack.back().first == level) merge_into(stack.back().second, current);
-      else stack.emplace_back(level, current);
+      if (!stack.empty() && stack.back().first == level)
+        merge_into(stack.back().second, current);
+      else
+        stack.emplace_back(level, current);
     }
     current = cell;
     i = cell_end;
@@ -574,8 +579,10 @@ struct Octree::BallQuery {
     for (std::size_t k = ka; k < kb; ++k) {
       std::uint32_t count = 0;
       for (std::uint32_t j = 0; j < m; ++j) count += s.d2[j] <= r2[k];
-      if (count == m) out[k] = tree.moments_[n];
-      else if (count > 0) partial_begin = std::min(partial_begin, k), partial_end = k + 1;
+      if (count == m)
+        out[k] = tree.moments_[n];
+      else if (count > 0)
+        partial_begin = std::min(partial_begin, k), partial_end = k + 1;
     }
     if (partial_begin >= partial_end) return;
     const Vec3 origin = tree.block_corner(tree.slot_xyz(node.begin));

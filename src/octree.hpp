@@ -113,13 +113,13 @@ class Octree {
 
  private:
   struct Node {
-    std::array<double, 3> lo, hi;  // bounding box of the node's points
-    std::uint32_t begin, end;      // slots
-    std::uint32_t first_child = 0; // children first_child .. first_child + children - 1, key order; 0: a leaf
+    std::array<double, 3> lo, hi;   // bounding box of the node's points
+    std::uint32_t begin, end;       // slots
+    std::uint32_t first_child = 0;  // children first_child .. first_child + children - 1, key order; 0: a leaf
     std::uint8_t children = 0;
-    std::int8_t level = -1;        // the key digit its points first differ at; -1: one grid cell
-    bool in_block = true;          // all its points lie in one block
-    std::uint8_t child_mask = 0;   // bit d set: a child whose points have digit d at `level`
+    std::int8_t level = -1;       // the key digit its points first differ at; -1: one grid cell
+    bool in_block = true;         // all its points lie in one block
+    std::uint8_t child_mask = 0;  // bit d set: a child whose points have digit d at `level`
   };
   struct BallQuery;
 
@@ -149,10 +149,10 @@ class Octree {
   PointsView points_;
   OctreeGrid grid_;
   double inverse_cell_;
-  std::vector<double> xyz_;            // 3 per slot, in key order
-  std::vector<std::uint32_t> index_;   // original index of each slot
+  std::vector<double> xyz_;           // 3 per slot, in key order
+  std::vector<std::uint32_t> index_;  // original index of each slot
   std::vector<Node> nodes_;
-  std::vector<Moments> moments_;       // per node, about its block's corner (in-block nodes only)
+  std::vector<Moments> moments_;  // per node, about its block's corner (in-block nodes only)
 };
 
 }  // namespace m3c2::detail

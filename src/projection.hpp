@@ -26,8 +26,7 @@ struct ProjectionScratch {
 ///   >= min_points points and |i| + 2 sigma < h; the offsets of that truncated cylinder are kept.
 /// `index1`, `index2`, if given, receive the original indices of the points of t1, t2 (same order).
 void project(const Octree& reference, const Octree& compared, const Vec3& core, const Vec3& normal,
-             const Params& params, ProjectionScratch& scratch, std::vector<double>& t1,
-             std::vector<double>& t2, std::vector<std::uint32_t>* index1 = nullptr,
-             std::vector<std::uint32_t>* index2 = nullptr);
+             const Params& params, ProjectionScratch& scratch, std::vector<double>& t1, std::vector<double>& t2,
+             std::vector<std::uint32_t>* index1 = nullptr, std::vector<std::uint32_t>* index2 = nullptr);
 
 }  // namespace m3c2::detail

@@ -28,11 +28,13 @@ Comparison::Comparison(PointsView reference, PointsView core_points, const Param
     : state_(std::make_unique<State>()) {
   detail::validate_params(params);
   if (params.normal_source == NormalSource::kCompared || params.normal_source == NormalSource::kMean)
-    throw InvalidArgument("a series computes the normals once, from the reference: normal source 'compared' or "
-                          "'mean' would depend on each epoch; use 'reference', 'horizontal', 'vertical' or 'core'");
+    throw InvalidArgument(
+        "a series computes the normals once, from the reference: normal source 'compared' or "
+        "'mean' would depend on each epoch; use 'reference', 'horizontal', 'vertical' or 'core'");
   if (params.uncertainty != Uncertainty::kEq1)
-    throw InvalidArgument("a series computes the LOD of eq. (1): per-point uncertainty (M3C2-PM, M3C2-EP) needs each "
-                          "epoch's own inputs and is not available for a series");
+    throw InvalidArgument(
+        "a series computes the LOD of eq. (1): per-point uncertainty (M3C2-PM, M3C2-EP) needs each "
+        "epoch's own inputs and is not available for a series");
   if (reference.empty()) throw InvalidArgument("the reference cloud is empty");
   detail::require_finite_points("core points", core_points);
   if (params.normal_source == NormalSource::kCorePoints && core_normals.size() != 3 * core_points.size())
@@ -94,8 +96,7 @@ Result Comparison::compare(PointsView compared, const RunOptions& run) const {
                 std::numeric_limits<double>::quiet_NaN();
             continue;
           }
-          detail::project(*s.reference, epoch, core[i], n.normal, s.params, scratch.projection, scratch.t1,
-                          scratch.t2);
+          detail::project(*s.reference, epoch, core[i], n.normal, s.params, scratch.projection, scratch.t1, scratch.t2);
           detail::measure(s.params, s.z, false, scratch, i, result, pulse);
         }
       });

@@ -27,7 +27,9 @@ void radix_sort(std::vector<std::uint64_t>& items) {
   constexpr int kBits = kBitsPerAxis, kDigits = 3;
   constexpr std::size_t kBuckets = std::size_t(1) << kBits;
   std::vector<std::size_t> count(kDigits * kBuckets, 0);
-  const auto digit = [](std::uint64_t it, int d) { return std::size_t(it >> (kIndexBits + kBits * d)) & (kBuckets - 1); };
+  const auto digit = [](std::uint64_t it, int d) {
+    return std::size_t(it >> (kIndexBits + kBits * d)) & (kBuckets - 1);
+  };
   for (const std::uint64_t it : items)
     for (int d = 0; d < kDigits; ++d) ++count[d * kBuckets + digit(it, d)];
   std::vector<std::uint64_t> buffer(items.size());
@@ -48,7 +50,8 @@ std::vector<std::uint32_t> morton_order(PointsView points) {
   // The index takes the word's low kIndexBits and the order is returned as uint32: checked
   // before either would wrap.
   if (n > std::size_t(std::numeric_limits<std::uint32_t>::max()))
-    throw InvalidArgument("there are " + std::to_string(n) + " core points; one run takes at most 4294967295: "
+    throw InvalidArgument("there are " + std::to_string(n) +
+                          " core points; one run takes at most 4294967295: "
                           "process them in tiles (parameter tile_size)");
   std::vector<std::uint32_t> order(n);
   std::iota(order.begin(), order.end(), 0u);

@@ -48,8 +48,10 @@ Spread central_spread(std::span<const double> values, const Params& params, std:
     return s;
   }
   Spread s = median_and_sigma(values, work);  // leaves `work` sorted
-  if (params.median_lod == MedianLod::kCloudCompare) s.se = s.sigma / root_n;
-  else s.se = weights && !values.empty() ? median_standard_error(work, s.centre, *weights) : kNaN;
+  if (params.median_lod == MedianLod::kCloudCompare)
+    s.se = s.sigma / root_n;
+  else
+    s.se = weights && !values.empty() ? median_standard_error(work, s.centre, *weights) : kNaN;
   return s;
 }
 

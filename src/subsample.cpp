@@ -47,7 +47,10 @@ std::vector<std::uint64_t> subsample_min_spacing(PointsView points, double min_s
           const auto it = kept_in_cell.find({key.x + dx, key.y + dy, key.z + dz});
           if (it == kept_in_cell.end()) continue;
           for (const std::uint64_t j : it->second)
-            if (detail::squared_distance(points, j, p) < s2) { too_close = true; break; }
+            if (detail::squared_distance(points, j, p) < s2) {
+              too_close = true;
+              break;
+            }
         }
     if (too_close) continue;
     kept.push_back(i);

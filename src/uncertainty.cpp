@@ -50,8 +50,9 @@ std::vector<std::int32_t> scan_rows(const CloudUncertainty& c, PointsView cloud,
     for (const double v : {sp.sigma_range, sp.sigma_range_ppm, sp.sigma_scan, sp.sigma_yaw})
       if (!(v >= 0.0) || !std::isfinite(v)) throw InvalidArgument(what + " has a sigma that is not finite and >= 0");
     if (!(sp.sigma_range > 0.0 || sp.sigma_range_ppm > 0.0) || !(sp.sigma_scan > 0.0) || !(sp.sigma_yaw > 0.0))
-      throw InvalidArgument(what + " needs sigma_range (or sigma_range_ppm), sigma_scan and sigma_yaw > 0 "
-                                   "(a zero sigma leaves its points' covariance singular)");
+      throw InvalidArgument(what +
+                            " needs sigma_range (or sigma_range_ppm), sigma_scan and sigma_yaw > 0 "
+                            "(a zero sigma leaves its points' covariance singular)");
     if (sp.id > (1u << 24)) throw InvalidArgument(what + ": ids must be <= 2^24");
     largest = std::max(largest, sp.id);
   }
@@ -81,7 +82,8 @@ void validate_uncertainty_params(const Params& p) {
   // and Welch's t are eq. (1)'s.
   if (p.lod == Lod::kBootstrap)
     throw InvalidArgument(std::string("uncertainty ") + name + " replaces eq. (1): it cannot be bootstrapped");
-  if (p.lod == Lod::kT) throw InvalidArgument(std::string("uncertainty ") + name + " has no Welch t (eq. (2) is eq. (1)'s)");
+  if (p.lod == Lod::kT)
+    throw InvalidArgument(std::string("uncertainty ") + name + " has no Welch t (eq. (2) is eq. (1)'s)");
   if (p.uncertainty == Uncertainty::kPrecisionMaps) {
     for (const double s : {p.precision_scale1, p.precision_scale2})
       if (!(s >= 0.0) || !std::isfinite(s))
@@ -89,8 +91,9 @@ void validate_uncertainty_params(const Params& p) {
     return;
   }
   if (p.registration_error != 0.0)
-    throw InvalidArgument("uncertainty ep takes the registration error from the alignment covariance: "
-                          "registration_error must be 0");
+    throw InvalidArgument(
+        "uncertainty ep takes the registration error from the alignment covariance: "
+        "registration_error must be 0");
   if (p.statistic != Statistic::kMean)
     throw InvalidArgument("uncertainty ep measures from weighted centres of gravity: statistic must be mean");
 }
@@ -121,11 +124,13 @@ UncertaintyModel::UncertaintyModel(const Params& params, const UncertaintyInputs
   const auto& c = inputs.alignment_covariance;
   if (!c.empty()) {
     if (c.size() != 144)
-      throw InvalidArgument("the alignment covariance (Cxx) must be 12x12 (144 values), got " + std::to_string(c.size()));
+      throw InvalidArgument("the alignment covariance (Cxx) must be 12x12 (144 values), got " +
+                            std::to_string(c.size()));
     for (int a = 0; a < 12; ++a)
       for (int b = 0; b < 12; ++b) {
         alignment_(a, b) = c[12 * a + b];
-        if (!std::isfinite(alignment_(a, b))) throw InvalidArgument("the alignment covariance (Cxx) has a non-finite value");
+        if (!std::isfinite(alignment_(a, b)))
+          throw InvalidArgument("the alignment covariance (Cxx) has a non-finite value");
         if (c[12 * a + b] != c[12 * b + a]) throw InvalidArgument("the alignment covariance (Cxx) is not symmetric");
       }
     has_alignment_ = alignment_.cwiseAbs().maxCoeff() > 0.0;
@@ -140,12 +145,15 @@ UncertaintyModel::UncertaintyModel(const Params& params, const UncertaintyInputs
     transformed_.resize(3 * compared.size());
     RunOptions quiet = run;  // set-up, not core points: no progress reported
     quiet.progress = nullptr;
-    parallel_blocks<int>(compared.size(), quiet, [&](std::size_t begin, std::size_t end, int&) {
-      for (std::size_t j = begin; j < end; ++j) {
-        const Vec3 p = reduction_ + rotation_ * (compared[j] - reduction_) + translation_;
-        for (int a = 0; a < 3; ++a) transformed_[3 * j + a] = p(a);
-      }
-    }, 4096);
+    parallel_blocks<int>(
+        compared.size(), quiet,
+        [&](std::size_t begin, std::size_t end, int&) {
+          for (std::size_t j = begin; j < end; ++j) {
+            const Vec3 p = reduction_ + rotation_ * (compared[j] - reduction_) + translation_;
+            for (int a = 0; a < 3; ++a) transformed_[3 * j + a] = p(a);
+          }
+        },
+        4096);
   }
 }
 
@@ -156,8 +164,8 @@ void UncertaintyModel::measure(const Vec3& core, const Vec3& normal, std::span<c
     // 1/n (a precision map's error is shared by the cylinder's points, James et al. 2017 eq. 2).
     const double s1 = precision_sigma(reference_, inputs_.reference.precision, points1, normal,
                                       params_.precision_scale1, params_.precision_rule);
-    const double s2 = precision_sigma(compared_, inputs_.compared.precision, points2, normal,
-                                      params_.precision_scale2, params_.precision_rule);
+    const double s2 = precision_sigma(compared_, inputs_.compared.precision, points2, normal, params_.precision_scale2,
+                                      params_.precision_rule);
     r.spread1[i] = s1, r.spread2[i] = s2;
     r.lod[i] = z_ * (std::sqrt(s1 * s1 + s2 * s2) + params_.registration_error);
     r.significant[i] = std::abs(r.distance[i]) > r.lod[i];
@@ -185,7 +193,8 @@ void UncertaintyModel::measure(const Vec3& core, const Vec3& normal, std::span<c
     r.spread1[i] = std::sqrt(normal.dot(a.covariance * normal));
     r.spread2[i] = std::sqrt(normal.dot(b.covariance * normal));
     if (inputs_.covariances)
-      for (int e = 0; e < 9; ++e) r.covariance1[9 * i + e] = a.covariance(e / 3, e % 3), r.covariance2[9 * i + e] = b.covariance(e / 3, e % 3);
+      for (int e = 0; e < 9; ++e)
+        r.covariance1[9 * i + e] = a.covariance(e / 3, e % 3), r.covariance2[9 * i + e] = b.covariance(e / 3, e % 3);
     if (params_.ep_lod == EpLod::kProjected) {
       r.lod[i] = z_ * std::sqrt(normal.dot(sum * normal));
     } else {

@@ -24,7 +24,7 @@ double precision_sigma(PointsView cloud, std::span<const double> precision, std:
 struct CentreOfGravity {
   Vec3 offset = Vec3::Zero();  ///< centre - core point
   Eigen::Matrix3d covariance = Eigen::Matrix3d::Zero();
-  bool defined = false;        ///< false: a point's covariance is singular (no weight)
+  bool defined = false;  ///< false: a point's covariance is singular (no weight)
 };
 
 class UncertaintyModel {
@@ -35,7 +35,9 @@ class UncertaintyModel {
                    const RunOptions& run);
 
   /// The compared cloud to index and project: EP's transformed copy, or `compared` itself.
-  PointsView compared_indexed() const { return transformed_.empty() ? compared_ : PointsView(transformed_.data(), compared_.size()); }
+  PointsView compared_indexed() const {
+    return transformed_.empty() ? compared_ : PointsView(transformed_.data(), compared_.size());
+  }
 
   /// LOD, spreads and significance of core point i (PM), and its distance and i1, i2 (EP, from
   /// the weighted centres), from the indices of the points of its two cylinders.

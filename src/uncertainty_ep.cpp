@@ -70,8 +70,8 @@ CentreOfGravity UncertaintyModel::normal_weighted_centre(int k, const Vec3& core
   const double n = double(points.size());
   out.offset = weighted / weight_sum;
   out.covariance = independent ? Mat3(cov_w2 / (weight_sum * weight_sum)) : Mat3(mean_cov / n);
-  if (moved && has_alignment_) out.covariance += independent ? alignment_at(d_weighted / weight_sum)
-                                                             : mean_alignment(d_sum / n, dd_sum / n);
+  if (moved && has_alignment_)
+    out.covariance += independent ? alignment_at(d_weighted / weight_sum) : mean_alignment(d_sum / n, dd_sum / n);
   out.defined = out.covariance.allFinite();
   return out;
 }
@@ -100,8 +100,8 @@ Mat3 UncertaintyModel::mean_alignment(const Vec3& m, const Mat3& mm) const {
   return a;
 }
 
-void UncertaintyModel::empirical(const Vec3& normal, std::span<const std::uint32_t> points2, std::size_t i,
-                                 Result& r, Mat3& s1, Mat3& s2) const {
+void UncertaintyModel::empirical(const Vec3& normal, std::span<const std::uint32_t> points2, std::size_t i, Result& r,
+                                 Mat3& s1, Mat3& s2) const {
   // The unweighted mean's variance along n as eq. (1) estimates it (sigma^2 / n: the points'
   // measurement errors and the surface's sampling, whatever their source), and the alignment
   // covariance at the compared cylinder's mean (J is linear in the point).

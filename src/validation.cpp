@@ -31,8 +31,7 @@ void require_finite_points(std::string_view name, PointsView points) {
   std::size_t bad = 0;
   for (std::size_t i = 0; i < 3 * points.size(); ++i) bad += !std::isfinite(points.data()[i]);
   if (bad)
-    throw InvalidArgument(std::string(name) + " has " + std::to_string(bad) +
-                          " non-finite coordinates (NaN or Inf)");
+    throw InvalidArgument(std::string(name) + " has " + std::to_string(bad) + " non-finite coordinates (NaN or Inf)");
 }
 
 void require_cell_count(std::string_view name, double cell, PointsView points) {

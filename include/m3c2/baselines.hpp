@@ -34,10 +34,10 @@ struct C2CParams {
 };
 
 struct C2CResult {
-  std::vector<double> distance;          ///< C2C: Euclidean distance to the closest reference point
-  std::vector<std::uint64_t> nearest;    ///< index of that point (the lowest index among equidistant ones)
-  std::vector<double> model_distance;    ///< |distance to the local plane|; NaN where no model was fitted
-  std::vector<double> hf_distance;       ///< C2C_HF by `rule`; the C2C distance where there is no model
+  std::vector<double> distance;            ///< C2C: Euclidean distance to the closest reference point
+  std::vector<std::uint64_t> nearest;      ///< index of that point (the lowest index among equidistant ones)
+  std::vector<double> model_distance;      ///< |distance to the local plane|; NaN where no model was fitted
+  std::vector<double> hf_distance;         ///< C2C_HF by `rule`; the C2C distance where there is no model
   std::vector<std::uint32_t> model_count;  ///< neighbours used for the model (0 without a model)
 
   std::size_t size() const { return distance.size(); }

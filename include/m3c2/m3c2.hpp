@@ -21,9 +21,9 @@ namespace m3c2 {
 /// `core_normals` (3 per core point) is read only with NormalSource::kCorePoints.
 /// `uncertainty` holds the per-point inputs of params.uncertainty (PM, EP; uncertainty.hpp).
 /// Throws InvalidArgument on bad parameters or inputs, Cancelled if the progress callback says so.
-Result compute(PointsView reference, PointsView compared, PointsView core_points,
-               const Params& params, const RunOptions& run = {},
-               const std::vector<double>& core_normals = {}, const UncertaintyInputs& uncertainty = {});
+Result compute(PointsView reference, PointsView compared, PointsView core_points, const Params& params,
+               const RunOptions& run = {}, const std::vector<double>& core_normals = {},
+               const UncertaintyInputs& uncertainty = {});
 
 /// The largest |coordinate| of a cloud compute() accepts with these parameters: its spatial index
 /// keys 2^41 cells of a grid that follows the smallest diameter (D / 16, or d / 16 without
@@ -60,9 +60,8 @@ NormalsResult compute_normals(PointsView cloud, PointsView core_points, const Pa
 
 /// Roughness sigma(D) at each core point for each diameter (section 5.1, Fig. 6a): row-major
 /// [core point][scale], NaN where fewer than `min_points` neighbours.
-std::vector<double> roughness_by_scale(PointsView cloud, PointsView core_points,
-                                       const std::vector<double>& diameters, Variance variance,
-                                       std::uint32_t min_points, const RunOptions& run = {});
+std::vector<double> roughness_by_scale(PointsView cloud, PointsView core_points, const std::vector<double>& diameters,
+                                       Variance variance, std::uint32_t min_points, const RunOptions& run = {});
 
 /// Indices of a subset of `points` in which no two points are closer than `min_spacing`,
 /// chosen greedily in input order (the first point of a cluster is kept). Serial and
@@ -73,8 +72,8 @@ std::vector<std::uint64_t> subsample_min_spacing(PointsView points, double min_s
 struct Grid {
   double x0 = 0, y0 = 0, cell = 0;  ///< centre of cell (row r, col c) is (x0 + (c + .5) cell, y0 + (r + .5) cell)
   std::uint64_t rows = 0, cols = 0;
-  std::vector<double> core_points;       ///< row-major xyz: one per non-empty cell, z = median z there
-  std::vector<std::uint64_t> row, col;   ///< cell of each core point
+  std::vector<double> core_points;      ///< row-major xyz: one per non-empty cell, z = median z there
+  std::vector<std::uint64_t> row, col;  ///< cell of each core point
 };
 Grid grid_core_points(PointsView points, double cell);
 

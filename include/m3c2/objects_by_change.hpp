@@ -18,8 +18,8 @@ namespace m3c2 {
 
 /// Median of each row over the epochs [t - window / 2, t + window / 2] (clipped to the series),
 /// ignoring NaN; NaN where the window holds none. window >= 1 (1: a copy).
-std::vector<double> temporal_median(const double* values, std::size_t rows, std::size_t epochs,
-                                    std::uint32_t window, const RunOptions& run = {});
+std::vector<double> temporal_median(const double* values, std::size_t rows, std::size_t epochs, std::uint32_t window,
+                                    const RunOptions& run = {});
 
 /// Sliding-window change-point detection with the L1 cost (Anders et al. 2021, 2.3.1; the
 /// window method of Truong et al. 2020): the gain of splitting each window of `width` epochs at
@@ -43,21 +43,21 @@ std::vector<std::uint32_t> change_points(const double* series, std::size_t epoch
 /// known to be >= at_least (every warping path crosses each row of the cost matrix, so a row's
 /// minimum bounds the final cost) and then returns 1: exact for any comparison with a threshold
 /// <= at_least.
-double normalised_dtw(const double* a, const double* b, std::size_t n, double norm_a, double norm_b,
-                      double dmax_origin, double at_least = 1.0);
+double normalised_dtw(const double* a, const double* b, std::size_t n, double norm_a, double norm_b, double dmax_origin,
+                      double at_least = 1.0);
 
 /// Parameters of 4D-OBC; the defaults are py4dgeo's RegionGrowingAlgorithm's.
 struct ObjectsParams {
   ChangePointParams change_points;
-  std::uint32_t min_period = 24;     ///< fewest epochs from a seed's start to its end
-  double height_threshold = 0.0;     ///< least |max - min| of a seed's change
-  bool use_unfinished = true;        ///< seeds still growing at the last epoch are kept
+  std::uint32_t min_period = 24;       ///< fewest epochs from a seed's start to its end
+  double height_threshold = 0.0;       ///< least |max - min| of a seed's change
+  bool use_unfinished = true;          ///< seeds still growing at the last epoch are kept
   std::uint32_t seed_subsampling = 1;  ///< every k-th core point is searched for seeds
-  double neighbourhood_radius = 1.0; ///< core points within it are adjacent (3D)
+  double neighbourhood_radius = 1.0;   ///< core points within it are adjacent (3D)
   std::vector<double> thresholds{0.1, 0.2, 0.3, 0.4, 0.5, 0.6, 0.7, 0.8, 0.9};  ///< of the normalised DTW
-  std::uint32_t min_segments = 20;   ///< fewest core points of an object
-  std::uint64_t max_segments = 0;    ///< 0: no limit
-  double max_cv = 0.8;               ///< objects whose DTW values have a larger coefficient of variation are dropped
+  std::uint32_t min_segments = 20;                                              ///< fewest core points of an object
+  std::uint64_t max_segments = 0;                                               ///< 0: no limit
+  double max_cv = 0.8;  ///< objects whose DTW values have a larger coefficient of variation are dropped
   /// false (the paper): DTW over the seed's epochs, each series minus its value at the seed's
   /// start. true (py4dgeo): over the whole series minus its first epoch, D_max of the raw seed.
   bool whole_series = false;
@@ -65,7 +65,7 @@ struct ObjectsParams {
 
 struct Seed {
   std::uint32_t core = 0, start = 0, end = 0;  ///< epochs [start, end]
-  double score = 0.0;  ///< mean normalised DTW to its neighbours (ascending = first grown)
+  double score = 0.0;                          ///< mean normalised DTW to its neighbours (ascending = first grown)
 };
 
 struct ChangeObject {

@@ -76,7 +76,7 @@ inline constexpr std::uint32_t kMaxBootstrapSamples = 100000;
 
 struct Params {
   // Normals (3.1.2, 3.2)
-  std::vector<double> normal_diameters;      ///< D; several values = multi-scale
+  std::vector<double> normal_diameters;  ///< D; several values = multi-scale
   NormalSource normal_source = NormalSource::kReference;
   ScaleSelection scale_selection = ScaleSelection::kMostPlanar;
   std::uint32_t min_points_normal = 3;       ///< fewest neighbours for a plane fit (one scale)
@@ -88,29 +88,29 @@ struct Params {
   double projection_diameter = 0.0;  ///< d: cylinder diameter
   double max_depth = 0.0;            ///< cylinder half-length along the normal, on each side
   DepthSearch depth_search = DepthSearch::kSinglePass;
-  double first_pass_depth = 0.0;     ///< kTwoPass: half-length of the first, short cylinder
-  bool positive_search_only = false; ///< search only t in [0, max_depth] (CloudCompare option)
+  double first_pass_depth = 0.0;      ///< kTwoPass: half-length of the first, short cylinder
+  bool positive_search_only = false;  ///< search only t in [0, max_depth] (CloudCompare option)
   Statistic statistic = Statistic::kMean;
   Variance variance = Variance::kSample;
 
   // Confidence (3.3, Appendix B)
-  double registration_error = 0.0;   ///< reg in eq. (1)
-  double confidence = 0.95;          ///< two-tailed level of the LOD
-  std::uint32_t min_points = 4;      ///< per cylinder, below it no LOD and not significant (5.2.1)
-  Lod lod = Lod::kZ;                 ///< the statistic of the LOD (the command line's default is its own)
+  double registration_error = 0.0;  ///< reg in eq. (1)
+  double confidence = 0.95;         ///< two-tailed level of the LOD
+  std::uint32_t min_points = 4;     ///< per cylinder, below it no LOD and not significant (5.2.1)
+  Lod lod = Lod::kZ;                ///< the statistic of the LOD (the command line's default is its own)
   MedianLod median_lod = MedianLod::kMaritzJarrett;  ///< with Statistic::kMedian and a parametric lod
-  std::uint32_t bootstrap_samples = 0;  ///< resamples of Lod::kBootstrap (>= 2 there, at most
-                                        ///< kMaxBootstrapSamples), App. B
-  std::uint64_t bootstrap_seed = 0;     ///< Lod::kBootstrap: the stream of core point i is (seed, i)
+  std::uint32_t bootstrap_samples = 0;               ///< resamples of Lod::kBootstrap (>= 2 there, at most
+                                                     ///< kMaxBootstrapSamples), App. B
+  std::uint64_t bootstrap_seed = 0;                  ///< Lod::kBootstrap: the stream of core point i is (seed, i)
 
   // Per-point uncertainty (6.2; include/m3c2/uncertainty.hpp, docs/algorithm.md §6.5)
-  Uncertainty uncertainty = Uncertainty::kEq1;  ///< eq. (1), M3C2-PM or M3C2-EP
+  Uncertainty uncertainty = Uncertainty::kEq1;             ///< eq. (1), M3C2-PM or M3C2-EP
   PrecisionRule precision_rule = PrecisionRule::kNearest;  ///< PM: which points give sigma
   double precision_scale1 = 1.0;  ///< PM: scale of the reference cloud's sigmas (qM3C2's PM1Scale)
   double precision_scale2 = 1.0;  ///< PM: scale of the compared cloud's sigmas (PM2Scale)
   EpCovariance ep_covariance = EpCovariance::kEmpirical;  ///< EP: the centres' covariance (docs/validation.md §7)
-  EpLod ep_lod = EpLod::kProjected;  ///< EP: the level of detection
-  EpWeights ep_weights = EpWeights::kNormal;  ///< EP: the weights of the centres of gravity
+  EpLod ep_lod = EpLod::kProjected;                       ///< EP: the level of detection
+  EpWeights ep_weights = EpWeights::kNormal;              ///< EP: the weights of the centres of gravity
 };
 
 /// Every field of Params once, with the name the bindings and the Python parameter table use
@@ -119,35 +119,64 @@ struct Params {
 /// it against the Python table, so a new field is added here and nowhere else in C++.
 template <class Visitor>
 constexpr void visit_param_fields(Visitor&& visit) {
-  visit("normal_diameters", [](auto& p) -> auto& { return p.normal_diameters; });
-  visit("normal_source", [](auto& p) -> auto& { return p.normal_source; });
-  visit("scale_selection", [](auto& p) -> auto& { return p.scale_selection; });
-  visit("min_points_normal", [](auto& p) -> auto& { return p.min_points_normal; });
-  visit("min_points_multiscale", [](auto& p) -> auto& { return p.min_points_multiscale; });
-  visit("normal_subsample_spacing", [](auto& p) -> auto& { return p.normal_subsample_spacing; });
-  visit("orientation_direction", [](auto& p) -> auto& { return p.orientation.direction; });
-  visit("orientation_points", [](auto& p) -> auto& { return p.orientation.points; });
-  visit("projection_diameter", [](auto& p) -> auto& { return p.projection_diameter; });
-  visit("max_depth", [](auto& p) -> auto& { return p.max_depth; });
-  visit("depth_search", [](auto& p) -> auto& { return p.depth_search; });
-  visit("first_pass_depth", [](auto& p) -> auto& { return p.first_pass_depth; });
-  visit("positive_search_only", [](auto& p) -> auto& { return p.positive_search_only; });
-  visit("statistic", [](auto& p) -> auto& { return p.statistic; });
-  visit("variance", [](auto& p) -> auto& { return p.variance; });
-  visit("registration_error", [](auto& p) -> auto& { return p.registration_error; });
-  visit("confidence", [](auto& p) -> auto& { return p.confidence; });
-  visit("min_points", [](auto& p) -> auto& { return p.min_points; });
-  visit("lod", [](auto& p) -> auto& { return p.lod; });
-  visit("median_lod", [](auto& p) -> auto& { return p.median_lod; });
-  visit("bootstrap_samples", [](auto& p) -> auto& { return p.bootstrap_samples; });
-  visit("bootstrap_seed", [](auto& p) -> auto& { return p.bootstrap_seed; });
-  visit("uncertainty", [](auto& p) -> auto& { return p.uncertainty; });
-  visit("precision_rule", [](auto& p) -> auto& { return p.precision_rule; });
-  visit("precision_scale1", [](auto& p) -> auto& { return p.precision_scale1; });
-  visit("precision_scale2", [](auto& p) -> auto& { return p.precision_scale2; });
-  visit("ep_covariance", [](auto& p) -> auto& { return p.ep_covariance; });
-  visit("ep_lod", [](auto& p) -> auto& { return p.ep_lod; });
-  visit("ep_weights", [](auto& p) -> auto& { return p.ep_weights; });
+  visit(
+      "normal_diameters", [](auto& p) -> auto& { return p.normal_diameters; });
+  visit(
+      "normal_source", [](auto& p) -> auto& { return p.normal_source; });
+  visit(
+      "scale_selection", [](auto& p) -> auto& { return p.scale_selection; });
+  visit(
+      "min_points_normal", [](auto& p) -> auto& { return p.min_points_normal; });
+  visit(
+      "min_points_multiscale", [](auto& p) -> auto& { return p.min_points_multiscale; });
+  visit(
+      "normal_subsample_spacing", [](auto& p) -> auto& { return p.normal_subsample_spacing; });
+  visit(
+      "orientation_direction", [](auto& p) -> auto& { return p.orientation.direction; });
+  visit(
+      "orientation_points", [](auto& p) -> auto& { return p.orientation.points; });
+  visit(
+      "projection_diameter", [](auto& p) -> auto& { return p.projection_diameter; });
+  visit(
+      "max_depth", [](auto& p) -> auto& { return p.max_depth; });
+  visit(
+      "depth_search", [](auto& p) -> auto& { return p.depth_search; });
+  visit(
+      "first_pass_depth", [](auto& p) -> auto& { return p.first_pass_depth; });
+  visit(
+      "positive_search_only", [](auto& p) -> auto& { return p.positive_search_only; });
+  visit(
+      "statistic", [](auto& p) -> auto& { return p.statistic; });
+  visit(
+      "variance", [](auto& p) -> auto& { return p.variance; });
+  visit(
+      "registration_error", [](auto& p) -> auto& { return p.registration_error; });
+  visit(
+      "confidence", [](auto& p) -> auto& { return p.confidence; });
+  visit(
+      "min_points", [](auto& p) -> auto& { return p.min_points; });
+  visit(
+      "lod", [](auto& p) -> auto& { return p.lod; });
+  visit(
+      "median_lod", [](auto& p) -> auto& { return p.median_lod; });
+  visit(
+      "bootstrap_samples", [](auto& p) -> auto& { return p.bootstrap_samples; });
+  visit(
+      "bootstrap_seed", [](auto& p) -> auto& { return p.bootstrap_seed; });
+  visit(
+      "uncertainty", [](auto& p) -> auto& { return p.uncertainty; });
+  visit(
+      "precision_rule", [](auto& p) -> auto& { return p.precision_rule; });
+  visit(
+      "precision_scale1", [](auto& p) -> auto& { return p.precision_scale1; });
+  visit(
+      "precision_scale2", [](auto& p) -> auto& { return p.precision_scale2; });
+  visit(
+      "ep_covariance", [](auto& p) -> auto& { return p.ep_covariance; });
+  visit(
+      "ep_lod", [](auto& p) -> auto& { return p.ep_lod; });
+  visit(
+      "ep_weights", [](auto& p) -> auto& { return p.ep_weights; });
 }
 
 }  // namespace m3c2

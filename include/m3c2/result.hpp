@@ -9,26 +9,26 @@ namespace m3c2 {
 
 /// Why a core point has no distance or no LOD. Numeric values are part of the file formats.
 enum class PointStatus : std::uint8_t {
-  kOk = 0,                 ///< distance and LOD computed
-  kTooFewNormalPoints = 1, ///< fewer neighbours than needed for the plane fit at every scale
-  kDegenerateNormal = 2,   ///< collinear / coincident neighbours, or an unusable imposed normal
-  kEmptyCylinder1 = 3,     ///< no reference point in the cylinder: no distance
-  kEmptyCylinder2 = 4,     ///< no compared point in the cylinder: no distance
-  kTooFewPointsForLod = 5, ///< distance computed, but n1 or n2 < min_points: LOD NaN, not significant
+  kOk = 0,                  ///< distance and LOD computed
+  kTooFewNormalPoints = 1,  ///< fewer neighbours than needed for the plane fit at every scale
+  kDegenerateNormal = 2,    ///< collinear / coincident neighbours, or an unusable imposed normal
+  kEmptyCylinder1 = 3,      ///< no reference point in the cylinder: no distance
+  kEmptyCylinder2 = 4,      ///< no compared point in the cylinder: no distance
+  kTooFewPointsForLod = 5,  ///< distance computed, but n1 or n2 < min_points: LOD NaN, not significant
 };
 
 std::string_view status_name(PointStatus s);
 
 struct Result {
-  std::vector<double> distance;        ///< i2 - i1 along the oriented normal; NaN if not computed
-  std::vector<double> lod;             ///< level of detection at the confidence level; NaN if not computed
+  std::vector<double> distance;           ///< i2 - i1 along the oriented normal; NaN if not computed
+  std::vector<double> lod;                ///< level of detection at the confidence level; NaN if not computed
   std::vector<std::uint8_t> significant;  ///< 1 iff n1, n2 >= min_points and |distance| > lod
-  std::vector<std::uint32_t> n1, n2;   ///< points in each cylinder (0 where no cylinder was searched)
-  std::vector<double> sigma1, sigma2;  ///< spread along the normal (std, or IQR / kIqrToSigma); NaN if undefined
-  std::vector<double> i1, i2;          ///< central positions along the normal, from the core point
-  std::vector<double> normal;          ///< 3 per core point, unit, oriented; NaN if not computed
-  std::vector<double> normal_scale;    ///< D used (the chosen one with multi-scale)
-  std::vector<double> roughness;       ///< sigma(D): spread of the normal neighbours about their plane
+  std::vector<std::uint32_t> n1, n2;      ///< points in each cylinder (0 where no cylinder was searched)
+  std::vector<double> sigma1, sigma2;     ///< spread along the normal (std, or IQR / kIqrToSigma); NaN if undefined
+  std::vector<double> i1, i2;             ///< central positions along the normal, from the core point
+  std::vector<double> normal;             ///< 3 per core point, unit, oriented; NaN if not computed
+  std::vector<double> normal_scale;       ///< D used (the chosen one with multi-scale)
+  std::vector<double> roughness;          ///< sigma(D): spread of the normal neighbours about their plane
   std::vector<PointStatus> status;
   /// PM: each cloud's sigma on the normal; EP: sqrt(n^T S n) of each centre of gravity.
   /// Empty with Uncertainty::kEq1; NaN where not computed.

@@ -11,9 +11,9 @@ namespace m3c2 {
 
 /// Which model gives the LOD (Params::uncertainty).
 enum class Uncertainty : std::uint8_t {
-  kEq1,                 ///< eq. (1): the cylinders' spreads over sqrt(n), plus reg (the paper)
-  kPrecisionMaps,       ///< M3C2-PM: per-point precisions sx, sy, sz projected on the normal
-  kErrorPropagation,    ///< M3C2-EP: scanner and alignment covariances propagated to each point
+  kEq1,               ///< eq. (1): the cylinders' spreads over sqrt(n), plus reg (the paper)
+  kPrecisionMaps,     ///< M3C2-PM: per-point precisions sx, sy, sz projected on the normal
+  kErrorPropagation,  ///< M3C2-EP: scanner and alignment covariances propagated to each point
 };
 
 /// Which points of a cylinder give its M3C2-PM sigma (Params::precision_rule).
@@ -57,9 +57,9 @@ struct ScanPosition {
 
 /// One cloud's per-point uncertainty inputs (views: the memory must outlive the run).
 struct CloudUncertainty {
-  std::span<const double> precision;              ///< PM: sx, sy, sz per point (3 per point)
-  std::span<const std::uint32_t> scan_position;   ///< EP: scan-position id of each point
-  std::vector<ScanPosition> scan_positions;       ///< EP: the table the ids refer to
+  std::span<const double> precision;             ///< PM: sx, sy, sz per point (3 per point)
+  std::span<const std::uint32_t> scan_position;  ///< EP: scan-position id of each point
+  std::vector<ScanPosition> scan_positions;      ///< EP: the table the ids refer to
 };
 
 /// The inputs of Params::uncertainty beyond the clouds.

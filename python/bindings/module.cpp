@@ -378,12 +378,18 @@ NB_MODULE(_core, m) {
       [](const Points& reference, const Points& compared, const std::string& model, double model_radius,
          std::uint32_t model_neighbours, const std::string& rule, int threads, nb::object progress) {
         m3c2::C2CParams p;
-        if (model == "none") p.model = m3c2::LocalModel::kNone;
-        else if (model == "plane") p.model = m3c2::LocalModel::kPlane;
-        else throw m3c2::InvalidArgument("model must be 'none' or 'plane', got '" + model + "'");
-        if (rule == "closer") p.rule = m3c2::ModelRule::kCloser;
-        else if (rule == "model") p.rule = m3c2::ModelRule::kModelOnly;
-        else throw m3c2::InvalidArgument("rule must be 'closer' or 'model', got '" + rule + "'");
+        if (model == "none")
+          p.model = m3c2::LocalModel::kNone;
+        else if (model == "plane")
+          p.model = m3c2::LocalModel::kPlane;
+        else
+          throw m3c2::InvalidArgument("model must be 'none' or 'plane', got '" + model + "'");
+        if (rule == "closer")
+          p.rule = m3c2::ModelRule::kCloser;
+        else if (rule == "model")
+          p.rule = m3c2::ModelRule::kModelOnly;
+        else
+          throw m3c2::InvalidArgument("rule must be 'closer' or 'model', got '" + rule + "'");
         p.model_radius = model_radius;
         p.model_neighbours = model_neighbours;
         m3c2::C2CResult r = run_engine(std::move(progress), threads, [&](const m3c2::RunOptions& run) {

@@ -27,15 +27,15 @@ int main() {
   params.normal_diameters = {0.5};
   params.projection_diameter = 0.3;
   params.max_depth = 1.0;
-  const m3c2::Result r = m3c2::compute({ref.data(), ref.size() / 3}, {cmp.data(), cmp.size() / 3},
-                                       {core.data(), core.size() / 3}, params);
+  const m3c2::Result r =
+      m3c2::compute({ref.data(), ref.size() / 3}, {cmp.data(), cmp.size() / 3}, {core.data(), core.size() / 3}, params);
   int failures = 0;
   for (std::size_t i = 0; i < r.size(); ++i) {
-    const bool ok = r.status[i] == m3c2::PointStatus::kOk && std::abs(r.distance[i] - 0.5) <= 1e-9 &&
-                    std::isfinite(r.lod[i]);
+    const bool ok =
+        r.status[i] == m3c2::PointStatus::kOk && std::abs(r.distance[i] - 0.5) <= 1e-9 && std::isfinite(r.lod[i]);
     const std::string status(m3c2::status_name(r.status[i]));
-    std::printf("core point %zu: distance %.12f, lod %.6f, status %s%s\n", i, r.distance[i], r.lod[i],
-                status.c_str(), ok ? "" : "  <- expected 0.5 to 1e-9, status ok");
+    std::printf("core point %zu: distance %.12f, lod %.6f, status %s%s\n", i, r.distance[i], r.lod[i], status.c_str(),
+                ok ? "" : "  <- expected 0.5 to 1e-9, status ok");
     failures += !ok;
   }
   if (r.size() != 3) failures = 1;

@@ -21,7 +21,7 @@ Params rough_params() {
 }
 
 ::testing::AssertionResult SameBits(const Result& a, const Result& b) {
-#define M3C2_SAME(field)                                                        \
+#define M3C2_SAME(field) \
   if (auto r = BitIdentical(a.field, b.field); !r) return r << " in " #field;
   M3C2_SAME(distance)
   M3C2_SAME(lod)
@@ -83,8 +83,10 @@ TEST(Determinism, NormalsAreBitIdenticalFor1And8Threads) {
 TEST(Determinism, RoughnessByScaleIsBitIdenticalFor1And8Threads) {
   const Pair pr = rough_pair(55);
   const std::vector<double> scales = {0.5, 1.0, 2.0};
-  const auto a = roughness_by_scale(pr.reference.view(), pr.cores.view(), scales, Variance::kSample, 3, with_threads(1));
-  const auto b = roughness_by_scale(pr.reference.view(), pr.cores.view(), scales, Variance::kSample, 3, with_threads(8));
+  const auto a =
+      roughness_by_scale(pr.reference.view(), pr.cores.view(), scales, Variance::kSample, 3, with_threads(1));
+  const auto b =
+      roughness_by_scale(pr.reference.view(), pr.cores.view(), scales, Variance::kSample, 3, with_threads(8));
   EXPECT_TRUE(BitIdentical(a, b));
 }
 

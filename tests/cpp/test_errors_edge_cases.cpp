@@ -121,8 +121,8 @@ TEST(ErrorsEdgeCases, ExactlyPlanarCloudsWithBinaryChangeHaveZeroSpread) {
     EXPECT_EQ(r.sigma1[i], 0.0);
     EXPECT_EQ(r.sigma2[i], 0.0);
     EXPECT_EQ(r.distance[i], 0.125);
-    EXPECT_EQ(r.lod[i], 0.0);           // LOD = z * reg = 0
-    EXPECT_EQ(r.significant[i], 1);     // any non-zero change is significant
+    EXPECT_EQ(r.lod[i], 0.0);        // LOD = z * reg = 0
+    EXPECT_EQ(r.significant[i], 1);  // any non-zero change is significant
   }
   r = compute(ref.view(), ref.view(), core.view(), p);
   for (std::size_t i = 0; i < r.size(); ++i) {

@@ -247,7 +247,11 @@ TEST(Lod, MedianLodIsZTimesTheExactBootstrapStandardErrorOfTheMedian) {
   // Welch t on the same standard errors, eq. (2) with se_k^2 in place of sigma_k^2 / n_k.
   p.lod = Lod::kT;
   const Result rt = run_one(z1, z2, p);
-  const Result rz = run_one(z1, z2, [&] { Params q = p; q.lod = Lod::kZ; return q; }());
+  const Result rz = run_one(z1, z2, [&] {
+    Params q = p;
+    q.lod = Lod::kZ;
+    return q;
+  }());
   EXPECT_GT(rt.lod[0], rz.lod[0] * 1.05);
 }
 

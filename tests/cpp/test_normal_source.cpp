@@ -13,7 +13,7 @@ namespace {
 const Vec3 kM = Vec3(0.3, 0.0, 1.0).normalized();
 
 struct Scene {
-  Cloud ref = plane_grid(Vec3::Zero(), Vec3::UnitZ(), 50, 0.04);      // +-2
+  Cloud ref = plane_grid(Vec3::Zero(), Vec3::UnitZ(), 50, 0.04);  // +-2
   Cloud cmp = plane_grid(Vec3(0, 0, 1), kM, 50, 0.04);
   Cloud core = [] {
     Cloud c;
@@ -88,9 +88,7 @@ TEST(NormalSource, CorePointsNormalIsUsedAndNormalised) {
 
 // --- Two-pass depth search ------------------------------------------------------------------
 
-Cloud flat(double z, int half = 20, double h = 0.1) {
-  return plane_grid(Vec3(0, 0, z), Vec3::UnitZ(), half, h);
-}
+Cloud flat(double z, int half = 20, double h = 0.1) { return plane_grid(Vec3(0, 0, z), Vec3::UnitZ(), half, h); }
 
 TEST(DepthSearch, TwoPassFallsBackToMaxDepthWhenFirstPassFindsNothing) {
   const Cloud ref = flat(0.0), cmp = flat(3.0);

@@ -52,7 +52,7 @@ Cloud test_cloud(std::uint64_t seed, std::size_t n, const Vec3& offset) {
   for (std::size_t i = 0; i < n; ++i) {
     const double x = u(rng), y = u(rng);
     c.add(Vec3(x, y, 0.3 * std::sin(x) * std::cos(1.3 * y) + noise(rng)) + offset);
-    if (i % 97 == 0) c.add(c[c.size() - 1]);                                  // an exact duplicate
+    if (i % 97 == 0) c.add(c[c.size() - 1]);                                    // an exact duplicate
     if (i % 211 == 0) c.add(Vec3(3.0 + 1e-4 * noise(rng), 3.0, 0.1) + offset);  // a tight cluster
   }
   return c;

@@ -126,19 +126,20 @@ TEST_P(PreferredDirection, NormalHasPositiveDotWithDirection) {
   }
 }
 
-INSTANTIATE_TEST_SUITE_P(
-    AxesAndTilts, PreferredDirection,
-    ::testing::Values(DirectionCase{"plus_x", Vec3(1, 0, 0), Vec3(1, 0, 0)},
-                      DirectionCase{"minus_x", Vec3(1, 0, 0), Vec3(-1, 0, 0)},
-                      DirectionCase{"plus_y", Vec3(0, 1, 0), Vec3(0, 1, 0)},
-                      DirectionCase{"minus_y", Vec3(0, 1, 0), Vec3(0, -1, 0)},
-                      DirectionCase{"plus_z", Vec3(0, 0, 1), Vec3(0, 0, 1)},
-                      DirectionCase{"minus_z", Vec3(0, 0, 1), Vec3(0, 0, -1)},
-                      DirectionCase{"tilted_plus_z", Vec3(1, 1, 1), Vec3(0, 0, 1)},
-                      DirectionCase{"tilted_minus_z", Vec3(1, 1, 1), Vec3(0, 0, -1)},
-                      DirectionCase{"tilted_minus_x", Vec3(2, -1, 0.5), Vec3(-1, 0, 0)},
-                      DirectionCase{"unnormalised_direction", Vec3(0, 0, 1), Vec3(0, 0, -7)}),
-    [](const ::testing::TestParamInfo<DirectionCase>& info) { return std::string(info.param.name); });
+INSTANTIATE_TEST_SUITE_P(AxesAndTilts, PreferredDirection,
+                         ::testing::Values(DirectionCase{"plus_x", Vec3(1, 0, 0), Vec3(1, 0, 0)},
+                                           DirectionCase{"minus_x", Vec3(1, 0, 0), Vec3(-1, 0, 0)},
+                                           DirectionCase{"plus_y", Vec3(0, 1, 0), Vec3(0, 1, 0)},
+                                           DirectionCase{"minus_y", Vec3(0, 1, 0), Vec3(0, -1, 0)},
+                                           DirectionCase{"plus_z", Vec3(0, 0, 1), Vec3(0, 0, 1)},
+                                           DirectionCase{"minus_z", Vec3(0, 0, 1), Vec3(0, 0, -1)},
+                                           DirectionCase{"tilted_plus_z", Vec3(1, 1, 1), Vec3(0, 0, 1)},
+                                           DirectionCase{"tilted_minus_z", Vec3(1, 1, 1), Vec3(0, 0, -1)},
+                                           DirectionCase{"tilted_minus_x", Vec3(2, -1, 0.5), Vec3(-1, 0, 0)},
+                                           DirectionCase{"unnormalised_direction", Vec3(0, 0, 1), Vec3(0, 0, -7)}),
+                         [](const ::testing::TestParamInfo<DirectionCase>& info) {
+                           return std::string(info.param.name);
+                         });
 
 TEST(Orientation, DefaultDirectionIsPlusZ) {
   const Cloud plane = plane_grid(Vec3::Zero(), Vec3(0.3, 0.2, -1.0), 10, 0.5);

@@ -11,8 +11,8 @@
 namespace m3c2::test {
 namespace {
 
-constexpr int kN = 316;          // 316 x 316 = 99,856 points, dx = 1 mm
-constexpr int kBorder = 25;      // D / 2: core points keep complete normal neighbourhoods
+constexpr int kN = 316;      // 316 x 316 = 99,856 points, dx = 1 mm
+constexpr int kBorder = 25;  // D / 2: core points keep complete normal neighbourhoods
 constexpr double kD = 50.0, kd = 10.0;
 
 std::vector<double> noise(std::uint64_t seed) {
@@ -97,7 +97,7 @@ TEST(PaperSynthetic, ShiftedCopyMeanErrorBelow0_005mmAndSdBelow0_2mm) {
     const Stats s = stats(err);
     std::printf("shifted copy, shift %6.1f mm: mean error %+.5f mm, sd %.4f mm\n", shift, s.mean, s.sd);
     EXPECT_LE(std::abs(s.mean), 0.005) << "mean error " << s.mean;  // paper: within 0.003 mm
-    EXPECT_LE(s.sd, 0.2) << "sd " << s.sd;                           // paper: 0.15 mm
+    EXPECT_LE(s.sd, 0.2) << "sd " << s.sd;                          // paper: 0.15 mm
   }
 }
 
@@ -140,8 +140,8 @@ TEST(PaperSynthetic, IndependentNoiseMeanErrorBelow0_005mmAndSdBelow0_2mm) {
       err_vs_oracle.push_back(r.distance[i] - shift - realised[i]);
     }
     const Stats raw = stats(err), rel = stats(err_vs_oracle);
-    std::printf("independent noise, shift %6.1f mm: mean error %+.5f mm (vs oracle %+.5f), sd %.4f mm\n",
-                shift, raw.mean, rel.mean, raw.sd);
+    std::printf("independent noise, shift %6.1f mm: mean error %+.5f mm (vs oracle %+.5f), sd %.4f mm\n", shift,
+                raw.mean, rel.mean, raw.sd);
     EXPECT_LE(std::abs(rel.mean), 0.005) << "mean error vs vertical-cylinder oracle " << rel.mean;
     EXPECT_LE(std::abs(raw.mean), 0.03) << "raw mean error " << raw.mean;
     EXPECT_LE(raw.sd, 0.2) << "sd " << raw.sd;

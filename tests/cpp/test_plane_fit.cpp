@@ -97,13 +97,13 @@ TEST(PlaneFit, RandomSpectraMatchIterativeSolver) {
     const double scale = std::pow(10.0, 24.0 * u(rng) - 12.0);
     Vec3 l(std::pow(10.0, -16.0 * u(rng)), std::pow(10.0, -8.0 * u(rng)), 1.0);
     switch (trial % 8) {
-      case 0: l(0) = 0.0; break;                          // exactly planar
-      case 1: l(0) = l(1) = 0.0; break;                   // a line
-      case 2: l(1) = l(2); break;                         // an isotropic disc (repeated pair)
-      case 3: l(0) = 0.0, l(1) = l(2); break;             // an exact disc on a plane
-      case 4: l(0) = l(1); break;                         // a cigar (repeated small pair)
-      case 5: l(1) = l(2) * (1.0 - 1e-9 * u(rng)); break; // a nearly repeated pair
-      case 6: l(0) = l(1) = l(2); break;                  // isotropic
+      case 0: l(0) = 0.0; break;                           // exactly planar
+      case 1: l(0) = l(1) = 0.0; break;                    // a line
+      case 2: l(1) = l(2); break;                          // an isotropic disc (repeated pair)
+      case 3: l(0) = 0.0, l(1) = l(2); break;              // an exact disc on a plane
+      case 4: l(0) = l(1); break;                          // a cigar (repeated small pair)
+      case 5: l(1) = l(2) * (1.0 - 1e-9 * u(rng)); break;  // a nearly repeated pair
+      case 6: l(0) = l(1) = l(2); break;                   // isotropic
       default: break;
     }
     expect_agrees(rotated(scale * l, rng), "trial " + std::to_string(trial));

@@ -70,20 +70,19 @@ const Vec3 kTilt1 = Vec3(1, 2, 3);
 const Vec3 kTilt2 = Vec3(0.3, -0.5, 0.8);
 const Vec3 kNearWall = Vec3(1, -2, 0.1);
 
-INSTANTIATE_TEST_SUITE_P(
-    Orientations, ParallelPlanes,
-    ::testing::Values(PlaneCase{"horizontal_up", Vec3(0, 0, 1), Vec3(0, 0, 1)},
-                      PlaneCase{"horizontal_down", Vec3(0, 0, 1), Vec3(0, 0, -1)},
-                      PlaneCase{"wall_x_plus", Vec3(1, 0, 0), Vec3(1, 0, 0)},
-                      PlaneCase{"wall_x_minus", Vec3(1, 0, 0), Vec3(-1, 0, 0)},
-                      PlaneCase{"wall_y_plus", Vec3(0, 1, 0), Vec3(0, 1, 0)},
-                      PlaneCase{"wall_diagonal", Vec3(1, 1, 0), Vec3(-1, 0, 0)},
-                      PlaneCase{"tilted_123", kTilt1, Vec3(0, 0, 1)},
-                      PlaneCase{"tilted_123_flipped", kTilt1, Vec3(0, 0, -1)},
-                      PlaneCase{"tilted_mixed", kTilt2, Vec3(0, 1, 0)},
-                      PlaneCase{"near_vertical_wall", kNearWall, Vec3(1, 0, 0)},
-                      PlaneCase{"overhang", Vec3(0.2, 0.1, -1), Vec3(0, 0, -1)}),
-    [](const ::testing::TestParamInfo<PlaneCase>& info) { return std::string(info.param.name); });
+INSTANTIATE_TEST_SUITE_P(Orientations, ParallelPlanes,
+                         ::testing::Values(PlaneCase{"horizontal_up", Vec3(0, 0, 1), Vec3(0, 0, 1)},
+                                           PlaneCase{"horizontal_down", Vec3(0, 0, 1), Vec3(0, 0, -1)},
+                                           PlaneCase{"wall_x_plus", Vec3(1, 0, 0), Vec3(1, 0, 0)},
+                                           PlaneCase{"wall_x_minus", Vec3(1, 0, 0), Vec3(-1, 0, 0)},
+                                           PlaneCase{"wall_y_plus", Vec3(0, 1, 0), Vec3(0, 1, 0)},
+                                           PlaneCase{"wall_diagonal", Vec3(1, 1, 0), Vec3(-1, 0, 0)},
+                                           PlaneCase{"tilted_123", kTilt1, Vec3(0, 0, 1)},
+                                           PlaneCase{"tilted_123_flipped", kTilt1, Vec3(0, 0, -1)},
+                                           PlaneCase{"tilted_mixed", kTilt2, Vec3(0, 1, 0)},
+                                           PlaneCase{"near_vertical_wall", kNearWall, Vec3(1, 0, 0)},
+                                           PlaneCase{"overhang", Vec3(0.2, 0.1, -1), Vec3(0, 0, -1)}),
+                         [](const ::testing::TestParamInfo<PlaneCase>& info) { return std::string(info.param.name); });
 
 TEST(Planes, SignOfDistanceFollowsOrientedNormal) {
   // Compared plane BELOW the reference: negative distance with +Z, positive with -Z.

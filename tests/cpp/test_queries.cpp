@@ -42,8 +42,7 @@ TEST(CylinderQuery, CountsMatchBruteForceOnRandomClouds) {
   const Result r = compute(ref.view(), cmp.view(), cores.view(), p);
   std::size_t checked = 0;
   for (std::size_t i = 0; i < cores.size(); ++i) {
-    if (r.status[i] == PointStatus::kTooFewNormalPoints || r.status[i] == PointStatus::kDegenerateNormal)
-      continue;
+    if (r.status[i] == PointStatus::kTooFewNormalPoints || r.status[i] == PointStatus::kDegenerateNormal) continue;
     const Vec3 n = normal_at(r.normal, i);
     EXPECT_EQ(r.n1[i], brute_cylinder_count(ref, cores[i], n, 0.45, -0.7, 0.7)) << "core " << i;
     EXPECT_EQ(r.n2[i], brute_cylinder_count(cmp, cores[i], n, 0.45, -0.7, 0.7)) << "core " << i;

@@ -176,8 +176,10 @@ TEST(ScaleSelectionPy4dgeo, ChoosesTheLargestPlanarityOfABruteForceDecomposition
     for (auto s = scales.size(); s-- > 0;) {  // largest first: ties keep the larger scale
       const Brute b = brute(c, cores[i], scales[s]);
       const double planarity = double((b.lambda(1) - b.lambda(0)) / b.lambda(2));
-      if (planarity > best) second = best, best = planarity, best_d = scales[s];
-      else second = std::max(second, planarity);
+      if (planarity > best)
+        second = best, best = planarity, best_d = scales[s];
+      else
+        second = std::max(second, planarity);
     }
     if (best - second < 1e-9) continue;  // a near tie: either is right
     EXPECT_EQ(r.normal_scale[i], best_d) << "core " << i;

@@ -112,7 +112,7 @@ TEST(RunLimits, AProcessThreadLimitRunsWithTheThreadsItCanCreate) {
     const Pair pr = rough_pair(23, 3000);
     Params p = basic_params(1.0, 0.5, 2.0);
     p.lod = Lod::kBootstrap;
-  p.bootstrap_samples = 20;
+    p.bootstrap_samples = 20;
     const Result one = compute(pr.reference.view(), pr.compared.view(), pr.cores.view(), p, with_threads(1));
     const Result eight = compute(pr.reference.view(), pr.compared.view(), pr.cores.view(), p, with_threads(8));
     EXPECT_TRUE(BitIdentical(one.lod, eight.lod));

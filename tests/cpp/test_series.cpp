@@ -10,7 +10,7 @@ namespace m3c2::test {
 namespace {
 
 ::testing::AssertionResult SameBits(const Result& a, const Result& b) {
-#define M3C2_SAME(field)                                                        \
+#define M3C2_SAME(field) \
   if (auto r = BitIdentical(a.field, b.field); !r) return r << " in " #field;
   M3C2_SAME(distance)
   M3C2_SAME(lod)

@@ -181,7 +181,7 @@ TEST(Status, CallerNormalsZeroOrNaNAreDegenerate) {
   cores.add(0.1, -0.3, 0);
   Params p = status_params();
   p.normal_source = NormalSource::kCorePoints;
-  const std::vector<double> normals = {0, 0, 1,  0, 0, 0,  kNaN, 0, 1,  0, 0, -1};
+  const std::vector<double> normals = {0, 0, 1, 0, 0, 0, kNaN, 0, 1, 0, 0, -1};
   const Result r = compute(ref.view(), cmp.view(), cores.view(), p, {}, normals);
   EXPECT_EQ(r.status[0], PointStatus::kOk);
   EXPECT_NEAR(r.distance[0], 0.3, 1e-12);

@@ -108,8 +108,8 @@ struct Pair {
 /// Two independent random samplings (n points each, xy uniform on [0, extent]^2) of the same
 /// rough surface with Gaussian noise; the compared one is raised by `change`. Core points are
 /// every 5th reference point.
-inline Pair rough_pair(std::uint64_t seed, std::size_t n = 6000, double extent = 10.0,
-                       double noise = 0.03, double change = 0.05) {
+inline Pair rough_pair(std::uint64_t seed, std::size_t n = 6000, double extent = 10.0, double noise = 0.03,
+                       double change = 0.05) {
   std::mt19937_64 rng(seed);
   std::uniform_real_distribution<double> u(0.0, extent);
   std::normal_distribution<double> g(0.0, noise);
@@ -125,17 +125,15 @@ inline Pair rough_pair(std::uint64_t seed, std::size_t n = 6000, double extent =
 }
 
 /// numpy.isclose semantics (|a - b| <= atol + rtol |b|, NaN matches NaN); reports the first bad index.
-inline ::testing::AssertionResult AllClose(std::span<const double> a, std::span<const double> b,
-                                           double rtol, double atol) {
-  if (a.size() != b.size())
-    return ::testing::AssertionFailure() << "size " << a.size() << " vs " << b.size();
+inline ::testing::AssertionResult AllClose(std::span<const double> a, std::span<const double> b, double rtol,
+                                           double atol) {
+  if (a.size() != b.size()) return ::testing::AssertionFailure() << "size " << a.size() << " vs " << b.size();
   for (std::size_t i = 0; i < a.size(); ++i) {
     if (std::isnan(a[i]) && std::isnan(b[i])) continue;
     if (!(std::abs(a[i] - b[i]) <= atol + rtol * std::abs(b[i])))
       return ::testing::AssertionFailure()
-             << "index " << i << ": " << ::testing::PrintToString(a[i]) << " vs "
-             << ::testing::PrintToString(b[i]) << " (diff " << (a[i] - b[i]) << ", rtol " << rtol
-             << ", atol " << atol << ")";
+             << "index " << i << ": " << ::testing::PrintToString(a[i]) << " vs " << ::testing::PrintToString(b[i])
+             << " (diff " << (a[i] - b[i]) << ", rtol " << rtol << ", atol " << atol << ")";
   }
   return ::testing::AssertionSuccess();
 }
@@ -153,12 +151,10 @@ auto printable(T v) {
 /// Bit-for-bit equality of two arrays (memcmp), reporting the first differing index.
 template <class T>
 ::testing::AssertionResult BitIdentical(const std::vector<T>& a, const std::vector<T>& b) {
-  if (a.size() != b.size())
-    return ::testing::AssertionFailure() << "size " << a.size() << " vs " << b.size();
+  if (a.size() != b.size()) return ::testing::AssertionFailure() << "size " << a.size() << " vs " << b.size();
   for (std::size_t i = 0; i < a.size(); ++i)
     if (std::memcmp(&a[i], &b[i], sizeof(T)) != 0)
-      return ::testing::AssertionFailure() << "index " << i << ": " << printable(a[i]) << " vs "
-                                           << printable(b[i]);
+      return ::testing::AssertionFailure() << "index " << i << ": " << printable(a[i]) << " vs " << printable(b[i]);
   return ::testing::AssertionSuccess();
 }
 
@@ -168,8 +164,8 @@ inline Vec3 normal_at(const std::vector<double>& normals, std::size_t i) {
 
 /// Brute-force cylinder membership with inclusive boundaries: squared distance to the axis
 /// <= r^2 and t in [t_min, t_max], t = (p - c) . n.
-inline std::uint32_t brute_cylinder_count(const Cloud& cloud, const Vec3& c, const Vec3& n, double radius,
-                                          double t_min, double t_max) {
+inline std::uint32_t brute_cylinder_count(const Cloud& cloud, const Vec3& c, const Vec3& n, double radius, double t_min,
+                                          double t_max) {
   std::uint32_t count = 0;
   for (std::size_t i = 0; i < cloud.size(); ++i) {
     const Vec3 d = cloud[i] - c;

@@ -117,7 +117,8 @@ int main(int argc, char** argv) {
   const m3c2::NormalsResult nr = m3c2::compute_normals(reference, cores, base, run);
   line("normals", "normal", nr.normal);
   line("normals", "roughness", nr.roughness);
-  line("roughness", "sigma", m3c2::roughness_by_scale(reference, cores, {0.5, 1.0, 2.0}, m3c2::Variance::kSample, 4, run));
+  line("roughness", "sigma",
+       m3c2::roughness_by_scale(reference, cores, {0.5, 1.0, 2.0}, m3c2::Variance::kSample, 4, run));
 
   m3c2::C2CParams c;
   c.model = m3c2::LocalModel::kPlane;
