@@ -14,7 +14,7 @@ test_mode=0
 packages=(build-essential cmake)
 # The C++ test suite (scripts/test.sh) builds the engine with CMake directly, against Debian's
 # Eigen, Boost.Math and GoogleTest, also with clang; the report test opens a headless browser.
-((test_mode)) && packages+=(libeigen3-dev libboost-math-dev libgtest-dev clang libomp-dev chromium git)
+((test_mode)) && packages+=(libeigen3-dev libboost-math-dev libgtest-dev clang clang-format libomp-dev chromium git)
 mapfile -t missing < <(m3c2_missing_debs "${packages[@]}")
 m3c2_apt_install "${missing[@]}"
 

@@ -17,6 +17,9 @@ cmake -S . -B build/tests -DCMAKE_BUILD_TYPE=Release -DM3C2_BUILD_TESTS=ON >/dev
 cmake --build build/tests -j"$jobs"
 ctest --test-dir build/tests --output-on-failure -j"$jobs"
 
+step "C++ sources formatted as the committed .clang-format says"
+bash scripts/format.sh --check
+
 step "the installed C++ package from another project (tests/consumer)"
 bash scripts/check-consumer.sh build/tests
 
