@@ -63,8 +63,9 @@ def test_las_output_types_names_and_carried_attributes(toronto, tmp_path):
     ok = np.isfinite(r.distance)
     assert np.array_equal(np.isnan(d), ~ok)
     assert np.all(np.abs(d[ok] - r.distance[ok]) <= F.FLOAT32_RELATIVE_PRECISION * np.abs(r.distance[ok]))
-    assert back.fields["Npoints_cloud1"].dtype == np.uint32 and back.fields["status"].dtype == np.uint8
-    np.testing.assert_array_equal(back.fields["Npoints_cloud2"], np.nan_to_num(r.columns()["n2"]).astype(np.uint32))
+    assert back.fields["Npoints_cloud1"].dtype == np.float32 and back.fields["status"].dtype == np.uint8
+    # NaN where no cylinder was searched (never a 0 that reads as an empty cylinder).
+    np.testing.assert_array_equal(back.fields["Npoints_cloud2"], r.columns()["n2"].astype(np.float32))
     # The core points are a subsample of the reference: its attributes follow them, in the LAS
     # standard dimensions (not zeros).
     index = F._match_rows(ref.xyz, r.core)

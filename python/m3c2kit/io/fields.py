@@ -8,7 +8,8 @@ tests/python/test_io_fields.py).
 Stored types (``float64=False``, the default): values a survey measures (distance, LOD, spreads,
 normal scale, roughness, normal components) as float32, whose relative precision is
 2**-24 = 6e-8: below 1 km that is under 0.06 mm, far below any lidar or photogrammetric
-precision; counts as uint32 (0 where no cylinder was searched: ``status`` 1 or 2 says so);
+precision; counts as float32 (exact below 2**24 points per cylinder; NaN where no cylinder was searched,
+never a 0 that reads as "an empty cylinder": ``status`` 1 or 2 says why);
 ``status`` as uint8; ``significant`` as float32 (0 or 1, NaN where there is no LOD: unknown is
 not "no change"). Projected positions (x1 ... z2) stay float64: they are coordinates, and
 float32 would lose centimetres at UTM magnitudes. ``float64=True`` (--float64) stores every
@@ -40,7 +41,7 @@ class Field:
     name: str
     cloudcompare: str | None
     pdal: str | None
-    dtype: str  # "measure" (float32, float64 on request), "coordinate" (float64), "uint32", "uint8"
+    dtype: str  # "measure" (float32, float64 on request), "coordinate" (float64), "uint8"
     meaning: str
 
 
@@ -48,8 +49,8 @@ FIELDS: tuple[Field, ...] = (
     Field("distance", "M3C2 distance", "m3c2_distance", "measure", "M3C2 distance i2 - i1 along the normal (eq. 1)"),
     Field("lod", "distance uncertainty", "m3c2_uncertainty", "measure", "level of detection at --confidence (eq. 1)"),
     Field("significant", "significant change", "m3c2_significant", "measure", "1 when |distance| > lod, 0 when not, NaN without LOD"),
-    Field("n1", "Npoints_cloud1", "m3c2_count1", "uint32", "reference points in the cylinder"),
-    Field("n2", "Npoints_cloud2", "m3c2_count2", "uint32", "compared points in the cylinder"),
+    Field("n1", "Npoints_cloud1", "m3c2_count1", "measure", "reference points in the cylinder"),
+    Field("n2", "Npoints_cloud2", "m3c2_count2", "measure", "compared points in the cylinder"),
     Field("sigma1", "STD_cloud1", "m3c2_std_dev1", "measure", "spread of the reference points along the normal"),
     Field("sigma2", "STD_cloud2", "m3c2_std_dev2", "measure", "spread of the compared points along the normal"),
     Field("nx", "NormalX", None, "measure", "normal, x component"),
@@ -91,9 +92,6 @@ def output_name(name: str, field_names: str = "m3c2", *, spaces: bool = True) ->
 def _stored(name: str, values: np.ndarray, float64: bool) -> np.ndarray:
     kind = _BY_NAME[name].dtype if name in _BY_NAME else None
     values = np.asarray(values)
-    if kind == "uint32":
-        # NaN (no cylinder searched) becomes 0; status tells why.
-        return np.nan_to_num(values.astype(np.float64), nan=0.0).astype(np.uint32)
     if kind == "uint8":
         return values.astype(np.uint8)
     if kind == "measure":
@@ -149,7 +147,7 @@ def _match_rows(points: np.ndarray, queries: np.ndarray) -> np.ndarray | None:
 
 def markdown_table() -> str:
     """docs/python.md's table of output names and stored types, from :data:`FIELDS`."""
-    types = {"measure": "float32 (float64 with --float64)", "coordinate": "float64", "uint32": "uint32", "uint8": "uint8"}
+    types = {"measure": "float32 (float64 with --float64)", "coordinate": "float64", "uint8": "uint8"}
     lines = ["| m3c2kit | CloudCompare (`--field-names cloudcompare`) | PDAL (`--field-names pdal`) | stored as | meaning |",
              "|---|---|---|---|---|"]
     for f in FIELDS:
