@@ -167,9 +167,9 @@ def _orient_spec(args, settings: dict, reference):
 
 
 def run_compare_tiled(args, settings: dict, grid=None) -> int:
-    """`m3c2 compare ... --tile-size S | --memory-limit M [--dask-scheduler ADDRESS]` (m3c2kit.tiling)."""
+    """`m3c2 compare ... --tile-size S | --memory-limit M [--dask-scheduler ADDRESS]` (m3c2kit.run.tiled)."""
     from .io.streaming import PointSource
-    from .tiling import run_tiled
+    from .run import run_tiled
 
     for flag, value in (("--grid", grid), ("--report", getattr(args, "report", None)),
                         ("--report-png", getattr(args, "report_png", None))):
@@ -179,10 +179,8 @@ def run_compare_tiled(args, settings: dict, grid=None) -> int:
         raise UsageError("--dask-scheduler needs --tile-size S or --memory-limit SIZE to cut the work into tiles")
 
     settings = dict(settings)
-    for name, default in (("field_names", "m3c2"), ("float64", False)):
-        if settings.pop(name, default) not in (default, None):
-            raise UsageError(f"{by_name()[name].flag} cannot be combined with tiling (--tile-size, --memory-limit, "
-                             f"--dask-scheduler): the tiled writer writes m3c2's columns")
+    field_names = settings.pop("field_names", "m3c2") or "m3c2"
+    float64 = bool(settings.pop("float64", False))
     position = settings.pop("position", "core")
     threads = settings.pop("threads", 0)
     core_spacing = settings.pop("core_spacing", None)
@@ -200,7 +198,7 @@ def run_compare_tiled(args, settings: dict, grid=None) -> int:
                        core=core_cloud.xyz if core_cloud is not None else None, core_spacing=core_spacing,
                        core_normals=core_normals, tile_size=args.tile_size, memory_limit=args.memory_limit,
                        dask_scheduler=args.dask_scheduler, threads=threads or 0, projected=args.projected,
-                       position=position, drop_nonfinite=drop, log=say,
+                       position=position, field_names=field_names, float64=float64, drop_nonfinite=drop, log=say,
                        read_points=lambda p: read_cloud(p, drop_nonfinite=drop).xyz, **settings)
     if not args.quiet:
         for line in report.lines(args.output):

@@ -26,7 +26,7 @@ import numpy as np
 from . import engine
 from .errors import UsageError
 
-__all__ = ["UNCERTAINTIES", "EpInputs", "precision_array", "scan_position_ids", "load_scan_positions",
+__all__ = ["UNCERTAINTIES", "EpInputs", "Carried", "carried", "shared_inputs", "moved_compared", "unmoved_compared", "precision_array", "scan_position_ids", "load_scan_positions",
            "load_matrix", "parse_reduction_point", "inputs_for", "compute"]
 
 UNCERTAINTIES = ("eq1", "pm", "ep")
@@ -193,17 +193,58 @@ def _matrix(value, shape, option: str) -> np.ndarray:
     return load_matrix(value, shape, option)
 
 
-def inputs_for(values: dict, reference, compared) -> dict:
-    """The engine's uncertainty keyword arrays for a run with these resolved settings
-    (m3c2kit.settings.resolve) on these clouds (m3c2kit.io.Cloud: their fields and E57 poses)."""
+@dataclass(frozen=True)
+class Carried:
+    """A per-point engine input a cloud carries (and that a tiled run partitions with its points):
+    the engine keyword (``precision1``, ``scan_position2``, ...), the cloud's field names it is
+    read from, and its kind (``precision``: (N, 3) float64; ``scan_position``: (N,) uint32)."""
+    keyword: str
+    names: tuple
+    kind: str
+    option: str
+
+    @property
+    def column(self) -> tuple:
+        """The column of a structured spill record: (keyword, dtype[, shape])."""
+        return (self.keyword, np.float64, (3,)) if self.kind == "precision" else (self.keyword, np.uint32)
+
+    def values(self, fields: dict, what: str) -> np.ndarray:
+        """This input from a cloud's (or a chunk's) fields; the checks and conversion of the
+        in-memory run, elementwise, so that a chunk gives the same bits as the whole cloud."""
+        if self.kind == "precision":
+            return precision_array(fields, self.names, what=what)
+        return scan_position_ids(fields, self.names[0], what=what)
+
+    def filler(self, table: np.ndarray | None) -> np.ndarray:
+        """The value of a stand-in point (a tile's empty cloud): zero precision, a known id."""
+        if self.kind == "precision":
+            return np.zeros((1, 3))
+        return np.asarray([int(table[0, 0])], dtype=np.uint32)
+
+
+def carried(values: dict) -> dict:
+    """The per-point inputs of each cloud ({"reference": [Carried, ...], "compared": [...]})
+    for a run with these resolved settings."""
     kind = values.get("uncertainty", "eq1")
     if kind == "pm":
         names = values.get("precision_fields") or "sx,sy,sz"
-        return dict(precision1=precision_array(_fields(reference, "reference", "--uncertainty pm"), names,
-                                               what="reference cloud"),
-                    precision2=precision_array(_fields(compared, "compared", "--uncertainty pm"), names,
-                                               what="compared cloud"))
-    if kind != "ep":
+        wanted = tuple(n.strip() for n in names.split(",")) if isinstance(names, str) else tuple(names)
+        if len(wanted) != 3 or not all(wanted):
+            raise UsageError(f"--precision-fields needs three field names SX,SY,SZ, got {names!r}")
+        return {name: [Carried(f"precision{k}", wanted, "precision", "--uncertainty pm")]
+                for k, name in ((1, "reference"), (2, "compared"))}
+    if kind == "ep":
+        field_name = values.get("scan_position_field") or "point_source_id"
+        return {name: [Carried(f"scan_position{k}", (field_name,), "scan_position", "--scan-position-field")]
+                for k, name in ((1, "reference"), (2, "compared"))}
+    return {"reference": [], "compared": []}
+
+
+def shared_inputs(values: dict, reference, compared) -> dict:
+    """The engine's uncertainty keywords that are the same for every point (EP's scan-position
+    tables, transformation, alignment covariance, reduction point); `reference` and `compared`
+    give the E57 poses (their ``scan_positions``) when they have them."""
+    if values.get("uncertainty", "eq1") != "ep":
         return {}
     spec = values.get("scan_positions")
     if spec is None:
@@ -211,23 +252,48 @@ def inputs_for(values: dict, reference, compared) -> dict:
     files = spec.split(",") if isinstance(spec, str) else [spec]
     if len(files) > 2:
         raise UsageError(f"--scan-positions takes FILE or FILE1,FILE2 (reference, compared), got {spec!r}")
-    field_name = values.get("scan_position_field") or "point_source_id"
-    ref_fields = _fields(reference, "reference", "--scan-position-field")
-    cmp_fields = _fields(compared, "compared", "--scan-position-field")
     table1 = _table_or_file(files[0], getattr(reference, "scan_positions", None), "--scan-positions")
     table2 = _table_or_file(files[-1], getattr(compared, "scan_positions", None), "--scan-positions")
     transform = values.get("transform")
     if transform is None and values.get("transform_applied"):
         raise UsageError("--transform-applied needs --transform FILE (the transformation that was applied)")
     kw = dict(scan_positions1=table1, scan_positions2=table2,
-              scan_position1=scan_position_ids(ref_fields, field_name, what="reference cloud"),
-              scan_position2=scan_position_ids(cmp_fields, field_name, what="compared cloud"),
               transform=np.eye(3, 4) if transform is None else _matrix(transform, (3, 4), "--transform"),
               reduction_point=np.zeros(3) if values.get("reduction_point") is None
               else parse_reduction_point(values["reduction_point"]),
               transform_applied=bool(values.get("transform_applied", False)))
     if values.get("alignment_covariance") is not None:
         kw["alignment_covariance"] = _matrix(values["alignment_covariance"], (12, 12), "--alignment-covariance")
+    return kw
+
+
+def moved_compared(shared: dict, xyz: np.ndarray) -> np.ndarray:
+    """Where the engine sees compared points (EP with a transformation not yet applied:
+    p' = red + R (p - red) + t, src/uncertainty.cpp), for choosing a tile's points; the engine
+    moves them itself, so the last bits here need not be its own (a tile's box has a margin)."""
+    if "transform" not in shared or shared.get("transform_applied"):
+        return xyz
+    t, red = shared["transform"], shared["reduction_point"]
+    return (xyz - red) @ t[:, :3].T + t[:, 3] + red
+
+
+def unmoved_compared(shared: dict, xyz: np.ndarray) -> np.ndarray:
+    """The inverse of moved_compared: a compared point the engine will see at `xyz`."""
+    if "transform" not in shared or shared.get("transform_applied"):
+        return xyz
+    t, red = shared["transform"], shared["reduction_point"]
+    return (xyz - red - t[:, 3]) @ np.linalg.inv(t[:, :3]).T + red
+
+
+def inputs_for(values: dict, reference, compared) -> dict:
+    """The engine's uncertainty keyword arrays for a run with these resolved settings
+    (m3c2kit.settings.resolve) on these clouds (m3c2kit.io.Cloud: their fields and E57 poses)."""
+    per_point = carried(values)
+    kw = {}
+    for name, cloud in (("reference", reference), ("compared", compared)):
+        for c in per_point[name]:
+            kw[c.keyword] = c.values(_fields(cloud, name, c.option), f"{name} cloud")
+    kw.update(shared_inputs(values, reference, compared))
     return kw
 
 

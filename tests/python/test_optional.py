@@ -97,10 +97,10 @@ def test_analysis_plots_without_matplotlib(absent):
 
 
 def test_dask_without_distributed(absent):
-    from m3c2kit import tiling
+    from m3c2kit.run import dask
     absent("distributed")
     with pytest.raises(optional.MissingExtraError, match=r"needs the dask extra: pip install 'm3c2kit\[dask\]'"):
-        tiling._run_dask([], {}, 1, 0, None, None, "tcp://127.0.0.1:1", None, None, None)
+        dask.connect("tcp://127.0.0.1:1")
 
 
 def _blocking_prelude(modules) -> str:

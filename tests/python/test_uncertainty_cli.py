@@ -1,6 +1,6 @@
 """`m3c2 compare --uncertainty pm|ep` end to end (issue 16): the flags of the contract, the
 clouds' fields read by the readers, the spread1/spread2 columns, the same numbers as the engine
-called directly, the params-file keys, and a clear refusal where a run cannot carry the fields."""
+called directly, the params-file keys, and clear errors naming the missing inputs (tiled and Dask runs: test_run_modes.py)."""
 from __future__ import annotations
 
 import csv
@@ -115,7 +115,4 @@ def test_missing_inputs_are_named(pair):
     with pytest.raises(UsageError, match="not a bare array"):
         m3c2kit.compare(clouds["ref"][0], clouds["cmp"][0], core, normal_scale=1, projection_scale=0.5,
                         max_depth=0.5, uncertainty="pm")
-    with pytest.raises(UsageError, match="runs in memory only"):
-        from m3c2kit.tiling import run_tiled
-        run_tiled(str(d / "ref.xyz"), str(d / "cmp.xyz"), core=core, normal_scale=1, projection_scale=0.5,
-                  max_depth=0.5, tile_size=1.0, uncertainty="pm")
+

@@ -147,6 +147,41 @@ class PointSource:
             if len(xyz):
                 yield xyz
 
+    def records(self, size: int = DEFAULT_CHUNK, fields=()) -> Iterator[tuple[np.ndarray, dict]]:
+        """As chunks(), with the per-point `fields` (read_cloud's names: LAS dimensions, a
+        multi-valued one as NAME_K, PLY properties, text columns) that the file has: (xyz, {name:
+        values}) chunks in file order, non-finite points dropped from both."""
+        fields = tuple(fields)
+        for xyz, values in self._raw_records(size, fields):
+            if self._cloud is None:
+                finite = np.isfinite(xyz).all(axis=1)
+                if not finite.all():
+                    if not self.drop_nonfinite:
+                        raise CloudReadError(f"{self.path}: some points have non-finite (NaN or infinite) "
+                                             f"coordinates; use --drop-nonfinite to drop them")
+                    xyz = xyz[finite]
+                    values = {k: v[finite] for k, v in values.items()}
+            if len(xyz):
+                yield xyz, values
+
+    def _raw_records(self, size: int, fields: tuple) -> Iterator[tuple[np.ndarray, dict]]:
+        if self._cloud is not None:
+            xyz, have = self._cloud.xyz, self._cloud.fields
+            for start in range(0, len(xyz), size):
+                yield xyz[start:start + size], {k: np.asarray(have[k])[start:start + size] for k in fields if k in have}
+        elif self.kind in ("las", "copc"):
+            import laspy
+            with read_errors(self.path), laspy.open(self.path) as reader:
+                names = set(reader.header.point_format.dimension_names)
+                for points in reader.chunk_iterator(size):
+                    yield _xyz_of(points), {k: v for k in fields if (v := _las_field(points, names, k)) is not None}
+        else:
+            a = self._npy_array()
+            have = set(a.dtype.names or ())
+            for start in range(0, a.shape[0], size):
+                part = a[start:start + size]
+                yield self._npy_chunk(a, start, start + size), {k: np.asarray(part[k]) for k in fields if k in have}
+
     def query_box(self, lo, hi, size: int = DEFAULT_CHUNK) -> np.ndarray:
         """The points with lo <= p <= hi (each axis, inclusive), in file order."""
         lo, hi = np.asarray(lo, float), np.asarray(hi, float)
@@ -169,6 +204,20 @@ class PointSource:
             points = reader.query(bounds=Bounds(mins=qlo, maxs=qhi))
             xyz = _xyz_of(points)
         return xyz[_in_box(xyz, lo, hi)]
+
+
+def _las_field(points, names: set, name: str):
+    """Field `name` of a chunk of LAS points as m3c2kit.io.las reads it (NAME_K: column K of a
+    multi-valued dimension), or None."""
+    if name in names and name not in ("X", "Y", "Z"):
+        values = np.asarray(points[name])
+        return values if values.ndim == 1 else None
+    base, _, k = name.rpartition("_")
+    if base in names and k.isdigit():
+        values = np.asarray(points[base])
+        if values.ndim == 2 and int(k) < values.shape[1]:
+            return np.ascontiguousarray(values[:, int(k)])
+    return None
 
 
 def _xyz_of(points) -> np.ndarray:

@@ -1,0 +1,13 @@
+"""The executor of compare runs (docs/architecture.md, docs/scaling.md): one plan
+(:mod:`.plan`: the options resolved and checked once), executed in memory (:mod:`.in_memory`) or in
+tiles on this machine or on Dask (:mod:`.tiled`), every task making the same engine call
+(:mod:`.tasks`). The tiled pieces: :mod:`.memory` (planning), :mod:`.partition` (tiles and
+halos), :mod:`.spill` (every spill write), :mod:`.vegetation` (--classifier in tiles),
+:mod:`.dask` (the cluster), :mod:`.merge` (core order, the output), :mod:`.outcome` (the report)."""
+from __future__ import annotations
+
+from .in_memory import compare
+from .plan import Plan, make_plan
+from .tiled import run_tiled
+
+__all__ = ["Plan", "make_plan", "compare", "run_tiled"]

@@ -1,0 +1,55 @@
+"""The checks every run makes on its inputs before any work, in every mode: arrays of real
+coordinates, thread counts, subsampling spacings and the spatial index's coordinate range (the
+engine's limits, m3c2kit.engine)."""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from .. import engine
+from ..errors import CloudReadError, UsageError
+from ..io.arrays import as_coordinates
+from ..settings.table import by_name
+
+def as_points(name: str, values) -> np.ndarray:
+    """(N, 3) float64 C-contiguous view of `values` (no copy when it already is one); only real
+    numbers (io.arrays.as_coordinates: bool, complex, datetime, strings are refused)."""
+    return as_coordinates(name, values)
+
+
+def threads_count(threads) -> int:
+    """--threads as the engine's int: 0 (all hardware threads) or a positive count."""
+    p = by_name()["threads"]
+    return p.kind(p.flag, 0 if threads is None else threads)
+
+
+def check_spacing(name: str, spacing: float, *clouds) -> float:
+    """`spacing`, or a UsageError naming the option when a cloud's extent spans more than the
+    engine's subsampling grid allows (engine.MAX_CELLS_PER_AXIS spacings on an axis, docs/errors.md)."""
+    for cloud in clouds:
+        if len(cloud):
+            extent = float(np.max(cloud.max(axis=0) - cloud.min(axis=0)))
+            if not extent / spacing <= engine.MAX_CELLS_PER_AXIS:
+                raise UsageError(f"{name} {spacing!r} is too small for clouds spanning {extent:.6g} on an axis "
+                                 f"(at most 2**40 spacings); remove far outliers or use a larger spacing")
+    return spacing
+
+
+def check_coordinate_range(name: str, source, points: np.ndarray, limit: float) -> None:
+    """The engine's spatial index keys coordinates below `limit` in magnitude (2**41 cells of a
+    grid that follows the smallest diameter, docs/errors.md): a far outlier, or coordinates far
+    from any local origin, is refused naming the file when there is one (exit 1), else the array."""
+    if len(points) == 0:
+        return
+    worst = max(float(points.max()), -float(points.min()))  # no |points| temporary
+    if worst < limit or not math.isfinite(worst):
+        return  # non-finite coordinates: the engine counts and names them first
+    message = (f"a coordinate ({worst:.6g}) lies beyond +-{limit:.6g}, the range of the spatial index for these "
+               f"scales; remove far outliers or shift the coordinates to a local origin")
+    path = getattr(source, "path", None)
+    if path is not None:
+        raise CloudReadError(f"{path}: {message}")
+    raise UsageError(f"the {name} cloud: {message}")
+
+

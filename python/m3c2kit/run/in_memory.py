@@ -1,0 +1,55 @@
+"""Executing a plan in memory: the clouds are arrays (or m3c2kit.io.Cloud), the run is one task of
+the engine (m3c2kit.run.tasks.compute_arrays, the call every tile makes too)."""
+from __future__ import annotations
+
+from typing import Callable
+
+from .. import diagnostics, uncertainty_inputs
+from ..errors import UsageError
+from ..result import Result
+from .checks import as_points, check_coordinate_range, check_spacing
+from .cores import core_points_for
+from .memory import check_memory
+from .plan import make_plan
+from .tasks import compute_arrays
+from .vegetation import filtered_clouds
+from .. import engine
+
+
+def compare(reference, compared, core_points=None, *, core_normals=None,
+            progress: Callable[[int, int], object] | None = None, read_points=None, warn: bool = True, **params):
+    """M3C2 in memory; returns (Result, resolved values). `warn`: emit the data-quality warnings."""
+    plan = make_plan(params, read_points)
+    values = plan.values
+    given = (reference, compared)  # the warnings look at the clouds as given
+    reference, compared = filtered_clouds(plan.filter, reference, compared, threads=values["threads"])
+    ref = as_points("reference", reference)
+    cmp_ = as_points("compared", compared)
+    for name, cloud in (("reference", ref), ("compared", cmp_)):
+        if len(cloud) == 0:
+            raise UsageError(f"the {name} cloud is empty (0 points)")
+    core_xyz = core_points_for(ref, core_points, values["core_spacing"])
+    if len(core_xyz) == 0:
+        raise UsageError("core_points is empty: there is nothing to compute")
+    check_memory(len(ref), len(cmp_), len(core_xyz))
+    if values["normal_subsample"] is not None:
+        check_spacing("--normal-subsample", values["normal_subsample"], ref, cmp_)
+    limit = engine.max_abs_coordinate(plan.engine)
+    check_coordinate_range("reference", reference, ref, limit)
+    check_coordinate_range("compared", compared, cmp_, limit)
+
+    normals = None
+    if values["normal_source"] == "core":
+        if core_normals is None:
+            raise UsageError("--normal-source core needs core_normals (one normal per core point)")
+        normals = as_points("core_normals", core_normals)
+        if len(normals) != len(core_xyz):
+            raise UsageError(f"core_normals has {len(normals)} rows for {len(core_xyz)} core points")
+    # Per-point inputs of --uncertainty pm / ep from the clouds' fields (docs/algorithm.md §6.5).
+    per_point = uncertainty_inputs.inputs_for(values, reference, compared)
+    raw = compute_arrays(ref, cmp_, core_xyz, plan.engine, normals, threads=values["threads"], progress=progress,
+                         per_point=per_point)
+    result = Result.from_engine(core_xyz, raw, plan.record)
+    if warn:
+        diagnostics.warn(result, values, *(as_points(n, c) for n, c in zip(("reference", "compared"), given)))
+    return result, values

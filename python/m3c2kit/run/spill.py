@@ -1,0 +1,91 @@
+"""The spill folder of a tiled run: every file a tiled run writes besides its output goes through
+:class:`SpillFolder` (per-tile core points, cloud points and results, the tile of each core point,
+the classifier's keep masks), so that a write that fails (a full disk: ENOSPC, a quota: EDQUOT,
+any OSError) is one clean :class:`SpillError` naming the folder and the problem. The folder is a
+private one beside the output (m3c2kit.io.atomic.private_folder) that the executor removes
+whatever happens; the output itself is written atomically, so nothing partial is left."""
+from __future__ import annotations
+
+import errno
+import os
+from contextlib import contextmanager
+from pathlib import Path
+from typing import Iterator
+
+import numpy as np
+
+from ..errors import M3C2Error
+
+
+def _tofile(rows: np.ndarray, f) -> None:
+    """The one write of every spill file."""
+    np.ascontiguousarray(rows).tofile(f)
+
+
+class SpillError(M3C2Error):
+    """A tiled run could not write its spill files (exit status 1)."""
+
+
+def _reason(e: OSError) -> str:
+    name = errno.errorcode.get(e.errno or 0)
+    text = e.strerror or str(e)
+    return f"{text} ({name})" if name else text
+
+
+class SpillFolder:
+    """Per-tile append-only binary files ``<stem>-<tile>.bin`` and whole files in one folder."""
+
+    def __init__(self, folder: Path):
+        self.folder = Path(folder)
+
+    def path(self, stem: str, tile: int | None = None) -> str:
+        return str(self.folder / (stem if tile is None else f"{stem}-{tile}.bin"))
+
+    @contextmanager
+    def writing(self) -> Iterator[None]:
+        """Turns an OSError of the writes in the block into a SpillError naming the folder."""
+        try:
+            yield
+        except OSError as e:
+            raise SpillError(f"cannot write the tiled run's spill files in {self.folder}: {_reason(e)}; free space "
+                             f"there (the spill folder is beside the output, -o), or write the output to another "
+                             f"folder; no output was written") from None
+
+    def append(self, stem: str, tiles: np.ndarray, rows: np.ndarray) -> None:
+        """Appends rows[i] to tile tiles[i]'s file, keeping the rows' order within each tile."""
+        if len(tiles) == 0:
+            return
+        order = np.argsort(tiles, kind="stable")
+        tiles, rows = tiles[order], rows[order]
+        cuts = np.flatnonzero(np.diff(tiles)) + 1
+        starts = np.concatenate([[0], cuts])
+        stops = np.concatenate([cuts, [len(tiles)]])
+        with self.writing():
+            for a, b in zip(starts, stops):
+                with open(self.path(stem, int(tiles[a])), "ab") as f:
+                    _tofile(rows[a:b], f)
+
+    def write(self, stem: str, tile: int | None, rows: np.ndarray) -> None:
+        """(Re)writes one whole file."""
+        with self.writing(), open(self.path(stem, tile), "wb") as f:
+            _tofile(rows, f)
+
+    @contextmanager
+    def stream(self, stem: str) -> Iterator[object]:
+        """A file written sequentially (its .write(array) appends the array's bytes)."""
+        with self.writing(), open(self.path(stem), "wb") as f:
+            yield _Stream(f)
+
+    def read(self, stem: str, tile: int | None, dtype, count: int = -1, offset: int = 0) -> np.ndarray:
+        path = self.path(stem, tile)
+        if not os.path.exists(path):
+            return np.empty(0, dtype=dtype)
+        return np.fromfile(path, dtype=dtype, count=count, offset=offset)
+
+
+class _Stream:
+    def __init__(self, f):
+        self._f = f
+
+    def write(self, rows: np.ndarray) -> None:
+        _tofile(rows, self._f)
