@@ -168,8 +168,8 @@ def _orient_spec(args, settings: dict, reference):
 
 def run_compare_tiled(args, settings: dict, grid=None) -> int:
     """`m3c2 compare ... --tile-size S | --memory-limit M [--dask-scheduler ADDRESS]` (m3c2kit.run.tiled)."""
-    from .io.streaming import PointSource
-    from .run import run_tiled
+    from .run.dask import connect
+    from .run.tiled import preflight
 
     for flag, value in (("--grid", grid), ("--report", getattr(args, "report", None)),
                         ("--report-png", getattr(args, "report_png", None))):
@@ -185,6 +185,21 @@ def run_compare_tiled(args, settings: dict, grid=None) -> int:
     threads = settings.pop("threads", 0)
     core_spacing = settings.pop("core_spacing", None)
     drop = bool(getattr(args, "drop_nonfinite", False))
+    # The executor's checks and the Dask connection (bounded in time) before any file is read.
+    preflight(dict(settings, threads=threads, core_spacing=core_spacing), args.tile_size, args.memory_limit,
+              read_points=lambda p: read_cloud(p, drop_nonfinite=drop).xyz)
+    client = connect(args.dask_scheduler) if args.dask_scheduler is not None else None
+    try:
+        return _compare_tiled(args, settings, client, position, threads, core_spacing, drop, field_names, float64)
+    finally:
+        if client is not None:
+            client.close()
+
+
+def _compare_tiled(args, settings, client, position, threads, core_spacing, drop, field_names, float64) -> int:
+    from .io.streaming import PointSource
+    from .run import run_tiled
+
     ref_src = PointSource(args.reference, drop_nonfinite=drop)
     cmp_src = PointSource(args.compared, drop_nonfinite=drop)
     if "orient" not in settings:
@@ -197,7 +212,7 @@ def run_compare_tiled(args, settings: dict, grid=None) -> int:
     report = run_tiled(ref_src, cmp_src, output=args.output,
                        core=core_cloud.xyz if core_cloud is not None else None, core_spacing=core_spacing,
                        core_normals=core_normals, tile_size=args.tile_size, memory_limit=args.memory_limit,
-                       dask_scheduler=args.dask_scheduler, threads=threads or 0, projected=args.projected,
+                       client=client, threads=threads or 0, projected=args.projected,
                        position=position, field_names=field_names, float64=float64, drop_nonfinite=drop, log=say,
                        read_points=lambda p: read_cloud(p, drop_nonfinite=drop).xyz, **settings)
     if not args.quiet:

@@ -10,7 +10,7 @@ import time
 import numpy as np
 import pytest
 
-from m3c2kit import tiling
+from m3c2kit.run import dask as dask_run
 from m3c2kit.cli import main
 
 pytest.importorskip("distributed")
@@ -18,7 +18,7 @@ pytest.importorskip("distributed")
 
 @pytest.fixture
 def pair(tmp_path, monkeypatch):
-    monkeypatch.setattr(tiling, "DASK_CONNECT_TIMEOUT", 2.0)
+    monkeypatch.setattr(dask_run, "DASK_CONNECT_TIMEOUT", 2.0)
     rng = np.random.default_rng(0)
     for name in ("ref", "cmp"):
         xy = rng.uniform(0, 10, (500, 2))

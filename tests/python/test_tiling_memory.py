@@ -85,9 +85,10 @@ def test_chunks_from_the_plan_keep_the_bytes(pair, tmp_path, monkeypatch):
     out_plain, out_limited = tmp_path / "plain.laz", tmp_path / "limited.laz"
     run_tiled(ref, cmp_, output=out_plain, tile_size=12.0, **PARAMS)
     # Tiny chunks: the plan must take its row counts from the (scaled) per-row costs.
-    monkeypatch.setattr(tiling, "MIN_CHUNK", 64)
-    monkeypatch.setattr(tiling, "MERGE_BYTES_PER_ROW", 2**20)
-    monkeypatch.setattr(tiling, "STREAM_BYTES_PER_ROW", 2**19)
+    from m3c2kit.run import memory  # the executor's memory planning (tiling re-exports its names)
+    monkeypatch.setattr(memory, "MIN_CHUNK", 64)
+    monkeypatch.setattr(memory, "MERGE_BYTES_PER_ROW", 2**20)
+    monkeypatch.setattr(memory, "STREAM_BYTES_PER_ROW", 2**19)
     limit = tiling._rss_bytes() + tiling.HEADROOM_BYTES + 4000 * 2**20
     rep = run_tiled(ref, cmp_, output=out_limited, tile_size=12.0, memory_limit=limit, **PARAMS)
     assert rep.memory_plan.merge_rows < 2000 and rep.memory_plan.stream_rows < 4000

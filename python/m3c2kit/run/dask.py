@@ -75,13 +75,14 @@ def run_on_dask(client, tasks, task_fn, accept, *, retries: int, log, args=()) -
     run_id = uuid.uuid4().hex[:8]
     window = max(2, 2 * workers)
     pending = iter(tasks)
+    name = getattr(task_fn, "__name__", "tile")
     futures = distributed.as_completed(with_results=True)
 
     def submit_next() -> bool:
         task = next(pending, None)
         if task is None:
             return False
-        futures.add(client.submit(task_fn, task, *args, key=f"m3c2-{task_fn.__name__}-{run_id}-{task.tile}",
+        futures.add(client.submit(task_fn, task, *args, key=f"m3c2-{name}-{run_id}-{task.tile}",
                                   retries=retries, pure=False))
         return True
 

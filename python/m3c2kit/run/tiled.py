@@ -74,37 +74,19 @@ def run_tiled(reference, compared, *, output=None, core=None, core_spacing=None,
     report = TiledReport()
     read_points = params.pop("read_points", None)
     given = dict(params, normal_scale=normal_scale, projection_scale=projection_scale, max_depth=max_depth)
-    plan = make_plan(given, read_points)
-    values, engine_p = plan.values, plan.engine
-    if engine_p.normal_subsample_spacing > 0:
-        raise UsageError("--normal-subsample cannot be combined with tiling (--tile-size, --memory-limit, "
-                         "--dask-scheduler): the subsampled normal cloud depends on the whole cloud's order, "
-                         "so tiles would not reproduce the untiled result")
-    if values["lod"] == "bootstrap":
-        raise UsageError("--bootstrap cannot be combined with tiling: the bootstrap stream is seeded by the "
-                         "core point's index in the run, which a tile does not know")
-    if tile_size is None and memory_limit is None:
-        raise UsageError("tiling needs --tile-size or --memory-limit")
-    h = engine.neighbourhood_reach(engine_p)
-    hp = engine.tile_halo(engine_p)
+    plan, h, hp, tile_size, limit = preflight(given, tile_size, memory_limit, read_points)
     report.halo = h
-    if tile_size is not None:  # before any file is read (docs/errors.md, "Run limits")
-        tile_size = usable_length("--tile-size", tile_size)
-        check_tile_size(tile_size, h)
-    limit = None
-    if memory_limit is not None:
-        limit = parse_memory(memory_limit) if not isinstance(memory_limit, (int, float)) else int(memory_limit)
-        report.memory_limit = limit
-
-    ref_src = reference if isinstance(reference, PointSource) else PointSource(reference, drop_nonfinite=drop_nonfinite)
-    cmp_src = compared if isinstance(compared, PointSource) else PointSource(compared, drop_nonfinite=drop_nonfinite)
-    shared = uncertainty_inputs.shared_inputs(values, ref_src.like(), cmp_src.like())
+    report.memory_limit = limit
 
     own_client = client is None and dask_scheduler is not None
     if own_client:
-        client = dask_run.connect(dask_scheduler)  # bounded in time, before any work
+        client = dask_run.connect(dask_scheduler)  # bounded in time, before any file is read
     own_dir = work_dir is None
     try:
+        ref_src = reference if isinstance(reference, PointSource) else PointSource(reference,
+                                                                                   drop_nonfinite=drop_nonfinite)
+        cmp_src = compared if isinstance(compared, PointSource) else PointSource(compared, drop_nonfinite=drop_nonfinite)
+        shared = uncertainty_inputs.shared_inputs(plan.values, ref_src.like(), cmp_src.like())
         if own_dir:
             parent = Path(output).resolve().parent if output is not None else None
             work = private_folder(parent if parent is not None else Path(tempfile.gettempdir()))
@@ -124,6 +106,31 @@ def run_tiled(reference, compared, *, output=None, core=None, core_spacing=None,
     finally:
         if own_client:
             client.close()
+
+
+def preflight(params: dict, tile_size=None, memory_limit=None, read_points=None):
+    """The checks of a tiled run that need no file (docs/errors.md, "Run limits"): the plan, the
+    options tiles cannot reproduce, the tile size against the halo, the memory limit. Returns
+    (plan, reach h, tile halo, tile size, memory limit in bytes)."""
+    plan = make_plan(params, read_points)
+    values, engine_p = plan.values, plan.engine
+    if engine_p.normal_subsample_spacing > 0:
+        raise UsageError("--normal-subsample cannot be combined with tiling (--tile-size, --memory-limit, "
+                         "--dask-scheduler): the subsampled normal cloud depends on the whole cloud's order, "
+                         "so tiles would not reproduce the untiled result")
+    if values["lod"] == "bootstrap":
+        raise UsageError("--bootstrap cannot be combined with tiling: the bootstrap stream is seeded by the "
+                         "core point's index in the run, which a tile does not know")
+    if tile_size is None and memory_limit is None:
+        raise UsageError("tiling needs --tile-size or --memory-limit")
+    h = engine.neighbourhood_reach(engine_p)
+    if tile_size is not None:
+        tile_size = usable_length("--tile-size", tile_size)
+        check_tile_size(tile_size, h)
+    limit = None
+    if memory_limit is not None:
+        limit = parse_memory(memory_limit) if not isinstance(memory_limit, (int, float)) else int(memory_limit)
+    return plan, h, engine.tile_halo(engine_p), tile_size, limit
 
 
 def _executor(client, retries: int, log, report: TiledReport):
