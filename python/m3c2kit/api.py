@@ -9,7 +9,7 @@ from typing import Callable
 
 import numpy as np
 
-from . import engine
+from . import diagnostics, engine
 from .result import Result
 from .errors import UsageError
 from .run import in_memory
@@ -43,20 +43,22 @@ def compare(reference, compared, core_points=None, *, core=None, core_normals=No
     UsageError naming the closest valid one. The run is m3c2kit.run's plan executed in memory
     (m3c2kit.run.run_tiled executes the same plan in tiles, with the same bits).
     """
-    return _compare(reference, compared, core_points, core=core, core_normals=core_normals, progress=progress,
-                    read_points=read_points, warn=True, **params)
+    result, values, given = _compare(reference, compared, core_points, core=core, core_normals=core_normals,
+                                     progress=progress, read_points=read_points, **params)
+    diagnostics.warn(result, values, *(as_points(n, c) for n, c in zip(("reference", "compared"), given)))
+    return result
 
 
 def compare_quietly(reference, compared, core_points=None, **kwargs) -> Result:
     """compare() without the warnings: for runs made to diagnose another one (m3c2kit.quality)."""
-    return _compare(reference, compared, core_points, warn=False, **kwargs)
+    return _compare(reference, compared, core_points, **kwargs)[0]
 
 
-def _compare(reference, compared, core_points=None, *, core=None, warn: bool, **kwargs) -> Result:
+def _compare(reference, compared, core_points=None, *, core=None, **kwargs):
     if core is not None and core_points is not None:
         raise UsageError("give core_points or core (the same parameter), not both")
     core_points = core if core_points is None else core_points
-    return in_memory.compare(reference, compared, core_points, warn=warn, **kwargs)[0]
+    return in_memory.compare(reference, compared, core_points, **kwargs)
 
 
 def normals(cloud, core_points=None, *, progress=None, read_points=None, **params) -> dict:

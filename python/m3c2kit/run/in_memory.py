@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from typing import Callable
 
-from .. import diagnostics, uncertainty_inputs
+from .. import uncertainty_inputs
 from ..errors import UsageError
 from ..result import Result
 from .checks import as_points, check_coordinate_range, check_spacing
@@ -17,8 +17,9 @@ from .. import engine
 
 
 def compare(reference, compared, core_points=None, *, core_normals=None,
-            progress: Callable[[int, int], object] | None = None, read_points=None, warn: bool = True, **params):
-    """M3C2 in memory; returns (Result, resolved values). `warn`: emit the data-quality warnings."""
+            progress: Callable[[int, int], object] | None = None, read_points=None, **params):
+    """M3C2 in memory; returns (Result, resolved values, (reference, compared) as given): the caller
+    emits the data-quality warnings (diagnostics.warn, as m3c2kit.compare does), so that they name its caller's line."""
     plan = make_plan(params, read_points)
     values = plan.values
     given = (reference, compared)  # the warnings look at the clouds as given
@@ -50,6 +51,5 @@ def compare(reference, compared, core_points=None, *, core_normals=None,
     raw = compute_arrays(ref, cmp_, core_xyz, plan.engine, normals, threads=values["threads"], progress=progress,
                          per_point=per_point)
     result = Result.from_engine(core_xyz, raw, plan.record)
-    if warn:
-        diagnostics.warn(result, values, *(as_points(n, c) for n, c in zip(("reference", "compared"), given)))
-    return result, values
+    return result, values, given
+

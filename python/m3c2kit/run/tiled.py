@@ -168,8 +168,8 @@ def _run(plan: Plan, report: TiledReport, ref_src, cmp_src, spills: SpillFolder,
         if size_c is None:
             _, rho = density(ref_src, stream_rows)
             size_c = choose_tile_size(limit, reach(plan.filter.classifier), rho, 0.0, rho, base=mem.base)
-        ref_src = classify_tiled(plan.filter, "reference", ref_src, spills, size_c, stream_rows, execute)
-        cmp_src = classify_tiled(plan.filter, "compared", cmp_src, spills, size_c, stream_rows, execute)
+        ref_src = classify_tiled(plan.filter, "reference", ref_src, spills, size_c, stream_rows, execute, threads)
+        cmp_src = classify_tiled(plan.filter, "compared", cmp_src, spills, size_c, stream_rows, execute, threads)
         release_memory()
         report.seconds["classify"] = time.perf_counter() - t0
 

@@ -104,7 +104,8 @@ class MaskedSource:
         return np.concatenate(parts) if parts else np.empty((0, 3))
 
 
-def classify_tiled(filt, name: str, source, spills: SpillFolder, size: float, rows: int, execute) -> MaskedSource:
+def classify_tiled(filt, name: str, source, spills: SpillFolder, size: float, rows: int, execute,
+                   threads: int = 0) -> MaskedSource:
     """The tiled classification pass of one cloud (`execute(tasks, fn, accept)` runs the tasks,
     on this machine or on Dask); the cloud read through its keep mask."""
     stem = f"classify-{name}"
@@ -127,7 +128,7 @@ def classify_tiled(filt, name: str, source, spills: SpillFolder, size: float, ro
         spills.write(f"{stem}-keep", t, out["keep"])
         done.add(t)
 
-    execute(tasks, classify_tile, accept)
+    execute(tasks, classify_tile, accept, (threads,))
     if len(done) != len(tiles):
         raise M3C2Error(f"only {len(done)} of {len(tiles)} classification tiles were computed")
     offsets = np.zeros(len(tiles), dtype=np.int64)
