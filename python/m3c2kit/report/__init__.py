@@ -25,6 +25,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..errors import CloudWriteError
 from ..result import STATUS_NAMES, Result
 from ..lod_rates import expectation_text, run_expectation
 from ..summary import normal_accuracy
@@ -231,11 +232,20 @@ def write_report(result: Result, html_path=None, png_prefix=None, *, staged: dic
     written = []
     if html_path is not None:
         target = Path(html_path)
-        Path(staged.get(target, target)).write_text(render_html(rep), encoding="utf-8")
+        _write_bytes(target, staged.get(target, target), render_html(rep).encode("utf-8"))
         written.append(target)
     if png_prefix is not None:
         paths = png_paths(png_prefix)
         for key, _, data, _ in rep.figures:
-            Path(staged.get(paths[key], paths[key])).write_bytes(data)
+            _write_bytes(paths[key], staged.get(paths[key], paths[key]), data)
             written.append(paths[key])
     return written
+
+
+def _write_bytes(target: Path, path, data: bytes) -> None:
+    """Writes `data` to `path` (a temporary of `target`); a failure (a full disk: the OS error has
+    no file name) names the report file the user asked for (docs/errors.md, "Output")."""
+    try:
+        Path(path).write_bytes(data)
+    except OSError as e:
+        raise CloudWriteError(f"{target}: {e.strerror or e}") from None
