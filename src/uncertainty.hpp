@@ -51,9 +51,9 @@ class UncertaintyModel {
  private:
   /// What both EP centres of gravity need of cloud k (0 reference, 1 compared), set up once.
   struct EpCloud {
-    bool moved;         ///< the compared cloud: its points were transformed by tfM
-    bool independent;   ///< EpCovariance::kIndependent (else the mean of the points' covariances)
-    PointsView indexed; ///< the points as indexed and projected
+    bool moved;          ///< the compared cloud: its points were transformed by tfM
+    bool independent;    ///< EpCovariance::kIndependent (else the mean of the points' covariances)
+    PointsView indexed;  ///< the points as indexed and projected
   };
   EpCloud ep_cloud(int k) const;
   /// Point j of cloud k: its covariance from its scan position, in the indexed frame (rotated
