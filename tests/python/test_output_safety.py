@@ -116,3 +116,29 @@ def test_a_hard_link_to_an_analysis_input_is_refused(pair, capsys):
     os.link(pair / "ref.las", link)
     err = _refused(capsys, "c2c", pair / "ref.las", pair / "cmp.las", "-o", link, protected=[pair / "ref.las"])
     assert f"-o '{link}' is the reference cloud '{pair / 'ref.las'}'" in err
+
+
+
+def _series_cases(d: Path):
+    ref, cmp = d / "ref.las", d / "cmp.las"
+    store, archive, table = d / "store.zarr", d / "analysis.zip", d / "objects.csv"
+    compare = ["--normal-scale", "0.3", "--projection-scale", "0.2", "--max-depth", "0.5"]
+    return {
+        "series -o reference": (["series", ref, cmp, "-o", ref, *compare], ref, "-o", "reference cloud"),
+        "series -o epoch": (["series", ref, cmp, "-o", cmp, *compare], cmp, "-o", f"epoch {cmp}"),
+        "series import -o archive": (["series", "import", archive, "-o", archive], archive, "-o", "archive"),
+        "series report -o objects": (["series", "report", store, "-o", table, "--objects", table], table, "-o",
+                                     "objects table"),
+    }
+
+
+@pytest.mark.parametrize("case", list(_series_cases(Path("."))))
+def test_the_series_subcommands_refuse_an_output_that_is_an_input(pair, capsys, case):
+    # Checked before the series extra (xarray, zarr) is needed: it refuses without it too.
+    (pair / "store.zarr").mkdir()
+    (pair / "analysis.zip").write_bytes(b"PK\x05\x06" + bytes(18))  # never read: the check comes first
+    (pair / "objects.csv").write_text("object\n")
+    argv, victim, option, label = _series_cases(pair)[case]
+    err = _refused(capsys, *argv, protected=[pair / "ref.las", pair / "cmp.las", pair / "analysis.zip",
+                                             pair / "objects.csv"])
+    assert f"{option} '{victim}' is the {label} '" in err, err
