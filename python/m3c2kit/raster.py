@@ -86,7 +86,8 @@ class Grid:
 
 
 #: Bytes per raster cell while the images exist together (rasters(): the six images, 18 bytes a
-#: cell, plus the one being written): the images cover every cell of the grid, empty or not, so a
+#: cell, plus the one being written, which GDAL builds in memory, deflated: at most about 4 bytes a
+#: cell, write_rasters): the images cover every cell of the grid, empty or not, so a
 #: small --grid on a large cloud is sized by its extent, not by its points.
 RASTER_BYTES_PER_CELL = sum(np.dtype(t).itemsize for t, _, _ in RASTERS.values()) + 4
 
