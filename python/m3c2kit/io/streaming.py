@@ -29,6 +29,7 @@ from typing import Iterator
 import numpy as np
 
 from ..errors import CloudReadError, CloudWriteError
+from ..fault_hook import checkpoint as fault_checkpoint
 from .atomic import atomic_output
 from .cloud import Cloud
 from .files import read_cloud, write_cloud_table
@@ -146,6 +147,7 @@ class PointSource:
                     xyz = xyz[finite]
             if len(xyz):
                 yield xyz
+        fault_checkpoint("reading")  # a testing aid (m3c2kit.fault_hook): the whole file streamed
 
     def records(self, size: int = DEFAULT_CHUNK, fields=()) -> Iterator[tuple[np.ndarray, dict]]:
         """As chunks(), with the per-point `fields` (read_cloud's names: LAS dimensions, a
@@ -163,6 +165,7 @@ class PointSource:
                     values = {k: v[finite] for k, v in values.items()}
             if len(xyz):
                 yield xyz, values
+        fault_checkpoint("reading")  # as chunks()
 
     def _raw_records(self, size: int, fields: tuple) -> Iterator[tuple[np.ndarray, dict]]:
         if self._cloud is not None:

@@ -1,12 +1,12 @@
 """The spill folder of a tiled run: every file a tiled run writes besides its output goes through
 :class:`SpillFolder` (per-tile core points, cloud points and results, the tile of each core point,
 the classifier's keep masks), so that a write that fails (a full disk: ENOSPC, a quota: EDQUOT,
-any OSError) is one clean :class:`SpillError` naming the folder and the problem. The folder is a
+any OSError) is one clean :class:`SpillError` naming the user's folder (where the private work folder lives)
+and the problem. The folder is a
 private one beside the output (m3c2kit.io.atomic.private_folder) that the executor removes
 whatever happens; the output itself is written atomically, so nothing partial is left."""
 from __future__ import annotations
 
-import errno
 import os
 from contextlib import contextmanager
 from pathlib import Path
@@ -14,22 +14,17 @@ from typing import Iterator
 
 import numpy as np
 
-from ..errors import M3C2Error
+from ..errors import CloudWriteError
 
 
 def _tofile(rows: np.ndarray, f) -> None:
-    """The one write of every spill file."""
-    np.ascontiguousarray(rows).tofile(f)
+    """The one write of every spill file (the array's bytes through the file object, not tofile(),
+    whose short write raises an OSError without errno)."""
+    f.write(np.ascontiguousarray(rows).reshape(-1).view(np.uint8).data)
 
 
-class SpillError(M3C2Error):
+class SpillError(CloudWriteError):
     """A tiled run could not write its spill files (exit status 1)."""
-
-
-def _reason(e: OSError) -> str:
-    name = errno.errorcode.get(e.errno or 0)
-    text = e.strerror or str(e)
-    return f"{text} ({name})" if name else text
 
 
 class SpillFolder:
@@ -47,9 +42,9 @@ class SpillFolder:
         try:
             yield
         except OSError as e:
-            raise SpillError(f"cannot write the tiled run's spill files in {self.folder}: {_reason(e)}; free space "
-                             f"there (the spill folder is beside the output, -o), or write the output to another "
-                             f"folder; no output was written") from None
+            # Named by the user's folder (the private work folder lives there until the run ends).
+            raise SpillError(f"{self.folder.parent}: cannot write the tiled run's spill files (kept in a work "
+                             f"folder there until the run ends): {e.strerror or e}") from None
 
     def append(self, stem: str, tiles: np.ndarray, rows: np.ndarray) -> None:
         """Appends rows[i] to tile tiles[i]'s file, keeping the rows' order within each tile."""
