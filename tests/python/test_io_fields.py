@@ -11,6 +11,7 @@ import pytest
 import m3c2kit
 from m3c2kit.errors import UsageError
 from m3c2kit.io import fields as F
+from m3c2kit.io.rows import match_rows
 
 REPO = Path(__file__).resolve().parents[2]
 AUTZEN = REPO / "tests" / "data" / "pairs" / "autzen-bmx"
@@ -68,7 +69,7 @@ def test_las_output_types_names_and_carried_attributes(toronto, tmp_path):
     np.testing.assert_array_equal(back.fields["Npoints_cloud2"], r.columns()["n2"].astype(np.float32))
     # The core points are a subsample of the reference: its attributes follow them, in the LAS
     # standard dimensions (not zeros).
-    index = F._match_rows(ref.xyz, r.core)
+    index = match_rows(ref.xyz, r.core)
     for name in ("intensity", "classification", "gps_time", "return_number", "point_source_id"):
         np.testing.assert_array_equal(back.fields[name], ref.fields[name][index], err_msg=name)
     assert back.fields["intensity"].any() and back.fields["gps_time"].any()

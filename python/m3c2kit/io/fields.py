@@ -22,6 +22,8 @@ from typing import Literal
 
 import numpy as np
 
+from .rows import match_rows
+
 __all__ = ["Field", "FIELDS", "FIELD_NAME_SETS", "FieldNames", "output_name", "typed_columns",
            "core_attributes", "markdown_table", "FLOAT32_RELATIVE_PRECISION"]
 
@@ -118,7 +120,7 @@ def core_attributes(source, core: np.ndarray, taken: set[str]) -> dict[str, np.n
     xyz = getattr(source, "xyz", None)
     if not fields or xyz is None or len(core) == 0:
         return {}
-    index = _match_rows(np.asarray(xyz, dtype=np.float64), np.asarray(core, dtype=np.float64))
+    index = match_rows(np.asarray(xyz, dtype=np.float64), np.asarray(core, dtype=np.float64))
     if index is None:
         return {}
     out = {}
@@ -126,23 +128,6 @@ def core_attributes(source, core: np.ndarray, taken: set[str]) -> dict[str, np.n
         key = name if name not in taken else f"core_{name}"
         out[key] = np.asarray(values)[index]
     return out
-
-
-def _match_rows(points: np.ndarray, queries: np.ndarray) -> np.ndarray | None:
-    """For each query row, the index of an identical row of `points` (the first in input
-    order), or None when one has none."""
-    if len(points) == len(queries) and np.array_equal(points, queries):
-        return np.arange(len(points))
-    row = np.dtype([("x", "<f8"), ("y", "<f8"), ("z", "<f8")])
-    p = np.ascontiguousarray(points).view(row).ravel()
-    q = np.ascontiguousarray(queries).view(row).ravel()
-    order = np.argsort(p, kind="stable")
-    pos = np.searchsorted(p[order], q)
-    pos = np.minimum(pos, len(p) - 1)
-    found = order[pos]
-    if not np.array_equal(points[found], queries):
-        return None
-    return found
 
 
 def markdown_table() -> str:
