@@ -14,8 +14,8 @@ from __future__ import annotations
 import math
 import warnings
 from pathlib import Path
+from typing import TYPE_CHECKING
 
-import laspy
 import numpy as np
 
 from ..errors import CloudReadError, CloudWriteError, QuantisationWarning
@@ -25,7 +25,13 @@ from .crs import geokey_crs, geokey_units, looks_like_wkt, wkt_units
 from .guard import read_errors, write_errors
 from .las_header import check_las_file
 
+if TYPE_CHECKING:
+    import laspy
+
 __all__ = ["read", "write"]
+
+# laspy is imported where it is used, not here: it imports pyproj and requests (about a third of
+# a second), which `import m3c2kit`, `m3c2 --help` and runs without LAS files never need.
 
 _PROJECTION_USER = "LASF_Projection"
 _WKT_RECORD = 2112
@@ -36,6 +42,8 @@ _INT32 = (-(2**31), 2**31 - 1)
 
 def read(path: Path) -> Cloud:
     """Reads a .las/.laz/.copc.laz file; see the module docstring for what is kept."""
+    import laspy
+
     with read_errors(path):
         layout = check_las_file(path)
         with laspy.open(path) as reader:
@@ -132,6 +140,8 @@ def write(path: Path, xyz: np.ndarray, fields: dict[str, np.ndarray], like: Clou
     CloudWriteError; nothing is ever wrapped or clamped. `like`'s CRS is copied: its WKT as a
     WKT VLR (global-encoding WKT bit set), else its raw GeoTIFF key VLRs.
     """
+    import laspy
+
     n = len(xyz)
     rgb = all(c in fields for c in ("red", "green", "blue"))
     header = laspy.LasHeader(version="1.4", point_format=7 if rgb else 6)
@@ -292,6 +302,8 @@ def _exact_cast(path, name: str, values: np.ndarray, dtype) -> np.ndarray:
 
 
 def _add_crs(header: laspy.LasHeader, like: Cloud | None) -> None:
+    import laspy
+
     if like is None:
         return
     if looks_like_wkt(like.crs):
