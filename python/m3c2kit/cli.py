@@ -18,6 +18,7 @@ from .cli_parser import ArgumentParser
 from .errors import M3C2Error, M3C2Warning, UsageError, printable
 from .io import read_cloud, write_cloud_table
 from .io import crs as crs_mod
+from .io import laz_threads
 from .io.collisions import check_outputs
 from .io.describe import describe, describe_text
 from .phases import Phases
@@ -235,6 +236,7 @@ def _compare_outputs(args) -> dict:
 def run_compare(args) -> int:
     cell = args.grid
     settings = compare_settings(args)  # with --grid: 2D mode's settings (raster.grid_settings)
+    laz_threads.set_threads(settings.get("threads") or 0)  # LAZ decoding/encoding: --threads too
     check_outputs(_compare_outputs(args), _inputs(args, settings))  # before any work (docs/errors.md)
     if args.tile_size is not None or args.memory_limit is not None or args.dask_scheduler is not None:
         if getattr(args, "crs", None):

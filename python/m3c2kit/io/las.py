@@ -22,6 +22,7 @@ from ..errors import CloudReadError, CloudWriteError, QuantisationWarning
 from .atomic import atomic_output
 from .cloud import Cloud
 from .crs import geokey_crs, geokey_units, looks_like_wkt, wkt_units
+from . import laz_threads
 from .guard import read_errors, write_errors
 from .las_header import check_las_file
 
@@ -46,7 +47,7 @@ def read(path: Path) -> Cloud:
 
     with read_errors(path):
         layout = check_las_file(path)
-        with laspy.open(path) as reader:
+        with laspy.open(path, laz_backend=laz_threads.backend()) as reader:
             header = reader.header
             las = reader.read()
     n = len(las.points)
@@ -162,7 +163,8 @@ def write(path: Path, xyz: np.ndarray, fields: dict[str, np.ndarray], like: Clou
             las[name] = _exact_cast(path, name, values, las[name].dtype if name in standard else dict(extra)[name])
         # laspy picks compression from a path's suffix (the temporary has none): pass a stream.
         with atomic_output(path) as tmp, open(tmp, "wb+") as out:
-            las.write(out, do_compress=Path(path).suffix.lower() == ".laz")
+            compress = Path(path).suffix.lower() == ".laz"
+            las.write(out, do_compress=compress, laz_backend=laz_threads.backend() if compress else None)
     if not _has_scale(like) and n:
         warn_if_quantised(path, xyz, ints, scale, offset)  # once written: a failed write says only why
 
