@@ -54,8 +54,7 @@ def read(path: Path) -> Cloud:
     if n != header.point_count:
         raise CloudReadError(f"{path}: truncated or corrupt: the header declares {header.point_count} "
                              f"points but {n} could be read")
-    xyz = np.empty((n, 3), dtype=np.float64)
-    xyz[:, 0], xyz[:, 1], xyz[:, 2] = las.x, las.y, las.z
+    xyz = _scaled_xyz(las, header)
     crs, units, crs_vlrs = _read_crs(header)
     fmt = "COPC" if layout.copc else ("LAZ" if layout.compressed else "LAS")
     return Cloud(xyz, _fields(las), crs=crs, scale=tuple(map(float, header.scales)),
@@ -63,6 +62,19 @@ def read(path: Path) -> Cloud:
                  meta={"version": f"{header.version.major}.{header.version.minor}",
                        "point_format": int(header.point_format.id)},
                  _crs_vlrs=crs_vlrs)
+
+
+def _scaled_xyz(las: laspy.LasData, header: laspy.LasHeader) -> np.ndarray:
+    """The (n, 3) float64 coordinates, C-contiguous as the engine takes them, computed straight
+    into their columns: stored integer * scale + offset, the very operations (and bits) of laspy's
+    ``las.x``, without its temporary array per axis (issue 19: no copies between reading and the
+    engine; the engine gets this array itself, m3c2kit.io.arrays.as_coordinates)."""
+    xyz = np.empty((len(las.points), 3), dtype=np.float64)
+    for axis, name in enumerate("XYZ"):
+        column = xyz[:, axis]
+        np.multiply(las.points[name], header.scales[axis], out=column)
+        np.add(column, header.offsets[axis], out=column)
+    return xyz
 
 
 def _fields(las: laspy.LasData) -> dict[str, np.ndarray]:
