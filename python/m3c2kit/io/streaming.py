@@ -127,7 +127,9 @@ class PointSource:
                 yield xyz[start:start + size]
         elif self.kind in ("las", "copc"):
             import laspy
-            with read_errors(self.path), laspy.open(self.path) as reader:
+
+            from . import laz_threads
+            with read_errors(self.path), laspy.open(self.path, laz_backend=laz_threads.backend()) as reader:
                 for points in reader.chunk_iterator(size):
                     yield _xyz_of(points)
         else:
@@ -282,7 +284,7 @@ class TableWriter:
     # -- LAS: the header of las.write, points through laspy's chunked writer
     def _start_las(self, fields) -> None:
         import laspy
-        from . import las
+        from . import las, laz_threads
         rgb = all(c in fields for c in ("red", "green", "blue"))
         header = laspy.LasHeader(version="1.4", point_format=7 if rgb else 6)
         self._standard = set(header.point_format.dimension_names) - {"X", "Y", "Z"}
@@ -309,8 +311,9 @@ class TableWriter:
         self._first_points = None
         self._out = open(self._tmp, "wb+")
         with write_errors(self.path):
-            self._las_writer = laspy.LasWriter(self._out, header=header,
-                                               do_compress=self.path.suffix.lower() == ".laz", closefd=False)
+            compress = self.path.suffix.lower() == ".laz"
+            self._las_writer = laspy.LasWriter(self._out, header=header, do_compress=compress, closefd=False,
+                                               laz_backend=laz_threads.backend() if compress else None)
 
     def _warn_if_quantised(self) -> None:
         from . import las
