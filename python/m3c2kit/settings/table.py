@@ -259,7 +259,8 @@ PARAMETERS: tuple[Parameter, ...] = (
               help="core points = the reference subsampled to this minimum spacing"),
     Parameter("threads", "--threads", Integer(0, 2**31 - 1, "0 (all) or a positive integer"), section="-",
               default=0, cli_type=int, cloudcompare_keys=("MaxThreadCount",), commands=BOTH, scope="run",
-              help="threads, 0 for all; results are identical for any count"),
+              help="threads (the computation and LAZ decoding and encoding), 0 for all; results are identical "
+                   "for any count"),
     Parameter("compat", "--compat", Choice("cloudcompare"), section="-", default=None, cli_type=str, scope="run",
               help="CloudCompare qM3C2 semantics: its defaults where marked (docs/validation.md)"),
     Parameter("position", "--position", Choice("core", "reference", "compared", "reference-or-core",
