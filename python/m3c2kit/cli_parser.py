@@ -12,3 +12,19 @@ class ArgumentParser(argparse.ArgumentParser):
     def error(self, message):
         self.print_usage(sys.stderr)
         raise UsageError(message)
+
+
+def phases_for(args):
+    """The progress bars of a subcommand (m3c2kit.phases): none with -q, always with --progress,
+    otherwise when stderr is a terminal."""
+    from .phases import Phases
+
+    if getattr(args, "quiet", False):
+        return Phases(enabled=False)
+    return Phases(enabled=True if getattr(args, "progress", False) else None)
+
+
+def add_progress_option(parser) -> None:
+    parser.add_argument("--progress", action="store_true",
+                        help="show the progress bars on stderr even when it is not a terminal "
+                             "(default: only on a terminal)")

@@ -9,7 +9,7 @@ import numpy as np
 
 from ..errors import UsageError
 from ..io import read_cloud, write_cloud_table
-from ..progress import ProgressBar
+from ..cli_parser import phases_for
 from importlib import import_module
 
 # The package exports functions named like these modules, so `from . import calibrate` would give
@@ -135,10 +135,9 @@ def run_roughness(args) -> int:
     cloud = _read(args.cloud)
     diameters = scales("--normal-scale", args.normal_scale)
     core = _core_points(args, cloud.xyz)
-    bar = ProgressBar("roughness", enabled=not args.quiet)
-    sigma = roughness_mod.roughness_by_scale(cloud.xyz, core, diameters, variance=args.variance,
-                                             min_points=args.min_points, threads=args.threads, progress=bar.update)
-    bar.close()
+    with phases_for(args).phase("roughness") as step:
+        sigma = roughness_mod.roughness_by_scale(cloud.xyz, core, diameters, variance=args.variance,
+                                                 min_points=args.min_points, threads=args.threads, progress=step)
     table = roughness_mod.roughness_table(sigma, diameters)
     fit = roughness_mod.fit_scaling(diameters, table["mean_sigma"], value_range("--fit-range", args.fit_range), args.l0)
     write_csv(args.output, dict(table, in_fit=fit["in_fit"].astype(int)))
@@ -173,10 +172,9 @@ def run_c2c(args) -> int:
     if args.model == "none" and args.model_radius is not None:
         raise UsageError("--model-radius needs --model plane")
     queries = _core_points(args, compared.xyz)
-    bar = ProgressBar("C2C", enabled=not args.quiet)
-    r = c2c(reference.xyz, queries, model=args.model, model_radius=args.model_radius, model_neighbours=args.model_knn,
-            rule=args.rule, threads=args.threads, progress=bar.update)
-    bar.close()
+    with phases_for(args).phase("C2C") as step:
+        r = c2c(reference.xyz, queries, model=args.model, model_radius=args.model_radius,
+                model_neighbours=args.model_knn, rule=args.rule, threads=args.threads, progress=step)
     fields = {"c2c": r["distance"]}
     if args.model != "none":
         fields["c2c_hf"] = r["hf_distance"]
@@ -193,12 +191,12 @@ def run_c2c(args) -> int:
 def run_simplify(args) -> int:
     cloud = _read(args.cloud)
     core = _read(args.core).xyz if args.core is not None else None
-    bar = ProgressBar("simplify", enabled=not args.quiet)
-    points, fields = simplify_mod.simplify(cloud.xyz, core, projection_scale=args.projection_scale,
-                                           normal_scale=args.normal_scale, core_spacing=args.core_spacing,
-                                           median=args.median, max_depth=args.max_depth, vertical=args.vertical,
-                                           orient=args.orient, threads=args.threads, progress=bar.update)
-    bar.close()
+    with phases_for(args).phase("simplify") as step:
+        points, fields = simplify_mod.simplify(cloud.xyz, core, projection_scale=args.projection_scale,
+                                               normal_scale=args.normal_scale, core_spacing=args.core_spacing,
+                                               median=args.median, max_depth=args.max_depth,
+                                               vertical=args.vertical, orient=args.orient, threads=args.threads,
+                                               progress=step)
     write_cloud_table(args.output, points, fields, like=cloud)
     if not args.quiet:
         print(f"wrote {args.output}: {len(points)} projected points ({'median' if args.median else 'mean'}, "
