@@ -99,8 +99,9 @@ def add_table_options(parser, command: str, groups: dict | None = None) -> None:
 
 def _normals_parser(sub) -> None:
     p = sub.add_parser("normals", help="normals at the most planar scale, with roughness (section 6.3)")
-    p.add_argument("input", type=Path)
-    p.add_argument("-o", "--output", type=Path, required=True)
+    p.add_argument("input", type=Path, help="the point cloud")
+    p.add_argument("-o", "--output", type=Path, required=True,
+                   help="output: .csv .txt .ply .las .laz (nx, ny, nz, normal_scale, roughness, count, status)")
     p.add_argument("--core", type=Path, help="core points (default: every point)")
     add_table_options(p, "normals")
     _verbosity_options(p)
@@ -110,8 +111,9 @@ def _normals_parser(sub) -> None:
 
 def _subsample_parser(sub) -> None:
     p = sub.add_parser("subsample", help="subsample to a minimum spacing (core points)")
-    p.add_argument("input", type=Path)
-    p.add_argument("-o", "--output", type=Path, required=True)
+    p.add_argument("input", type=Path, help="the point cloud")
+    p.add_argument("-o", "--output", type=Path, required=True,
+                   help="the kept points with their attributes: .csv .txt .ply .las .laz")
     p.add_argument("--spacing", type=float, required=True, help="minimum distance between kept points")
     p.set_defaults(run=run_subsample)
 
@@ -188,7 +190,7 @@ def run_compare_tiled(args, settings: dict, grid=None) -> int:
         raise UsageError("--dask-scheduler needs --tile-size S or --memory-limit SIZE to cut the work into tiles")
 
     settings = dict(settings)
-    for name, default in (("field_names", "m3c2"), ("float64", False)):
+    for name, default in (("field_names", "m3c2"), ("float64", False), ("all_fields", False)):
         if settings.pop(name, default) not in (default, None):
             raise UsageError(f"{by_name()[name].flag} cannot be combined with tiling (--tile-size, --memory-limit, "
                              f"--dask-scheduler): the tiled writer writes m3c2's columns")
@@ -271,6 +273,7 @@ def run_compare(args) -> int:
     position = settings.pop("position", "core")
     field_names = settings.pop("field_names", "m3c2")
     float64 = bool(settings.pop("float64", False))
+    all_fields = bool(settings.pop("all_fields", False))
     threads = settings.pop("threads", 0)
     core_normals = None
     if settings.get("normal_source") == "core":
@@ -282,7 +285,7 @@ def run_compare(args) -> int:
                              progress=step, read_points=lambda p: _read(p, args).xyz, **settings)
     outputs = CompareOutputs(table=args.output, report=args.report, report_png=args.report_png,
                              projected=args.projected, position=position, field_names=field_names,
-                             float64=float64, core_spacing=settings.get("core_spacing"),
+                             float64=float64, all_fields=all_fields, core_spacing=settings.get("core_spacing"),
                              inputs={"reference": args.reference, "compared": args.compared})
     with phases.phase("writing", total=1) as step:
         extra = write_compare_outputs(outputs, result, reference, grid=grid)

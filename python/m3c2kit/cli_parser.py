@@ -8,7 +8,26 @@ import sys
 from .errors import UsageError
 
 
+class HelpFormatter(argparse.HelpFormatter):
+    """Shows an option's default at the end of its help unless the help already says it (as
+    the parameter table's help does), so that no option of any subcommand hides its default."""
+
+    def _get_help_string(self, action) -> str:
+        text = action.help or ""
+        default = action.default
+        if (default not in (None, False, argparse.SUPPRESS) and not action.required
+                and "default" not in text.lower() and action.nargs not in (argparse.REMAINDER,)
+                and not isinstance(action, (argparse._StoreTrueAction, argparse._StoreFalseAction))):
+            shown = ",".join(map(str, default)) if isinstance(default, (list, tuple)) else default
+            text += f" (default {shown})".replace("%", "%%")
+        return text
+
+
 class ArgumentParser(argparse.ArgumentParser):
+    def __init__(self, *args, **kwargs):
+        kwargs.setdefault("formatter_class", HelpFormatter)
+        super().__init__(*args, **kwargs)
+
     def error(self, message):
         self.print_usage(sys.stderr)
         raise UsageError(message)

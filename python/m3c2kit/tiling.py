@@ -877,7 +877,7 @@ def _merge(work: Path, result_spill: _Spills, dtype: np.dtype, counts, n_core: i
         if writer is not None:
             table = chunk.columns(projected=projected, position=position)
             xyz = np.column_stack([table.pop("x"), table.pop("y"), table.pop("z")])
-            writer.write(xyz, typed_columns(table))  # the stored types of m3c2kit.write
+            writer.write(xyz, typed_columns(table, las=writer.mode == "las"))  # the stored types of m3c2kit.write
             del xyz, table
         if return_result:
             gathered.append(chunk)
