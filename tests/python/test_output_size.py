@@ -130,7 +130,8 @@ def test_laz_columns_read_back_within_the_bound_with_nan_kept(tmp_path, pair):
     las = laspy.read(out)
     dims = {d.name: d for d in las.point_format.extra_dimensions}
     assert dims["distance"].dtype == np.int32 and float(dims["distance"].scales[0]) == LENGTH_QUANTUM
-    record = {s.name.rstrip(b"\0").decode(): s for v in las.header.vlrs.get("ExtraBytesVlr") for s in v.extra_bytes_structs}
+    record = {s.name.rstrip(b"\0").decode(): s
+              for v in las.header.vlrs.get("ExtraBytesVlr") for s in v.extra_bytes_structs}
     no_data = record["distance"].no_data[0]
     assert record["distance"].options & record["distance"].NO_DATA_BIT_MASK
     raw = las.points.array["distance"]
