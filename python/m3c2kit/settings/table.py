@@ -282,7 +282,7 @@ PARAMETERS: tuple[Parameter, ...] = (
                    "1 km; in LAS/LAZ integers at 0.1 mm, at most 0.05 mm off, NaN kept)"),
     Parameter("all_fields", "--all-fields", Flag(), section="-", default=False, cli_type=None, scope="output",
               help="LAS/LAZ: also write sigma1, sigma2, the normal (nx, ny, nz), normal_scale, roughness "
-                   "and spread1, spread2 (default: distance, lod, significant, n1, n2, status, as "
+                   "and spread1, spread2 (otherwise only distance, lod, significant, n1, n2 and status, as "
                    "CloudCompare; text and PLY files have every column)"),
 )
 
