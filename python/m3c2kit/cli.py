@@ -162,7 +162,8 @@ def _read(path: Path, args):
 
 def _orient_spec(args, settings: dict, reference, core=None):
     """--orient as the engine takes it: the reference's E57 scan positions when not given, and
-    ``sensor`` read from the file the core points come from (the --core file, else the reference)."""
+    ``sensor`` read from the file the core points come from (the --core file, as CloudCompare;
+    the reference when that file has no scanner pose, or when there is no --core file)."""
     if "orient" not in settings:
         positions = getattr(reference, "scan_positions", None)
         return positions if positions is not None and len(positions) else "+z"
@@ -170,11 +171,17 @@ def _orient_spec(args, settings: dict, reference, core=None):
     if not orientation.needs_scan_positions(spec):
         return spec
     main_file = getattr(args, "reference", None) or getattr(args, "input", None)  # compare / normals
-    source, path = (core, args.core) if args.core is not None else (reference, main_file)
+    positions, path, also = getattr(reference, "scan_positions", None), str(main_file), None
+    if args.core is not None:  # the core points' own scanner first (CloudCompare's), else the reference's
+        own = getattr(core, "scan_positions", None)
+        if own is not None and len(own):
+            positions = own
+        elif positions is None or not len(positions):
+            path, also = str(args.core), str(main_file)
     origin = f"--orient {spec}"
     if getattr(args, "orient", None) is None and getattr(args, "params", None) is not None:
         origin = f"{args.params}: NormalPreferedOri={ORIENT_KEY_VALUES[spec]}"
-    return orientation.sensor_points(spec, getattr(source, "scan_positions", None), str(path), origin)
+    return orientation.sensor_points(spec, positions, path, origin, also)
 
 
 def run_compare_tiled(args, settings: dict, grid=None) -> int:

@@ -182,15 +182,11 @@ def test_tiled_barycentre_matches_in_memory(tmp_path):
     assert np.nanmin(a.fields["distance"]) > 0.4
 
 
-@pytest.mark.skipif(pytest.importorskip("pye57") is None, reason="needs pye57")
 def test_sensor_from_an_e57_pose(tmp_path):
-    import pye57
+    pytest.importorskip("pye57")
     scanner = np.array([55.0, -4.0, 2.0])
     path = tmp_path / "scan.e57"
-    local = CLOUD - scanner
-    with pye57.E57(str(path), mode="w") as out:
-        out.write_scan_raw({"cartesianX": local[:, 0], "cartesianY": local[:, 1], "cartesianZ": local[:, 2]},
-                           name="scan", rotation=np.array([1.0, 0.0, 0.0, 0.0]), translation=scanner)
+    _e57_sphere(path, scanner)
     out = tmp_path / "n.csv"
     assert main(["normals", str(path), "-o", str(out), "--normal-scale", "1", "--orient", "sensor", "-q"]) == 0
     got = read_cloud(out)
@@ -199,3 +195,35 @@ def test_sensor_from_an_e57_pose(tmp_path):
     facing = np.einsum("ij,ij->i", n, to)
     clear = np.abs(np.einsum("ij,ij->i", (got.xyz - CENTRE) / RADIUS, to)) > 0.05 * np.linalg.norm(to, axis=1)
     assert clear.sum() > 0.5 * len(n) and np.all(facing[clear] > 0)
+
+
+
+def _e57_sphere(path, scanner):
+    import pye57
+    local = CLOUD - scanner
+    with pye57.E57(str(path), mode="w") as out:
+        out.write_scan_raw({"cartesianX": local[:, 0], "cartesianY": local[:, 1], "cartesianZ": local[:, 2]},
+                           name="scan", rotation=np.array([1.0, 0.0, 0.0, 0.0]), translation=scanner)
+
+
+def test_sensor_with_a_core_file_uses_the_references_pose_when_the_core_file_has_none(tmp_path, capsys):
+    pytest.importorskip("pye57")
+    scanner = np.array([55.0, -4.0, 2.0])
+    ref, core = tmp_path / "scan.e57", tmp_path / "core.ply"
+    _e57_sphere(ref, scanner)
+    write_cloud_table(core, read_cloud(ref).xyz[::97], {})
+    out = tmp_path / "n.csv"
+    assert main(["normals", str(ref), "--core", str(core), "-o", str(out), "--normal-scale", "1", "--orient",
+                 "away:sensor", "-q"]) == 0
+    got = read_cloud(out)
+    n = np.column_stack([got.fields["nx"], got.fields["ny"], got.fields["nz"]])
+    to = scanner - got.xyz
+    clear = np.abs(np.einsum("ij,ij->i", (got.xyz - CENTRE) / RADIUS, to)) > 0.05 * np.linalg.norm(to, axis=1)
+    assert clear.sum() > 0.5 * len(n) and np.all(np.einsum("ij,ij->i", n, to)[clear] < 0)
+    # Neither file with a pose: both are named.
+    plain = tmp_path / "ref.ply"
+    write_cloud_table(plain, CLOUD, {})
+    assert main(["normals", str(plain), "--core", str(core), "-o", str(tmp_path / "m.csv"), "--normal-scale", "1",
+                 "--orient", "sensor"]) != 0
+    err = capsys.readouterr().err
+    assert f"neither {core} (the core points) nor {plain} has one" in err and "--orient X,Y,Z" in err

@@ -116,15 +116,17 @@ def _barycentre(core_points) -> np.ndarray:
     return exact_mean(chunks)
 
 
-def sensor_points(spec, positions, cloud: str, origin: str = "--orient") -> PointOrientation:
+def sensor_points(spec, positions, cloud: str, origin: str = "--orient", also: str | None = None) -> PointOrientation:
     """`spec` (``sensor`` or ``away:sensor``) with the scanner `positions` of the file named
-    `cloud` (the one the core points come from); `origin` says where the spec came from (the
-    option, or the params file's key) for the message when the file has no scanner position."""
+    `cloud` (the one the core points come from; `also`: the reference, looked at when `cloud`
+    had none); `origin` says where the spec came from (the option, or the params file's key)
+    for the message when there is no scanner position."""
     away, _ = _split(spec)
     if positions is None or len(positions) == 0:
+        which = f"neither {cloud} (the core points) nor {also} has one" if also else f"{cloud} has none"
         raise UsageError(
             f"{origin} asks for normals oriented {'away from' if away else 'towards'} the sensor position, "
-            f"but {cloud} has none (only E57 files carry scanner poses); give the scanner position with "
+            f"but {which} (only E57 files carry scanner poses); give the scanner position with "
             f"--orient {'away:' if away else ''}X,Y,Z (or --orient FILE of scan positions)")
     return PointOrientation(np.asarray(positions, dtype=np.float64).reshape(-1, 3), away)
 
