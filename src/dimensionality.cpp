@@ -1,13 +1,15 @@
 // Multi-scale dimensionality (Brodu & Lague 2012): the neighbours of the largest scale gathered
 // once (their offsets from the core point, in the octree's key order), each assigned to the
-// shell between two consecutive scales; the moments of each shell in two passes, then the balls
-// as the union of their shells (merge_into, innermost first); the eigenvalues of each centred
-// co-moment matrix with Eigen's iterative solver.
+// shell between two consecutive scales; the moments of each shell in one pass of sums shifted
+// by the shell's first point, then the balls as the union of their shells (merge_into, innermost
+// first); the eigenvalues of each centred co-moment matrix (Eigen's closed form, its iterative
+// solver near double roots).
 //
 // Why shells and not the octree's node moments (octree.hpp, as normals use): every point of the
 // cloud is a core point here, at 10 scales of up to several hundred neighbours, and folding the
 // nodes crossing each of the 10 spheres cost more than touching each neighbour of the largest
-// sphere twice (measured 2.9x faster on bench/dimensionality_bench.cpp, docs/performance.md).
+// sphere once (with the closed-form eigenvalues, measured ~2.2x less CPU on
+// bench/dimensionality_bench.cpp, docs/performance.md).
 // The sums are a function of the neighbour set and its key order (the order of the points' grid
 // cells, ties by input order), so every thread count and every tile gives the same bits.
 
@@ -31,10 +33,9 @@
 namespace m3c2 {
 namespace {
 
-#ifndef DIMENSIONALITY_CELL_DIVISOR
-#define DIMENSIONALITY_CELL_DIVISOR 8
-#endif
-constexpr double kCellDivisor = DIMENSIONALITY_CELL_DIVISOR;
+/// Octree cells of about D_max / 8: measured on bench/dimensionality_bench.cpp as fast as D_max / 4
+/// and 15 % faster than D_max / 16 (fewer nodes against fewer points tested outside the sphere).
+constexpr double kCellDivisor = 8.0;
 
 /// Proportions (descending) of the eigenvalues of a centred co-moment sum (v - mean)(v - mean)^T.
 /// The co-moment is about the neighbours' own mean (moments.hpp), so its entries carry no
@@ -74,8 +75,8 @@ void barycentric_of(const double* p, double* abc) {
 struct ShellScratch {
   detail::DescentCache descent;
   std::vector<double> offsets;       // 3 per neighbour of the largest sphere: p - core
-  std::vector<std::uint8_t> shell;   // per neighbour: the smallest scale (rank) holding it
-  std::vector<double> sum;           // 3 per shell, then the shell's mean
+  std::vector<double> pivot;         // 3 per shell: its first point's offset
+  std::vector<double> sum;           // 3 per shell
   std::vector<double> comoment;      // 6 per shell (xx, xy, xz, yy, yz, zz)
   std::vector<std::uint32_t> count;  // per shell
   std::vector<detail::Moments> balls;  // per scale rank: the moments of its ball
@@ -87,28 +88,25 @@ struct ShellScratch {
 void ball_moments_by_shell(const std::vector<double>& r2, ShellScratch& s) {
   const std::size_t scales = r2.size(), m = s.offsets.size() / 3;
   const double* v = s.offsets.data();
-  s.shell.resize(m);
+  s.pivot.resize(3 * scales);
   s.sum.assign(3 * scales, 0.0);
   s.comoment.assign(6 * scales, 0.0);
   s.count.assign(scales, 0);
-  // First pass: each neighbour's shell and the shells' sums, in key order.
+  // One pass in key order: each neighbour's shell, and the shell's sums of w and w w^T, w the
+  // offset from the shell's first point (its pivot). The shifted sums give the co-moment about
+  // the shell's mean, C = S_ww - S_w S_w^T / n, with a rounding error ~eps n max|w|^2: a pivot
+  // inside the shell keeps it of the order of the shell's own spread (a pivot far from a tight
+  // cluster would not), far below the 1e-9 of the brute-force check.
   for (std::size_t j = 0; j < m; ++j) {
     const double dx = v[3 * j], dy = v[3 * j + 1], dz = v[3 * j + 2];
     const double d2 = dx * dx + dy * dy + dz * dz;
     std::size_t r = 0;  // the smallest scale holding j: the radii it lies beyond (no branch)
     for (std::size_t q = 0; q + 1 < scales; ++q) r += d2 > r2[q];
-    s.shell[j] = static_cast<std::uint8_t>(r);
-    ++s.count[r];
-    s.sum[3 * r] += dx, s.sum[3 * r + 1] += dy, s.sum[3 * r + 2] += dz;
-  }
-  for (std::size_t r = 0; r < scales; ++r)
-    if (s.count[r] > 0)
-      for (int a = 0; a < 3; ++a) s.sum[3 * r + a] /= double(s.count[r]);
-  // Second pass: each shell's co-moment about its own mean (moments.hpp's two passes).
-  for (std::size_t j = 0; j < m; ++j) {
-    const std::size_t r = s.shell[j];
-    const double* mean = &s.sum[3 * r];
-    const double x = v[3 * j] - mean[0], y = v[3 * j + 1] - mean[1], z = v[3 * j + 2] - mean[2];
+    double* pivot = &s.pivot[3 * r];
+    if (s.count[r]++ == 0) pivot[0] = dx, pivot[1] = dy, pivot[2] = dz;
+    const double x = dx - pivot[0], y = dy - pivot[1], z = dz - pivot[2];
+    double* sum = &s.sum[3 * r];
+    sum[0] += x, sum[1] += y, sum[2] += z;
     double* c = &s.comoment[6 * r];
     c[0] += x * x, c[1] += x * y, c[2] += x * z, c[3] += y * y, c[4] += y * z, c[5] += z * z;
   }
@@ -117,10 +115,15 @@ void ball_moments_by_shell(const std::vector<double>& r2, ShellScratch& s) {
   detail::Moments acc;
   for (std::size_t r = 0; r < scales; ++r) {
     detail::Moments shell;
-    shell.count = double(s.count[r]);
     if (s.count[r] > 0) {
-      shell.mean = Vec3(s.sum[3 * r], s.sum[3 * r + 1], s.sum[3 * r + 2]);
-      std::copy_n(&s.comoment[6 * r], 6, shell.comoment.begin());
+      const double n = double(s.count[r]);
+      const double* sum = &s.sum[3 * r];
+      const double* c = &s.comoment[6 * r];
+      const double mx = sum[0] / n, my = sum[1] / n, mz = sum[2] / n;
+      shell.count = n;
+      shell.mean = Vec3(s.pivot[3 * r] + mx, s.pivot[3 * r + 1] + my, s.pivot[3 * r + 2] + mz);
+      shell.comoment = {c[0] - sum[0] * mx, c[1] - sum[0] * my, c[2] - sum[0] * mz,
+                        c[3] - sum[1] * my, c[4] - sum[1] * mz, c[5] - sum[2] * mz};
     }
     detail::merge_into(acc, shell);
     s.balls[r] = acc;
@@ -161,9 +164,8 @@ DimensionalityResult dimensionality(PointsView cloud, PointsView core_points, co
   std::vector<double> r2;
   for (const double r : radii) r2.push_back(r * r);
 
-  // Only the largest sphere is searched, with no node moments. Cells of about D_max / CELLS
-  // (octree_grid takes D / 16): DIMENSIONALITY_CELL_DIVISOR below, measured on the bench.
-  // Derived from the scales alone, as every tile's.
+  // Only the largest sphere is searched, with no node moments; cells of about D_max / kCellDivisor
+  // (octree_grid takes D / 16). Derived from the scales alone, as every tile's.
   const detail::OctreeGrid grid = detail::octree_grid(radii.back() * 2.0 * 16.0 / kCellDivisor, 0.0);
   const detail::Octree tree = [&] {
     try {
