@@ -288,14 +288,9 @@ def _run_objects(args) -> int:
 def _run_changepoints(args) -> int:
     import numpy as np
     from . import engine
-    from .analysis import distances_for_analysis
-    from . import store as st
-    group = st.open_group(args.store)
-    values, name = distances_for_analysis(args.store, args.use)
+    from .analysis import series_of
     for c in args.core:
-        if not 0 <= c < len(values):
-            raise UsageError(f"--core {c} is not a core point of {args.store} (0..{len(values) - 1})")
-        ts = values[c]
+        ts, name = series_of(args.store, c, args.use)
         good = ~np.isnan(ts)
         if good.sum() < 3:
             print(f"core {c}: fewer than 3 epochs with a distance")
