@@ -67,7 +67,8 @@ def normals(cloud, core_points=None, *, progress=None, read_points=None, **param
     values = resolve(params, "normals")
     pts = as_points("cloud", cloud)
     core = pts if core_points is None else as_points("core_points", core_points)
-    p = engine_params(values, "normals", read_points)
+    sensor = getattr(cloud if core_points is None else core_points, "scan_positions", None)
+    p = engine_params(values, "normals", read_points, core_points=core, scan_positions=sensor)
     out = engine.compute_normals(pts, core, p, threads=values["threads"], progress=progress)
     out["core"] = core
     return out

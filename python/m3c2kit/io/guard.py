@@ -3,6 +3,7 @@ from __future__ import annotations
 
 import os
 import struct
+import sys
 from contextlib import contextmanager
 from pathlib import Path
 from typing import Iterator
@@ -18,18 +19,19 @@ _INPUT_ERRORS: tuple[type[BaseException], ...] = (
     ValueError, OSError, EOFError, struct.error, RuntimeError, LookupError, ArithmeticError,
     BufferError, MemoryError,
 )
-try:
-    import laspy
 
-    _INPUT_ERRORS += (laspy.LaspyException,)
-except ImportError:  # laspy is a dependency, but a missing one must not break the other formats
-    pass
-try:
-    import pye57
-
-    _INPUT_ERRORS += (pye57.libe57.E57Exception,)
-except ImportError:
-    pass
+def _input_errors() -> tuple[type[BaseException], ...]:
+    # The libraries' own exception types, looked up only once they are imported (a library not
+    # imported yet raised nothing): importing this module must not import laspy (and through it
+    # pyproj and requests) or pye57.
+    found = _INPUT_ERRORS
+    laspy = sys.modules.get("laspy")
+    if laspy is not None and hasattr(laspy, "LaspyException"):
+        found += (laspy.LaspyException,)
+    e57_error = getattr(getattr(sys.modules.get("pye57"), "libe57", None), "E57Exception", None)
+    if e57_error is not None:
+        found += (e57_error,)
+    return found
 
 
 def _is_rust_panic(err: BaseException) -> bool:
@@ -57,9 +59,9 @@ def _library_errors(error: type[M3C2Error], path: object, panic_note: str) -> It
         yield
     except M3C2Error:
         raise
-    except _INPUT_ERRORS as e:
-        raise error(f"{path}: {library_message(e)}") from e
     except BaseException as e:
+        if isinstance(e, _input_errors()):
+            raise error(f"{path}: {library_message(e)}") from e
         if _is_rust_panic(e):
             raise error(f"{path}: {panic_note}{library_message(e)}{')' if panic_note else ''}") from e
         raise

@@ -14,18 +14,26 @@ from __future__ import annotations
 import math
 import warnings
 from pathlib import Path
+from typing import TYPE_CHECKING
 
-import laspy
 import numpy as np
 
 from ..errors import CloudReadError, CloudWriteError, QuantisationWarning
+from .quantised import Quantised
 from .atomic import atomic_output
 from .cloud import Cloud
 from .crs import geokey_crs, geokey_units, looks_like_wkt, wkt_units
+from . import laz_threads
 from .guard import read_errors, write_errors
 from .las_header import check_las_file
 
+if TYPE_CHECKING:
+    import laspy
+
 __all__ = ["read", "write"]
+
+# laspy is imported where it is used, not here: it imports pyproj and requests (about a third of
+# a second), which `import m3c2kit`, `m3c2 --help` and runs without LAS files never need.
 
 _PROJECTION_USER = "LASF_Projection"
 _WKT_RECORD = 2112
@@ -36,17 +44,18 @@ _INT32 = (-(2**31), 2**31 - 1)
 
 def read(path: Path) -> Cloud:
     """Reads a .las/.laz/.copc.laz file; see the module docstring for what is kept."""
+    import laspy
+
     with read_errors(path):
         layout = check_las_file(path)
-        with laspy.open(path) as reader:
+        with laspy.open(path, laz_backend=laz_threads.backend()) as reader:
             header = reader.header
             las = reader.read()
     n = len(las.points)
     if n != header.point_count:
         raise CloudReadError(f"{path}: truncated or corrupt: the header declares {header.point_count} "
                              f"points but {n} could be read")
-    xyz = np.empty((n, 3), dtype=np.float64)
-    xyz[:, 0], xyz[:, 1], xyz[:, 2] = las.x, las.y, las.z
+    xyz = _scaled_xyz(las, header)
     crs, units, crs_vlrs = _read_crs(header)
     fmt = "COPC" if layout.copc else ("LAZ" if layout.compressed else "LAS")
     return Cloud(xyz, _fields(las), crs=crs, scale=tuple(map(float, header.scales)),
@@ -56,12 +65,40 @@ def read(path: Path) -> Cloud:
                  _crs_vlrs=crs_vlrs)
 
 
+def _scaled_xyz(las: laspy.LasData, header: laspy.LasHeader) -> np.ndarray:
+    """The (n, 3) float64 coordinates, C-contiguous as the engine takes them, computed straight
+    into their columns: stored integer * scale + offset, the very operations (and bits) of laspy's
+    ``las.x``, without its temporary array per axis (issue 19: no copies between reading and the
+    engine; the engine gets this array itself, m3c2kit.io.arrays.as_coordinates)."""
+    xyz = np.empty((len(las.points), 3), dtype=np.float64)
+    for axis, name in enumerate("XYZ"):
+        column = xyz[:, axis]
+        np.multiply(las.points[name], header.scales[axis], out=column)
+        np.add(column, header.offsets[axis], out=column)
+    return xyz
+
+
+def _no_data(header: laspy.LasHeader) -> dict[str, float]:
+    """The declared no_data value of each one-element extra-bytes dimension (laspy keeps the
+    declaration in the record but does not apply it)."""
+    out = {}
+    for vlr in header.vlrs.get("ExtraBytesVlr"):
+        for struct in vlr.extra_bytes_structs:
+            if struct.data_type != 0 and struct.options & struct.NO_DATA_BIT_MASK and struct.num_elements() == 1:
+                out[struct.name.rstrip(b"\0").decode("ascii", "replace")] = struct.no_data[0]
+    return out
+
+
 def _fields(las: laspy.LasData) -> dict[str, np.ndarray]:
     fields: dict[str, np.ndarray] = {}
+    no_data = _no_data(las.header)
     for name in las.point_format.dimension_names:
         if name in ("X", "Y", "Z"):
             continue
         values = np.asarray(las[name])
+        if name in no_data:  # NaN where the stored value is the declared no_data (io/quantised.py)
+            values = values.astype(np.float64)
+            values[las.points.array[name] == no_data[name]] = np.nan
         if values.ndim == 1:
             fields[name] = values
         else:
@@ -132,6 +169,8 @@ def write(path: Path, xyz: np.ndarray, fields: dict[str, np.ndarray], like: Clou
     CloudWriteError; nothing is ever wrapped or clamped. `like`'s CRS is copied: its WKT as a
     WKT VLR (global-encoding WKT bit set), else its raw GeoTIFF key VLRs.
     """
+    import laspy
+
     n = len(xyz)
     rgb = all(c in fields for c in ("red", "green", "blue"))
     header = laspy.LasHeader(version="1.4", point_format=7 if rgb else 6)
@@ -139,7 +178,7 @@ def write(path: Path, xyz: np.ndarray, fields: dict[str, np.ndarray], like: Clou
     extra = _plan_extra_dims(path, fields, standard)
     with write_errors(path):
         if extra:
-            header.add_extra_dims([laspy.ExtraBytesParams(name=name, type=t) for name, t in extra])
+            header.add_extra_dims(extra_bytes_params(extra))
     scale, offset = _scale_offset(xyz, like)
     ints = _quantise(path, xyz, scale, offset)
     header.scales, header.offsets = np.array(scale), np.array(offset)
@@ -148,16 +187,23 @@ def write(path: Path, xyz: np.ndarray, fields: dict[str, np.ndarray], like: Clou
         points = laspy.ScaleAwarePointRecord.zeros(n, header=header)
         las = laspy.LasData(header=header, points=points)
         las.X, las.Y, las.Z = ints[:, 0], ints[:, 1], ints[:, 2]
+        types = {name: t for name, t, *_ in extra}
         for name, values in fields.items():
-            las[name] = _exact_cast(path, name, values, las[name].dtype if name in standard else dict(extra)[name])
+            if isinstance(values, Quantised):
+                las.points.array[name] = values.encoded()
+            else:
+                las[name] = _exact_cast(path, name, values, las[name].dtype if name in standard else types[name])
         # laspy picks compression from a path's suffix (the temporary has none): pass a stream.
         with atomic_output(path) as tmp, open(tmp, "wb+") as out:
-            las.write(out, do_compress=Path(path).suffix.lower() == ".laz")
+            compress = Path(path).suffix.lower() == ".laz"
+            las.write(out, do_compress=compress, laz_backend=laz_threads.backend() if compress else None)
     if not _has_scale(like) and n:
         warn_if_quantised(path, xyz, ints, scale, offset)  # once written: a failed write says only why
 
 
-def _plan_extra_dims(path, fields: dict[str, np.ndarray], standard: set[str]) -> list[tuple[str, type]]:
+def _plan_extra_dims(path, fields: dict, standard: set[str]) -> list[tuple]:
+    """(name, type, scale, no_data) of each field that is not a standard dimension (scale and
+    no_data None unless the field is a :class:`~m3c2kit.io.quantised.Quantised` column)."""
     plan = []
     for name, values in fields.items():
         if name in standard:
@@ -170,8 +216,26 @@ def _plan_extra_dims(path, fields: dict[str, np.ndarray], standard: set[str]) ->
             raise CloudWriteError(f"{path}: LAS extra-bytes names must be ASCII, got {name!r}") from None
         if not 0 < len(encoded) <= 32:
             raise CloudWriteError(f"{path}: LAS extra-bytes names must be 1 to 32 characters, got {name!r}")
-        plan.append((name, _extra_type(np.asarray(values).dtype)))
+        if isinstance(values, Quantised):
+            plan.append((name, values.dtype, values.scale, values.no_data))
+        else:
+            plan.append((name, _extra_type(np.asarray(values).dtype), None, None))
     return plan
+
+
+def extra_bytes_params(plan: list[tuple]) -> list:
+    """laspy's ExtraBytesParams for a :func:`_plan_extra_dims` plan."""
+    import laspy
+
+    out = []
+    for name, dtype, scale, no_data in plan:
+        kw = {}
+        if scale is not None:
+            kw.update(scales=np.array([scale]), offsets=np.array([0.0]))
+        if no_data is not None:
+            kw.update(no_data=np.array([no_data]))
+        out.append(laspy.ExtraBytesParams(name=name, type=dtype, **kw))
+    return out
 
 
 #: Extra-bytes types LAS defines (LAS 1.4 R15, Table 24): a field keeps its own numeric type
@@ -292,6 +356,8 @@ def _exact_cast(path, name: str, values: np.ndarray, dtype) -> np.ndarray:
 
 
 def _add_crs(header: laspy.LasHeader, like: Cloud | None) -> None:
+    import laspy
+
     if like is None:
         return
     if looks_like_wkt(like.crs):

@@ -34,6 +34,7 @@ from .atomic import atomic_output
 from .cloud import Cloud
 from .files import read_cloud, write_cloud_table
 from .guard import read_errors, write_errors
+from .quantised import Quantised
 from .registry import extension_of, format_for
 
 __all__ = ["PointSource", "TableWriter", "DEFAULT_CHUNK"]
@@ -127,7 +128,9 @@ class PointSource:
                 yield xyz[start:start + size]
         elif self.kind in ("las", "copc"):
             import laspy
-            with read_errors(self.path), laspy.open(self.path) as reader:
+
+            from . import laz_threads
+            with read_errors(self.path), laspy.open(self.path, laz_backend=laz_threads.backend()) as reader:
                 for points in reader.chunk_iterator(size):
                     yield _xyz_of(points)
         else:
@@ -332,14 +335,14 @@ class TableWriter:
     # -- LAS: the header of las.write, points through laspy's chunked writer
     def _start_las(self, fields) -> None:
         import laspy
-        from . import las
+        from . import las, laz_threads
         rgb = all(c in fields for c in ("red", "green", "blue"))
         header = laspy.LasHeader(version="1.4", point_format=7 if rgb else 6)
         self._standard = set(header.point_format.dimension_names) - {"X", "Y", "Z"}
         self._extra = las._plan_extra_dims(self.path, fields, self._standard)
         with write_errors(self.path):
             if self._extra:
-                header.add_extra_dims([laspy.ExtraBytesParams(name=n, type=t) for n, t in self._extra])
+                header.add_extra_dims(las.extra_bytes_params(self._extra))
         like = self.like
         if like is not None and like.scale is not None and like.offset is not None:
             scale, offset = tuple(like.scale), tuple(like.offset)
@@ -359,8 +362,9 @@ class TableWriter:
         self._first_points = None
         self._out = open(self._tmp, "wb+")
         with write_errors(self.path):
-            self._las_writer = laspy.LasWriter(self._out, header=header,
-                                               do_compress=self.path.suffix.lower() == ".laz", closefd=False)
+            compress = self.path.suffix.lower() == ".laz"
+            self._las_writer = laspy.LasWriter(self._out, header=header, do_compress=compress, closefd=False,
+                                               laz_backend=laz_threads.backend() if compress else None)
 
     def _warn_if_quantised(self) -> None:
         from . import las
@@ -399,8 +403,11 @@ class TableWriter:
         with write_errors(self.path):
             points = laspy.ScaleAwarePointRecord.zeros(len(xyz), header=self._header)
             points.X, points.Y, points.Z = ints[:, 0], ints[:, 1], ints[:, 2]
-            extra = dict(self._extra)
+            extra = {name: t for name, t, *_ in self._extra}
             for name, values in fields.items():
+                if isinstance(values, Quantised):
+                    points.array[name] = values.encoded()
+                    continue
                 dtype = points[name].dtype if name in self._standard else extra[name]
                 points[name] = las._exact_cast(self.path, name, values, dtype)
             if self._first_points is None and len(points):

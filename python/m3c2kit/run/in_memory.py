@@ -10,6 +10,7 @@ from ..result import Result
 from .checks import as_points, check_coordinate_range, check_spacing
 from .cores import core_points_for
 from .memory import check_memory
+from ..settings import engine_params
 from .plan import make_plan
 from .tasks import compute_arrays
 from .vegetation import filtered_clouds
@@ -20,7 +21,8 @@ def compare(reference, compared, core_points=None, *, core_normals=None,
             progress: Callable[[int, int], object] | None = None, read_points=None, **params):
     """M3C2 in memory; returns (Result, resolved values, (reference, compared) as given): the caller
     emits the data-quality warnings (diagnostics.warn, as m3c2kit.compare does), so that they name its caller's line."""
-    plan = make_plan(params, read_points)
+    sensor = getattr(reference if core_points is None else core_points, "scan_positions", None)  # --orient sensor
+    plan = make_plan(params, read_points, scan_positions=sensor)
     values = plan.values
     given = (reference, compared)  # the warnings look at the clouds as given
     reference, compared = filtered_clouds(plan.filter, reference, compared, threads=values["threads"])
@@ -32,6 +34,7 @@ def compare(reference, compared, core_points=None, *, core_normals=None,
     core_xyz = core_points_for(ref, core_points, values["core_spacing"])
     if len(core_xyz) == 0:
         raise UsageError("core_points is empty: there is nothing to compute")
+    plan.engine = engine_params(values, "compare", read_points, core_points=core_xyz, scan_positions=sensor)
     check_memory(len(ref), len(cmp_), len(core_xyz))
     if values["normal_subsample"] is not None:
         check_spacing("--normal-subsample", values["normal_subsample"], ref, cmp_)

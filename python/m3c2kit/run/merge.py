@@ -82,7 +82,8 @@ def merge(spills: SpillFolder, dtype: np.dtype, counts, n_core: int, report: Til
         if writer is not None:
             table = chunk.columns(projected=projected, position=position)
             xyz = np.column_stack([table.pop("x"), table.pop("y"), table.pop("z")])
-            writer.write(xyz, typed_columns(table, field_names=field_names, float64=float64, spaces=spaces))
+            writer.write(xyz, typed_columns(table, field_names=field_names, float64=float64, spaces=spaces,
+                                             las=writer.mode == "las"))  # the stored types of m3c2kit.write
             del xyz, table
         if return_result:
             gathered.append(chunk)

@@ -9,7 +9,7 @@ from dataclasses import dataclass, field
 
 from .. import uncertainty_inputs
 from ..errors import UsageError
-from ..settings import engine_params, resolve
+from ..settings import engine_params, orientation, resolve
 
 
 @dataclass
@@ -40,10 +40,12 @@ def run_record(given: dict, engine_p) -> dict:
     return dict({k: v for k, v in given.items() if k != "threads"}, normal_scale=list(engine_p.normal_diameters))
 
 
-def make_plan(params: dict, read_points=None) -> Plan:
-    """The plan of compare(**params) (the parameter table's keywords, m3c2kit.settings.table)."""
+def make_plan(params: dict, read_points=None, *, core_points=orientation.LATER, scan_positions=None) -> Plan:
+    """The plan of compare(**params) (the parameter table's keywords, m3c2kit.settings.table).
+    `core_points` and `scan_positions`: what --orient barycentre and sensor read (settings.
+    engine_params); the executor that knows them later sets the plan's engine Params again."""
     values = resolve(params, "compare", api=True)
-    engine_p = engine_params(values, "compare", read_points)
+    engine_p = engine_params(values, "compare", read_points, core_points=core_points, scan_positions=scan_positions)
     return Plan(given=dict(params), values=values, engine=engine_p, carried=uncertainty_inputs.carried(values),
                 filter=_filter(values))
 

@@ -37,6 +37,7 @@ from ..errors import M3C2Error, UsageError
 from ..io.atomic import private_folder
 from ..io.streaming import DEFAULT_CHUNK, PointSource
 from ..limits import check_tile_size, usable_length
+from ..settings import engine_params, orientation
 from ..settings.parsers import positive
 from . import dask as dask_run
 from .checks import as_points
@@ -99,7 +100,7 @@ def run_tiled(reference, compared, *, output=None, core=None, core_spacing=None,
                         limit=limit, threads=threads, output=output, projected=projected, position=position,
                         field_names=field_names, float64=float64, drop_nonfinite=drop_nonfinite,
                         return_result=return_result, chunk_size=chunk_size, retries=retries,
-                        task_fn=task_fn or compute_tile, log=log, t_start=t_start)
+                        task_fn=task_fn or compute_tile, log=log, t_start=t_start, read_points=read_points)
         finally:
             if own_dir:
                 shutil.rmtree(work, ignore_errors=True)
@@ -151,7 +152,8 @@ def _executor(client, retries: int, log, report: TiledReport):
 
 def _run(plan: Plan, report: TiledReport, ref_src, cmp_src, spills: SpillFolder, shared: dict, h: float, hp: float, *,
          client, core, core_spacing, core_normals, tile_size, limit, threads, output, projected, position,
-         field_names, float64, drop_nonfinite, return_result, chunk_size, retries, task_fn, log, t_start):
+         field_names, float64, drop_nonfinite, return_result, chunk_size, retries, task_fn, log, t_start,
+         read_points=None):
     values, engine_p = plan.values, plan.engine
     execute = _executor(client, retries, log, report)
     # memory plan: the fixed costs (what this process holds, the streaming and merge chunks)
@@ -197,6 +199,9 @@ def _run(plan: Plan, report: TiledReport, ref_src, cmp_src, spills: SpillFolder,
         cores = CoreStream(source=ref_src, normals=None)
     if normals_arr is not None and (core_arr is None or len(normals_arr) != len(core_arr)):
         raise UsageError("core_normals must have one row per core point")
+    if orientation.needs_core_points(values["orient"]):  # their barycentre, the same bits as in memory
+        plan.engine = engine_p = engine_params(values, "compare", read_points,
+                                               core_points=lambda: (xyz for xyz, _ in cores.chunks(stream_rows)))
 
     # Tiles are anchored at the core points' lowest x and y where that is known without a pass
     # (any anchor gives the same results): a tile as large as the survey is then one tile.

@@ -1,0 +1,52 @@
+"""CPU time (user + sys, all threads) of each phase of one `m3c2 compare` process (issue 19).
+
+    python scripts/whole_process_time.py REF CMP CORE OUT [compare options...]
+
+Runs m3c2kit.cli.main in this process with the reading (cli._read), engine (api.compare) and
+writing (cli.write_compare_outputs) steps wrapped in getrusage counters, and prints one line:
+imports (m3c2kit.cli), laspy (its import, which the first LAS read would otherwise pay inside
+reading), reading, engine, writing, rest and total in seconds, and the process's wall time. CPU time, not wall time: on a
+shared machine the wall clock measures the other processes too.
+"""
+import resource
+import sys
+import time
+
+
+def _cpu() -> float:
+    r = resource.getrusage(resource.RUSAGE_SELF)
+    return r.ru_utime + r.ru_stime
+
+
+def main() -> None:
+    wall, start = time.perf_counter(), _cpu()
+    from m3c2kit import cli  # noqa: the import itself is the first phase
+
+    spent = {"imports": _cpu() - start}
+    t = _cpu()
+    import laspy  # noqa: F401
+
+    spent.update(laspy=_cpu() - t, reading=0.0, engine=0.0, writing=0.0)
+
+    def timed(phase, fn):
+        def wrapper(*args, **kwargs):
+            t = _cpu()
+            try:
+                return fn(*args, **kwargs)
+            finally:
+                spent[phase] += _cpu() - t
+        return wrapper
+
+    cli._read = timed("reading", cli._read)
+    cli.api.compare = timed("engine", cli.api.compare)
+    cli.write_compare_outputs = timed("writing", cli.write_compare_outputs)
+    ref, cmp, core, out, *options = sys.argv[1:]
+    rc = cli.main(["compare", ref, cmp, "--core", core, "-o", out, "--quiet", *options])
+    total = _cpu() - start
+    spent["rest"] = total - sum(spent.values())
+    print(" ".join(f"{k} {v:.3f}" for k, v in spent.items()), f"total {total:.3f} wall {time.perf_counter() - wall:.2f} "
+          f"rc {rc}")
+
+
+if __name__ == "__main__":
+    main()

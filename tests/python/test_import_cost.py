@@ -1,0 +1,49 @@
+"""What `import m3c2kit` and building the `m3c2` parser import (issue 19, whole process): none
+of the heavy optional libraries a compare run does not use, and not laspy (which imports pyproj
+and requests) until a LAS file is read. Checked in a fresh interpreter through sys.modules, not
+by timing."""
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+
+import pytest
+
+#: Libraries a plain compare run never needs at import time (each costs tens to hundreds of ms).
+HEAVY = ("matplotlib", "dask", "distributed", "pyproj", "rasterio", "xarray", "zarr", "plotly", "sklearn",
+         "scipy", "tqdm", "laspy", "requests", "pye57")
+#: The package's own modules a compare run does not use.
+OWN = ("m3c2kit.report.figures", "m3c2kit.report.view3d", "m3c2kit.report.cartography", "m3c2kit.series.epochs",
+       "m3c2kit.classify.plot")
+
+
+def _imported_after(code: str) -> list[str]:
+    probe = f"import sys, json\n{code}\nprint(json.dumps(sorted(sys.modules)))"
+    out = subprocess.run([sys.executable, "-c", probe], capture_output=True, text=True, check=True)
+    return json.loads(out.stdout.strip().splitlines()[-1])
+
+
+def _heavy(modules: list[str], names) -> list[str]:
+    return sorted({m for m in modules for h in names if m == h or m.startswith(h + ".")})
+
+
+def test_import_m3c2kit_imports_no_heavy_library():
+    modules = _imported_after("import m3c2kit")
+    assert _heavy(modules, HEAVY + OWN) == []
+    assert "m3c2kit._core" in modules  # the probe sees imports at all
+
+
+def test_building_the_parser_imports_no_heavy_library():
+    modules = _imported_after("from m3c2kit import cli\nparser = cli.make_parser()\n"
+                              "parser.parse_args(['compare', 'a.laz', 'b.laz', '-o', 'c.laz'])")
+    assert _heavy(modules, HEAVY + OWN) == []
+
+
+@pytest.mark.parametrize("suffix", [".laz"])
+def test_reading_a_las_file_imports_laspy(tmp_path, suffix):
+    # The other side of the lazy import: reading LAS still works, through laspy.
+    path = tmp_path / f"p{suffix}"
+    code = (f"import numpy as np, m3c2kit\nm3c2kit.io.write_cloud_table({str(path)!r}, np.eye(3), {{}})\n"
+            f"c = m3c2kit.read({str(path)!r})\nassert c.xyz.shape == (3, 3)")
+    assert "laspy" in _imported_after(code)
