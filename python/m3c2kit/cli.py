@@ -273,7 +273,7 @@ def _compare_outputs(args) -> dict:
 def run_compare(args) -> int:
     cell = args.grid
     settings = compare_settings(args)  # with --grid: 2D mode's settings (raster.grid_settings)
-    laz_threads.set_threads(settings.get("threads") or 0)  # LAZ decoding/encoding: --threads too
+    laz_threads.set_threads(api.threads_count(settings.get("threads")))  # LAZ coding: --threads too (checked first)
     check_outputs(_compare_outputs(args), _inputs(args, settings))  # before any work (docs/errors.md)
     if args.tile_size is not None or args.memory_limit is not None or args.dask_scheduler is not None:
         if getattr(args, "crs", None):
