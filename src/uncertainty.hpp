@@ -49,6 +49,16 @@ class UncertaintyModel {
                                     std::span<const std::uint32_t> points) const;
 
  private:
+  /// What both EP centres of gravity need of cloud k (0 reference, 1 compared), set up once.
+  struct EpCloud {
+    bool moved;          ///< the compared cloud: its points were transformed by tfM
+    bool independent;    ///< EpCovariance::kIndependent (else the mean of the points' covariances)
+    PointsView indexed;  ///< the points as indexed and projected
+  };
+  EpCloud ep_cloud(int k) const;
+  /// Point j of cloud k: its covariance from its scan position, in the indexed frame (rotated
+  /// with the compared cloud), and in `original` its position before the transformation.
+  Eigen::Matrix3d point_covariance(int k, std::uint32_t j, Vec3& original) const;
   Vec3 original_compared(std::uint32_t j) const;
   CentreOfGravity normal_weighted_centre(int k, const Vec3& core, const Vec3& normal,
                                          std::span<const std::uint32_t> points) const;

@@ -32,6 +32,22 @@ Mat3 polar_covariance(const Vec3& d, const ScanPosition& sp) {
 
 }  // namespace
 
+UncertaintyModel::EpCloud UncertaintyModel::ep_cloud(int k) const {
+  const bool moved = k == 1;
+  return {moved, params_.ep_covariance == EpCovariance::kIndependent, moved ? compared_indexed() : reference_};
+}
+
+Mat3 UncertaintyModel::point_covariance(int k, std::uint32_t j, Vec3& original) const {
+  const bool moved = k == 1;
+  const auto& table = moved ? inputs_.compared.scan_positions : inputs_.reference.scan_positions;
+  const auto& ids = moved ? inputs_.compared.scan_position : inputs_.reference.scan_position;
+  original = moved ? original_compared(j) : reference_[j];
+  const ScanPosition& sp = table[static_cast<std::size_t>(row_of_id_[k][ids[j]])];
+  Mat3 cov = polar_covariance(original - Vec3(sp.origin[0], sp.origin[1], sp.origin[2]), sp);
+  if (moved) cov = rotation_ * cov * rotation_.transpose();
+  return cov;
+}
+
 /// The centre with scalar weights w_i = 1 / (n^T S_i n): the minimum-variance estimate of the
 /// offset along n from points that each measure the surface along n (a cylinder's points lie at
 /// different tangential positions, which matrix weights would mix into the offset). Its
@@ -39,21 +55,14 @@ Mat3 polar_covariance(const Vec3& d, const ScanPosition& sp) {
 /// part is J at the weighted mean of the original points (J is linear in the point).
 CentreOfGravity UncertaintyModel::normal_weighted_centre(int k, const Vec3& core, const Vec3& normal,
                                                          std::span<const std::uint32_t> points) const {
-  const bool moved = k == 1;
-  const PointsView indexed = moved ? compared_indexed() : reference_;
-  const auto& table = moved ? inputs_.compared.scan_positions : inputs_.reference.scan_positions;
-  const auto& ids = moved ? inputs_.compared.scan_position : inputs_.reference.scan_position;
-  const auto& rows = row_of_id_[k];
-  const bool independent = params_.ep_covariance == EpCovariance::kIndependent;
+  const auto [moved, independent, indexed] = ep_cloud(k);
   double weight_sum = 0.0;
   Vec3 weighted = Vec3::Zero(), d_weighted = Vec3::Zero(), d_sum = Vec3::Zero();
   Mat3 cov_w2 = Mat3::Zero(), mean_cov = Mat3::Zero(), dd_sum = Mat3::Zero();
   CentreOfGravity out;
   for (const std::uint32_t j : points) {
-    const Vec3 original = moved ? original_compared(j) : reference_[j];
-    const ScanPosition& sp = table[static_cast<std::size_t>(rows[ids[j]])];
-    Mat3 cov = polar_covariance(original - Vec3(sp.origin[0], sp.origin[1], sp.origin[2]), sp);
-    if (moved) cov = rotation_ * cov * rotation_.transpose();
+    Vec3 original;
+    const Mat3 cov = point_covariance(k, j, original);
     const double along = normal.dot(cov * normal);
     if (!(along > 0.0) || !std::isfinite(along)) return out;
     const double w = 1.0 / along;
@@ -123,12 +132,7 @@ Vec3 UncertaintyModel::original_compared(std::uint32_t j) const {
 CentreOfGravity UncertaintyModel::centre_of_gravity(int k, const Vec3& core, const Vec3& normal,
                                                     std::span<const std::uint32_t> points) const {
   if (params_.ep_weights == EpWeights::kNormal) return normal_weighted_centre(k, core, normal, points);
-  const bool moved = k == 1;
-  const PointsView indexed = moved ? compared_indexed() : reference_;
-  const auto& table = moved ? inputs_.compared.scan_positions : inputs_.reference.scan_positions;
-  const auto& ids = moved ? inputs_.compared.scan_position : inputs_.reference.scan_position;
-  const auto& rows = row_of_id_[k];
-  const bool independent = params_.ep_covariance == EpCovariance::kIndependent;
+  const auto [moved, independent, indexed] = ep_cloud(k);
   // Sums in the cylinder's key order: the same bits in any tile and thread.
   Mat3 weights = Mat3::Zero(), mean_cov = Mat3::Zero();
   Vec3 weighted = Vec3::Zero();
@@ -139,10 +143,8 @@ CentreOfGravity UncertaintyModel::centre_of_gravity(int k, const Vec3& core, con
   Mat3 dd_sum = Mat3::Zero();
   CentreOfGravity out;
   for (const std::uint32_t j : points) {
-    const Vec3 original = moved ? original_compared(j) : reference_[j];
-    const ScanPosition& sp = table[static_cast<std::size_t>(rows[ids[j]])];
-    Mat3 cov = polar_covariance(original - Vec3(sp.origin[0], sp.origin[1], sp.origin[2]), sp);
-    if (moved) cov = rotation_ * cov * rotation_.transpose();
+    Vec3 original;
+    Mat3 cov = point_covariance(k, j, original);
     const Eigen::LLT<Mat3> llt(cov);
     if (llt.info() != Eigen::Success || !cov.allFinite()) return out;  // no weight: undefined
     const Mat3 w = llt.solve(Mat3::Identity());

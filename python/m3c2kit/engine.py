@@ -19,6 +19,7 @@ from typing import Callable, Iterator
 import numpy as np
 
 from . import _core
+from . import fault_hook
 from .errors import Cancelled, UsageError
 
 __all__ = ["PARAM_FIELDS", "RESULT_FIELDS", "OPTIONAL_RESULT_FIELDS", "STATUS_NAMES", "MAX_CELLS_PER_AXIS", "MAX_BOOTSTRAP_SAMPLES", "INDEX_MEMORY", "Params",
@@ -93,9 +94,26 @@ def compute(reference: np.ndarray, compared: np.ndarray, core: np.ndarray, param
             progress: Callable[[int, int], object] | None = None, **uncertainty_inputs) -> dict:
     """M3C2 at each core point: a dict of RESULT_FIELDS arrays (and OPTIONAL_RESULT_FIELDS ones).
     `uncertainty_inputs`: the per-point inputs of params.uncertainty (m3c2kit.uncertainty_inputs)."""
+    progress = _with_fault_checkpoint(progress)
     with translated():
         return _core.compute(reference, compared, core, params, core_normals, threads=threads, progress=progress,
                              **uncertainty_inputs)
+
+
+def _with_fault_checkpoint(progress):
+    """The testing aid's "computing" phase (m3c2kit.fault_hook): at the first progress callback,
+    inside the computation, or now when there is no callback. Unarmed: `progress` unchanged."""
+    if not fault_hook.armed("computing"):
+        return progress
+    if progress is None:
+        fault_hook.checkpoint("computing")
+        return None
+
+    def checked(done, total):
+        fault_hook.checkpoint("computing")
+        return progress(done, total)
+
+    return checked
 
 
 def compute_normals(cloud: np.ndarray, core: np.ndarray, params: _core.Params, *, threads: int = 0,

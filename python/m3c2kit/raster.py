@@ -86,7 +86,8 @@ class Grid:
 
 
 #: Bytes per raster cell while the images exist together (rasters(): the six images, 18 bytes a
-#: cell, plus the one being written): the images cover every cell of the grid, empty or not, so a
+#: cell, plus the one being written, which GDAL builds in memory, deflated: at most about 4 bytes a
+#: cell, write_rasters): the images cover every cell of the grid, empty or not, so a
 #: small --grid on a large cloud is sized by its extent, not by its points.
 RASTER_BYTES_PER_CELL = sum(np.dtype(t).itemsize for t, _, _ in RASTERS.values()) + 4
 
@@ -216,12 +217,42 @@ def write_rasters(paths: dict[str, Path], images: dict[str, np.ndarray], grid: G
             profile["crs"] = rio_crs
         target = (targets or paths)[name]
         try:
-            with rasterio.Env(GDAL_PAM_ENABLED="NO"), rasterio.open(paths[name], "w", **profile) as dst:
-                dst.write(image, 1)
-                dst.set_band_description(1, description)
-                dst.update_tags(1, name=name)
-        except (rasterio.errors.RasterioError, OSError) as e:
-            raise CloudWriteError(f"{target}: cannot write GeoTIFF: {e}") from e
+            # GDAL writes into memory: its own writes to disk drop errors raised while it closes
+            # a file (a full disk left 0-byte rasters and exit 0); every byte then goes through
+            # _copy_out, whose OS errors name the target.
+            with rasterio.Env(GDAL_PAM_ENABLED="NO"), rasterio.MemoryFile() as memory:
+                with memory.open(**profile) as dst:
+                    dst.write(image, 1)
+                    dst.set_band_description(1, description)
+                    dst.update_tags(1, name=name)
+                _copy_out(memory, paths[name], target)
+        except rasterio.errors.RasterioError as e:
+            raise CloudWriteError(f"{target}: cannot write GeoTIFF: {str(e).replace(str(paths[name]), str(target))}") \
+                from None
+
+
+#: Bytes copied per write from GDAL's in-memory GeoTIFF to the file.
+_COPY_CHUNK = 1 << 20
+
+
+def _copy_out(memory, path, target) -> None:
+    """Copies an in-memory GeoTIFF to `path` with os.write (each short write continued); an OS
+    error (no space, a file size limit) is a CloudWriteError naming `target`, never `path`,
+    which may be a temporary (docs/errors.md, "Output")."""
+    memory.seek(0)
+    try:
+        fd = os.open(path, os.O_WRONLY | os.O_CREAT | os.O_TRUNC | os.O_NOFOLLOW, 0o666)
+        try:
+            while True:
+                chunk = memoryview(memory.read(_COPY_CHUNK))
+                if not chunk:
+                    break
+                while chunk:
+                    chunk = chunk[os.write(fd, chunk):]
+        finally:
+            os.close(fd)
+    except OSError as e:
+        raise CloudWriteError(f"{target}: {e.strerror or e}") from None
 
 
 def _warn(message: str) -> None:

@@ -21,6 +21,7 @@ Steps (:func:`run_tiled`):
 """
 from __future__ import annotations
 
+import contextlib
 import functools
 import math
 import os
@@ -38,7 +39,7 @@ import numpy as np
 
 from . import api, diagnostics, engine
 from .limits import check_tile_size, usable_length
-from .errors import M3C2Error, UsageError
+from .errors import CloudWriteError, M3C2Error, UsageError
 from .io.atomic import private_folder
 from .io.streaming import DEFAULT_CHUNK, PointSource, TableWriter, _in_box
 from .io.fields import typed_columns
@@ -345,6 +346,25 @@ class TiledReport:
 
 # ----------------------------------------------------------------------------------- run
 
+@contextlib.contextmanager
+def _spill_file(path, mode: str):
+    """Every spill write of a tiled run goes through here: an OSError (a full disk, a file size
+    limit) becomes a CloudWriteError naming the folder the spills live in (the private work folder
+    beside the output, docs/errors.md "Output") and the problem, instead of a traceback."""
+    try:
+        with open(path, mode) as f:
+            yield f
+    except OSError as e:
+        folder = Path(path).parent.parent
+        raise CloudWriteError(f"{folder}: cannot write the tiled run's spill files (kept in a work folder there "
+                              f"until the run ends): {e.strerror or e}") from None
+
+
+def _put(f, array: np.ndarray) -> None:
+    """Writes an array's bytes (not tofile(): its short write raises an OSError without errno)."""
+    f.write(np.ascontiguousarray(array).reshape(-1).view(np.uint8).data)
+
+
 class _Spills:
     """Per-tile append-only binary files in one directory."""
 
@@ -364,8 +384,8 @@ class _Spills:
         starts = np.concatenate([[0], cuts])
         stops = np.concatenate([cuts, [len(tiles)]])
         for a, b in zip(starts, stops):
-            with open(self.path(int(tiles[a])), "ab") as f:
-                np.ascontiguousarray(rows[a:b]).tofile(f)
+            with _spill_file(self.path(int(tiles[a])), "ab") as f:
+                _put(f, rows[a:b])
 
 
 def _density(source: PointSource, chunk_size: int) -> tuple[int, float]:
@@ -546,7 +566,7 @@ def _plan_tiles(work: Path, cores: _CoreStream, core_spill: "_Spills", normal_sp
     hi_l: list = []
     count_l: list = []
     n_core = 0
-    with open(work / "tile_of.u32", "wb") as tile_of:
+    with _spill_file(work / "tile_of.u32", "wb") as tile_of:
         for xyz, nrm in cores.chunks(rows):
             if origin is None:
                 origin = xyz[0, :2].copy()
@@ -563,7 +583,7 @@ def _plan_tiles(work: Path, cores: _CoreStream, core_spill: "_Spills", normal_sp
                     count_l.append(0)
                 local[j] = ids[k]
             tid = local[inverse]
-            tid.tofile(tile_of)
+            _put(tile_of, tid)
             for j in range(len(uniq)):
                 t = int(local[j])
                 pts = xyz[inverse == j]
@@ -679,8 +699,8 @@ def _run_in(work: Path, report: TiledReport, ref_src, cmp_src, cores: _CoreStrea
         if state["dtype"] is None:
             state["dtype"] = _result_dtype(out)
         rows = _result_rows(out, state["dtype"])
-        with open(result_spill.path(t), "wb") as f:
-            rows.tofile(f)
+        with _spill_file(result_spill.path(t), "wb") as f:
+            _put(f, rows)
         state["done"].add(t)
         pts = int(out["n_reference"]) + int(out["n_compared"])
         state["tile_points_max"] = max(state["tile_points_max"], pts)

@@ -12,7 +12,7 @@ ORDER = ("errors", "io", "engine", "settings", "run", "report", "cli")
 
 #: Layer of each module (dotted names below m3c2kit); a package stands for its modules.
 LAYERS = {
-    "errors": "errors", "optional": "errors", "io": "io",
+    "errors": "errors", "optional": "errors", "fault_hook": "errors", "io": "io",
     "_core": "engine", "engine": "engine", "result": "engine",
     "settings": "settings", "limits": "settings",
     "api": "run", "tiling": "run", "raster": "run", "diagnostics": "run", "uncertainty_inputs": "run",

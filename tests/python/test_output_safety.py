@@ -71,3 +71,74 @@ def test_a_read_only_output_is_refused_not_replaced(pair, capsys):
     out.chmod(0o644)
     assert main([str(a) for a in ("compare", pair / "ref.las", pair / "cmp.las", "-o", out, *PARAMS, "-q")]) == 0
     assert out.read_bytes() != b"older result" and np.isfinite(out.stat().st_size)
+
+
+# ------------------------------------------------- every other subcommand that writes (issue 12)
+
+def _analysis_cases(d: Path):
+    ref, cmp = d / "ref.las", d / "cmp.las"
+    clf = d / "classifier.json"
+    return {
+        "roughness -o": (["roughness", ref, "--normal-scale", "0.2,0.4", "-o", ref], ref, "-o", "input cloud"),
+        "roughness --plot": (["roughness", ref, "--normal-scale", "0.2,0.4", "-o", d / "r.csv", "--plot", ref], ref,
+                             "--plot", "input cloud"),
+        "roughness --core": (["roughness", ref, "--core", cmp, "--normal-scale", "0.2,0.4", "-o", cmp], cmp, "-o",
+                             "core points file"),
+        "calibrate -o": (["calibrate", ref, "--projection-scales", "0.2", "-o", ref], ref, "-o", "input cloud"),
+        "calibrate --plot": (["calibrate", ref, "--projection-scales", "0.2", "-o", d / "c.csv", "--plot", ref], ref,
+                             "--plot", "input cloud"),
+        "c2c -o reference": (["c2c", ref, cmp, "-o", ref], ref, "-o", "reference cloud"),
+        "c2c -o compared": (["c2c", ref, cmp, "-o", cmp], cmp, "-o", "compared cloud"),
+        "simplify -o": (["simplify", ref, "--projection-scale", "0.2", "-o", ref], ref, "-o", "input cloud"),
+        "simplify --orient": (["simplify", ref, "--projection-scale", "0.2", "--orient", cmp, "-o", cmp], cmp, "-o",
+                              "orientation file"),
+        "classify train -o": (["classify", "train", f"{ref}=ground", f"{cmp}=rock", "-o", ref], ref, "-o",
+                              f"sample {ref}=ground"),
+        "classify train --plot": (["classify", "train", f"{ref}=ground", f"{cmp}=rock", "-o", clf, "--plot", cmp],
+                                  cmp, "--plot", f"sample {cmp}=rock"),
+        "classify apply -o cloud": (["classify", "apply", ref, "--classifier", clf, "-o", ref], ref, "-o",
+                                    "input cloud"),
+        "classify apply -o classifier": (["classify", "apply", ref, "--classifier", clf, "-o", clf], clf, "-o",
+                                         "classifier file"),
+    }
+
+
+@pytest.mark.parametrize("case", list(_analysis_cases(Path("."))))
+def test_every_writing_subcommand_refuses_an_output_that_is_an_input(pair, capsys, case):
+    (pair / "classifier.json").write_text("{}\n")  # never read: the check comes first
+    argv, victim, option, label = _analysis_cases(pair)[case]
+    err = _refused(capsys, *argv, protected=[pair / "ref.las", pair / "cmp.las", pair / "classifier.json"])
+    assert f"{option} '{victim}' is the {label} '" in err and "would destroy the input" in err
+
+
+def test_a_hard_link_to_an_analysis_input_is_refused(pair, capsys):
+    link = pair / "link.las"
+    os.link(pair / "ref.las", link)
+    err = _refused(capsys, "c2c", pair / "ref.las", pair / "cmp.las", "-o", link, protected=[pair / "ref.las"])
+    assert f"-o '{link}' is the reference cloud '{pair / 'ref.las'}'" in err
+
+
+
+def _series_cases(d: Path):
+    ref, cmp = d / "ref.las", d / "cmp.las"
+    store, archive, table = d / "store.zarr", d / "analysis.zip", d / "objects.csv"
+    compare = ["--normal-scale", "0.3", "--projection-scale", "0.2", "--max-depth", "0.5"]
+    return {
+        "series -o reference": (["series", ref, cmp, "-o", ref, *compare], ref, "-o", "reference cloud"),
+        "series -o epoch": (["series", ref, cmp, "-o", cmp, *compare], cmp, "-o", f"epoch {cmp}"),
+        "series import -o archive": (["series", "import", archive, "-o", archive], archive, "-o", "archive"),
+        "series report -o objects": (["series", "report", store, "-o", table, "--objects", table], table, "-o",
+                                     "objects table"),
+    }
+
+
+@pytest.mark.parametrize("case", list(_series_cases(Path("."))))
+def test_the_series_subcommands_refuse_an_output_that_is_an_input(pair, capsys, case):
+    # Checked before the series extra (xarray, zarr) is needed: it refuses without it too.
+    (pair / "store.zarr").mkdir()
+    (pair / "analysis.zip").write_bytes(b"PK\x05\x06" + bytes(18))  # never read: the check comes first
+    (pair / "objects.csv").write_text("object\n")
+    argv, victim, option, label = _series_cases(pair)[case]
+    err = _refused(capsys, *argv, protected=[pair / "ref.las", pair / "cmp.las", pair / "analysis.zip",
+                                             pair / "objects.csv"])
+    assert f"{option} '{victim}' is the {label} '" in err, err

@@ -160,3 +160,52 @@ def test_renders_in_a_headless_browser(report_run, tmp_path):
     reddish = np.sum((r > 0.6) & (g < 0.45) & (b < 0.45))
     bluish = np.sum((b > 0.5) & (r < 0.35))
     assert reddish > 500 and bluish > 500, (reddish, bluish)  # the distance map is drawn, both signs
+
+
+# ------------------------------------------------------- --uncertainty pm|ep section (issue 16)
+
+def test_an_eq1_run_has_no_uncertainty_section(report_run):
+    text = (report_run / "report.html").read_text(encoding="utf-8")
+    assert 'id="uncertainty"' not in text and build_report(fake_result(50), view3d=False).uncertainty is None
+
+
+def test_the_uncertainty_section_gives_the_model_its_inputs_and_the_spreads():
+    from dataclasses import replace
+    r = fake_result(400, seed=3)
+    rng = np.random.default_rng(7)
+    spread1, spread2 = rng.uniform(0.001, 0.01, 400), rng.uniform(0.002, 0.02, 400)
+    spread2[:10] = np.nan  # core points without a LOD: not counted
+    r = replace(r, spread1=spread1, spread2=spread2,
+                params=dict(r.params, uncertainty="pm", precision_fields="px,py,pz", precision_scales=[2.0, 0.5]))
+    section = build_report(r, view3d=False).uncertainty
+    assert section.model.startswith("M3C2-PM")
+    inputs = dict(section.inputs)
+    assert inputs["precision fields (sx, sy, sz)"] == "px,py,pz"
+    assert inputs["precision scales (reference, compared)"] == "2, 0.5"
+    assert inputs["precision rule"] == "nearest"  # not given: the default the run used
+    rows = {row[0]: row for row in section.distribution}
+    assert rows["spread1 (reference)"][1] == "400" and rows["spread2 (compared)"][1] == "390"
+    assert float(rows["spread1 (reference)"][4]) == pytest.approx(np.median(spread1), rel=1e-5)
+    assert float(rows["spread2 (compared)"][6]) == pytest.approx(np.nanmax(spread2), rel=1e-5)
+    lod = r.lod[np.isfinite(r.lod)]
+    assert rows["LOD"][1] == str(lod.size) and float(rows["LOD"][3]) == pytest.approx(np.quantile(lod, 0.05), rel=1e-5)
+    page = render_html(build_report(r, view3d=False))
+    assert '<h2 id="uncertainty">Uncertainty model</h2>' in page and "px,py,pz" in page
+
+
+def test_the_ep_section_names_every_input_and_what_was_absent():
+    from dataclasses import replace
+    r = fake_result(100, seed=4)
+    r = replace(r, spread1=np.full(100, 0.01), spread2=np.full(100, 0.02),
+                params=dict(r.params, uncertainty="ep", scan_positions="sps.json", scan_position_field="scan",
+                            transform="tfM.csv", reduction_point="1,2,0"))
+    section = build_report(r, view3d=False).uncertainty
+    inputs = dict(section.inputs)
+    assert section.model.startswith("M3C2-EP")
+    assert inputs["scan positions (reference[, compared])"] == "sps.json"
+    assert inputs["scan-position id field"] == "scan"
+    assert inputs["transformation tfM (compared epoch)"] == "tfM.csv"
+    assert inputs["transformation already applied"] == "no"
+    assert inputs["alignment covariance Cxx (12 x 12)"] == "none (no alignment uncertainty)"
+    assert inputs["reduction point"] == "1,2,0"
+    assert {"covariance of a centre of gravity", "weights of the centres of gravity", "level of detection"} <= set(inputs)

@@ -119,3 +119,24 @@ def test_missing_inputs_are_named(pair):
         from m3c2kit.tiling import run_tiled
         run_tiled(str(d / "ref.xyz"), str(d / "cmp.xyz"), core=core, normal_scale=1, projection_scale=0.5,
                   max_depth=0.5, tile_size=1.0, uncertainty="pm")
+
+
+@pytest.mark.parametrize("kind", ["pm", "ep"])
+def test_the_report_of_a_pm_or_ep_run_has_its_uncertainty_section(pair, kind):
+    pytest.importorskip("matplotlib")
+    d, clouds, core = pair
+    flags = {"pm": ["--uncertainty", "pm", "--precision-fields", "px,py,pz", "--precision-scales", "2,0.5"],
+             "ep": ["--uncertainty", "ep", "--scan-positions", str(d / "sps.json"), "--scan-position-field", "scan",
+                    "--transform", str(d / "tfM.csv"), "--alignment-covariance", str(d / "Cxx.csv"),
+                    "--reduction-point", "1,2,0"]}[kind]
+    out, html = d / f"{kind}.csv", d / f"{kind}.html"
+    assert main(["compare", str(d / "ref.xyz"), str(d / "cmp.xyz"), "--core", str(d / "core.xyz"), "-o", str(out),
+                 "--report", str(html), *BASE, *flags]) == 0
+    page = html.read_text(encoding="utf-8")
+    _, cols = read_csv(out)
+    assert '<h2 id="uncertainty">Uncertainty model</h2>' in page
+    assert ("M3C2-PM" if kind == "pm" else "M3C2-EP") in page
+    for given in flags[3::2]:
+        assert given in page, given  # every input the run was given
+    spread1 = cols["spread1"][np.isfinite(cols["spread1"])]
+    assert f'<td class="num">{np.median(spread1):.6g}</td>' in page  # median spread1, from the written table

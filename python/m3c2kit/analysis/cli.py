@@ -9,6 +9,7 @@ import numpy as np
 
 from ..errors import UsageError
 from ..io import read_cloud, write_cloud_table
+from ..io.collisions import check_outputs
 from ..progress import ProgressBar
 from importlib import import_module
 
@@ -31,6 +32,16 @@ def _core_options(p, what="cloud") -> None:
     core = p.add_mutually_exclusive_group()
     core.add_argument("--core", type=Path, help="core points file (default: see the command's help)")
     core.add_argument("--core-spacing", type=float, help=f"core points = the {what} subsampled to this minimum spacing")
+
+
+def _check_outputs(args) -> None:
+    """No output of the command (-o, --plot) may be one of its inputs (m3c2kit.io.collisions),
+    checked before any work, as for every command (docs/errors.md, "Output")."""
+    orient = getattr(args, "orient", None)
+    inputs = {"input cloud": getattr(args, "cloud", None), "reference cloud": getattr(args, "reference", None),
+              "compared cloud": getattr(args, "compared", None), "core points file": getattr(args, "core", None),
+              "orientation file": orient if orient and Path(orient).is_file() else None}
+    check_outputs({"-o": getattr(args, "output", None), "--plot": getattr(args, "plot", None)}, inputs)
 
 
 def _core_points(args, cloud_xyz, default_all=True):
@@ -132,6 +143,7 @@ def analysis_parsers(sub) -> None:
 
 
 def run_roughness(args) -> int:
+    _check_outputs(args)
     cloud = _read(args.cloud)
     diameters = scales("--normal-scale", args.normal_scale)
     core = _core_points(args, cloud.xyz)
@@ -151,6 +163,7 @@ def run_roughness(args) -> int:
 
 
 def run_calibrate(args) -> int:
+    _check_outputs(args)
     cloud = _read(args.cloud)
     ds = scales("--projection-scales", args.projection_scales)
     spacings = [s for s in args.spacings.split(",") if s.strip()]
@@ -169,6 +182,7 @@ def run_calibrate(args) -> int:
 
 
 def run_c2c(args) -> int:
+    _check_outputs(args)
     reference, compared = _read(args.reference), _read(args.compared)
     if args.model == "none" and args.model_radius is not None:
         raise UsageError("--model-radius needs --model plane")
@@ -191,6 +205,7 @@ def run_c2c(args) -> int:
 
 
 def run_simplify(args) -> int:
+    _check_outputs(args)
     cloud = _read(args.cloud)
     core = _read(args.core).xyz if args.core is not None else None
     bar = ProgressBar("simplify", enabled=not args.quiet)

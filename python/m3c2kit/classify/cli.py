@@ -10,6 +10,7 @@ import numpy as np
 
 from ..errors import UsageError
 from ..io import read_cloud, write_cloud_table
+from ..io.collisions import check_outputs
 from ..settings.parsers import normal_scales
 from .apply import classify
 from .labels import labels_from_field, labels_from_polygons, parse_mapping, parse_sample, read_polygons
@@ -99,9 +100,16 @@ def _samples(args):
     return out
 
 
+def _check_outputs(args, inputs: dict) -> None:
+    """No output (-o, --plot) may be an input (m3c2kit.io.collisions), checked before any work."""
+    check_outputs({"-o": args.output, "--plot": getattr(args, "plot", None)}, inputs)
+
+
 def run_train(args) -> int:
     from .plot import plot_training
     from .train import train_with_samples
+    samples = {f"sample {text}": parse_sample(text)[0] for text in args.samples}
+    _check_outputs(args, dict(samples, **{"polygons file": args.polygons}))
     if args.min_points < 3:
         raise UsageError(f"--min-points must be >= 3, got {args.min_points}")
     if args.max_per_class < 0:
@@ -148,6 +156,7 @@ def class_codes(clf, spec: str | None) -> dict[str, int]:
 
 
 def run_apply(args) -> int:
+    _check_outputs(args, {"input cloud": args.cloud, "classifier file": args.classifier})
     clf = read_classifier(args.classifier)
     codes = class_codes(clf, args.class_map)
     cloud = read_cloud(args.cloud)

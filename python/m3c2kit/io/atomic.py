@@ -19,11 +19,13 @@ import os
 import re
 import shutil
 import tempfile
+import warnings
 from contextlib import contextmanager
 from pathlib import Path
 from typing import Iterator
 
-from ..errors import CloudWriteError
+from ..errors import CloudWriteError, M3C2Error
+from ..fault_hook import checkpoint as fault_checkpoint
 
 __all__ = ["atomic_output", "staged_outputs", "private_folder", "remove_stale", "PRIVATE_PREFIX"]
 
@@ -110,6 +112,28 @@ def _fsync_dir(directory: Path) -> None:
         os.close(fd)
 
 
+def _public(text: str, staged: dict[Path, Path], folders: list[Path]) -> str:
+    """`text` with every temporary (and private folder) named by its target (and the target's
+    folder): a writer handed a temporary names it in its errors and warnings, the user never saw
+    it (issue 15: every message names the user's file)."""
+    for target, tmp in staged.items():
+        text = text.replace(str(tmp), str(target))
+    for folder in folders:
+        text = text.replace(str(folder), str(folder.parent))
+    return text
+
+
+def _renamed(error: M3C2Error, staged: dict[Path, Path], folders: list[Path]) -> M3C2Error:
+    text = str(error)
+    public = _public(text, staged, folders)
+    if public == text:
+        return error
+    try:
+        return type(error)(public)
+    except TypeError:  # a subclass with another constructor: keep it as it is
+        return error
+
+
 @contextmanager
 def staged_outputs(targets) -> Iterator[dict[Path, Path]]:
     """All-or-nothing output of several files: yields {target: temporary path}, each temporary in a
@@ -119,6 +143,7 @@ def staged_outputs(targets) -> Iterator[dict[Path, Path]]:
     naming the target). Every target's folder is checked before the body runs."""
     staged: dict[Path, Path] = {}
     folders: list[Path] = []
+    caught: list = []
     try:
         for target in dict.fromkeys(Path(t) for t in targets):
             if target.is_dir():
@@ -126,7 +151,19 @@ def staged_outputs(targets) -> Iterator[dict[Path, Path]]:
             folder = private_folder(target.parent, target)
             folders.append(folder)
             staged[target] = folder / f"part{_suffix(target)}"
-        yield staged
+        try:
+            with warnings.catch_warnings(record=True) as caught:
+                warnings.simplefilter("always")
+                yield staged
+        except M3C2Error as e:
+            renamed = _renamed(e, staged, folders)
+            if renamed is e:
+                raise
+            raise renamed from e.__cause__
+        finally:
+            for w in caught:  # shown as the caller's filters say, naming the targets
+                warnings.warn_explicit(_public(str(w.message), staged, folders), w.category, w.filename, w.lineno)
+        fault_checkpoint("writing")  # a testing aid (docs/errors.md, "Interruption"): temporaries complete
         for target, tmp in staged.items():
             if not tmp.exists():
                 raise CloudWriteError(f"{target}: was not written")
@@ -139,7 +176,8 @@ def staged_outputs(targets) -> Iterator[dict[Path, Path]]:
             raise
         target = next((t for t, tmp in staged.items() if e.filename in (str(tmp), tmp)), None)
         target = target or (next(iter(staged)) if len(staged) == 1 else None)
-        raise CloudWriteError(f"{target or e.filename or 'output'}: {_describe(e)}") from e
+        where = target or (_public(str(e.filename), staged, folders) if e.filename else "output")
+        raise CloudWriteError(f"{where}: {_describe(e)}") from e
     finally:
         for folder in folders:
             shutil.rmtree(folder, ignore_errors=True)

@@ -7,6 +7,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import CloudReadError, CloudWriteError, UsageError
+from ..fault_hook import checkpoint as fault_checkpoint
 from .cloud import Cloud
 from .guard import available_memory, format_bytes, read_errors
 from .las_header import check_las_file
@@ -101,6 +102,7 @@ def read_cloud(path: str | os.PathLike, *, columns: tuple[int, int, int] | None 
                                  f"({bad} non-finite)")
         cloud = cloud.select(finite)
         cloud.dropped_nonfinite = bad
+    fault_checkpoint("reading")  # a testing aid (m3c2kit.fault_hook)
     return cloud
 
 

@@ -29,6 +29,7 @@ from typing import Iterator
 import numpy as np
 
 from ..errors import CloudReadError, CloudWriteError
+from ..fault_hook import checkpoint as fault_checkpoint
 from .atomic import atomic_output
 from .cloud import Cloud
 from .files import read_cloud, write_cloud_table
@@ -146,6 +147,7 @@ class PointSource:
                     xyz = xyz[finite]
             if len(xyz):
                 yield xyz
+        fault_checkpoint("reading")  # a testing aid (m3c2kit.fault_hook): the whole file streamed
 
     def query_box(self, lo, hi, size: int = DEFAULT_CHUNK) -> np.ndarray:
         """The points with lo <= p <= hi (each axis, inclusive), in file order."""

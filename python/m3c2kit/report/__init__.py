@@ -25,6 +25,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..errors import CloudWriteError
 from ..result import STATUS_NAMES, Result
 from ..lod_rates import expectation_text, run_expectation
 from ..summary import normal_accuracy
@@ -45,6 +46,7 @@ class Report:
     status: list = field(default_factory=list)      # (code, name, count, percent)
     parameters: list = field(default_factory=list)  # (name, value)
     view3d: tuple | None = None                      # (plotly div HTML, caption), or ("", why missing)
+    uncertainty: object | None = None                # report.uncertainty.UncertaintySection (pm, ep runs)
 
 
 def png_paths(prefix: str | os.PathLike) -> dict[str, Path]:
@@ -175,6 +177,8 @@ def build_report(result: Result, *, grid=None, images=None, inputs: dict | None 
             rep.view3d = ("", V.MISSING)
 
     rep.summary = _summary(result, linthresh)
+    from .uncertainty import uncertainty_section
+    rep.uncertainty = uncertainty_section(result)
     counts = result.status_counts()
     rep.status = [(k, name, counts.get(name, 0), 100.0 * counts.get(name, 0) / n if n else 0.0)
                   for k, name in enumerate(STATUS_NAMES)]
@@ -208,6 +212,8 @@ def render_html(rep: Report) -> str:
     parts += [f'<tr><td class="num">{k}</td><td>{e(name)}</td><td class="num">{c}</td><td class="num">{p:.1f}</td></tr>'
               for k, name, c, p in rep.status]
     parts.append("</table></div>")
+    if rep.uncertainty is not None:
+        parts += _uncertainty_html(rep.uncertainty)
     for key, heading, data, caption in rep.figures:
         b64 = base64.b64encode(data).decode("ascii")
         parts.append(f'<h2 id="{e(key)}">{e(heading)}</h2><figure><img alt="{e(heading)}" '
@@ -222,6 +228,22 @@ def render_html(rep: Report) -> str:
     return "\n".join(parts)
 
 
+def _uncertainty_html(section) -> list[str]:
+    """The --uncertainty pm|ep section: the model, its inputs, the spreads' and LOD's distribution."""
+    e = html.escape
+    parts = ['<h2 id="uncertainty">Uncertainty model</h2>',
+             f"<p>{e(section.model)} replaced eq. (1)'s spread: {e(section.description)} "
+             "(docs/algorithm.md &sect;6.5).</p>",
+             '<div class="tables"><table><tr><th>input</th><th>value</th></tr>']
+    parts += [f"<tr><td>{e(k)}</td><td>{e(v)}</td></tr>" for k, v in section.inputs]
+    parts.append("</table><table><tr><th>quantity</th><th>core points</th><th>min</th><th>5%</th><th>median</th>"
+                 "<th>95%</th><th>max</th></tr>")
+    parts += ["<tr><td>" + e(row[0]) + "</td>" + "".join(f'<td class="num">{e(v)}</td>' for v in row[1:]) + "</tr>"
+              for row in section.distribution]
+    parts.append("</table></div>")
+    return parts
+
+
 def write_report(result: Result, html_path=None, png_prefix=None, *, staged: dict | None = None, **kwargs) -> list:
     """Builds the report and writes the HTML to `html_path` and/or the PNGs to
     `<png_prefix>_<figure>.png`. `staged` maps each final path to the (temporary) path to write
@@ -231,11 +253,20 @@ def write_report(result: Result, html_path=None, png_prefix=None, *, staged: dic
     written = []
     if html_path is not None:
         target = Path(html_path)
-        Path(staged.get(target, target)).write_text(render_html(rep), encoding="utf-8")
+        _write_bytes(target, staged.get(target, target), render_html(rep).encode("utf-8"))
         written.append(target)
     if png_prefix is not None:
         paths = png_paths(png_prefix)
         for key, _, data, _ in rep.figures:
-            Path(staged.get(paths[key], paths[key])).write_bytes(data)
+            _write_bytes(paths[key], staged.get(paths[key], paths[key]), data)
             written.append(paths[key])
     return written
+
+
+def _write_bytes(target: Path, path, data: bytes) -> None:
+    """Writes `data` to `path` (a temporary of `target`); a failure (a full disk: the OS error has
+    no file name) names the report file the user asked for (docs/errors.md, "Output")."""
+    try:
+        Path(path).write_bytes(data)
+    except OSError as e:
+        raise CloudWriteError(f"{target}: {e.strerror or e}") from None

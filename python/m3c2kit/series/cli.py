@@ -204,7 +204,24 @@ def _core_normals(args):
     return normals
 
 
+def _check_outputs(outputs: dict, inputs: dict, *, store: bool = False) -> None:
+    """No output may be an input (m3c2kit.io.collisions), checked before any work, as for every
+    command (docs/errors.md, "Output"). `store`: the outputs are stores (folders), so an existing
+    folder there is not refused as a folder."""
+    from ..io.collisions import check_outputs
+    if store:
+        outputs = {k: v for k, v in outputs.items() if v is not None and not Path(v).is_dir()}
+    check_outputs(outputs, inputs)
+
+
+def _epoch_files(epochs) -> dict:
+    """The epochs given as existing file paths (globs and list files name others)."""
+    return {f"epoch {e}": Path(e) for e in epochs if Path(e).is_file()}
+
+
 def _run_create(args) -> int:
+    _check_outputs({"-o": args.output}, {"reference cloud": args.reference, **_epoch_files(args.epochs),
+                                         "core points file": args.core, "core normals file": args.core_normals}, store=True)
     from . import run
     added = run.create(args.reference, args.epochs, args.output, _settings(args), core_path=args.core,
                        core_normals=_core_normals(args), threads=args.threads or 0, dask_scheduler=args.dask_scheduler,
@@ -254,6 +271,8 @@ def objects_params(args):
 
 
 def _run_objects(args) -> int:
+    members = args.output.with_name(args.output.stem + "_members.csv")  # written beside -o
+    _check_outputs({"-o": args.output, "-o's members table": members}, {"store": args.store})
     from .analysis import objects
     out = objects(args.store, args.output, objects_params(args), use=args.use, threads=args.threads or 0)
     if not args.quiet:
@@ -284,6 +303,7 @@ def _run_changepoints(args) -> int:
 
 
 def _run_report(args) -> int:
+    _check_outputs({"-o": args.output}, {"store": args.store, "objects table": args.objects})
     from .report import write_report
     write_report(args.store, args.output, cores=args.core, objects_table=args.objects)
     print(f"wrote {args.output}")
@@ -291,6 +311,7 @@ def _run_report(args) -> int:
 
 
 def _run_import(args) -> int:
+    _check_outputs({"-o": args.output}, {"archive": args.archive}, store=True)
     from .py4dgeo_archive import import_archive
     n = import_archive(args.archive, args.output)
     print(f"{args.output}: {n} epoch(s) imported from {args.archive}")
