@@ -168,11 +168,12 @@ def run_m3c2(folder: Path, D, d, L, normals: str, threads: int, tag: str, wall_o
     if normals == "vertical":
         params.update(normal_source="vertical")
         del params["normal_scale"]
-    walls = []
+    walls, cpus = [], []
     for _ in range(repeat):
-        t0 = time.perf_counter()
+        t0, c0 = time.perf_counter(), time.process_time()
         r = m3c2kit.compare(ref, cmp, core, **params)
         walls.append(time.perf_counter() - t0)
+        cpus.append(time.process_time() - c0)  # every thread's CPU: what holds on a loaded machine
     t_index = t_normals = t_projection = float("nan")
     if not wall_only:
         # Phases, measured after the real run: index builds (normals on no core point), normals,
@@ -195,7 +196,7 @@ def run_m3c2(folder: Path, D, d, L, normals: str, threads: int, tag: str, wall_o
         t_projection = time.perf_counter() - t - t_index
     peak = peak_rss_bytes()
     save_table(folder / f"m3c2-{tag}.npz", r.columns())
-    return dict(wall=min(walls), first=walls[0], index=t_index, normals=t_normals,
+    return dict(wall=min(walls), first=walls[0], cpu=min(cpus), index=t_index, normals=t_normals,
                 projection=t_projection, peak=peak)
 
 
@@ -238,9 +239,9 @@ def run_py4dgeo(folder: Path, D, d, L, normals: str, threads: int, tag: str, rep
     logging.getLogger("py4dgeo").setLevel(logging.WARNING)
     py4dgeo.set_num_threads(threads)
     ref, cmp, core = (np.load(folder / f"{k}.npy") for k in ("ref", "cmp", "core"))
-    walls = []
+    walls, cpus = [], []
     for _ in range(repeat):  # the phases are those of the last run
-        t0 = time.perf_counter()
+        t0, c0 = time.perf_counter(), time.process_time()
         e1, e2 = py4dgeo.Epoch(ref), py4dgeo.Epoch(cmp)
         e1.build_kdtree()
         e2.build_kdtree()
@@ -258,6 +259,7 @@ def run_py4dgeo(folder: Path, D, d, L, normals: str, threads: int, tag: str, rep
         dist, unc = alg.run()
         t_projection = time.perf_counter() - t
         walls.append(time.perf_counter() - t0)
+        cpus.append(time.process_time() - c0)
         if len(walls) == 1:
             # The first run's results are checked: py4dgeo 1.2's later runs in the same process
             # differ from it at some core points (W1: 2,617 of 89,815).
@@ -268,7 +270,8 @@ def run_py4dgeo(folder: Path, D, d, L, normals: str, threads: int, tag: str, rep
     np.savez(folder / f"py4dgeo-{tag}.npz", distance=np.asarray(dist, float),
              lod=np.asarray(unc["lodetection"], float),
              n1=np.asarray(unc["num_samples1"]), n2=np.asarray(unc["num_samples2"]))
-    return dict(wall=wall, first=walls[0], index=t_index, normals=t_normals, projection=t_projection, peak=peak)
+    return dict(wall=wall, first=walls[0], cpu=min(cpus), index=t_index, normals=t_normals, projection=t_projection,
+                peak=peak)
 
 
 # W7, whole processes. m3c2: the command line's own entry point (what the `m3c2` script runs),
@@ -552,20 +555,26 @@ def main() -> None:
                       f"{r['wall']:.2f} | {r['peak'] / n_in:.0f} ({r['peak'] / 2**20:.0f} MiB) | {n_core / r['wall']:,.0f} | "
                       f"{f'{ratio:.1f}x' if tool == 'm3c2' and ratio == ratio else ''} | {agree if tool == 'm3c2' else ''} |",
                       flush=True)
+            if all("cpu" in r for r in rows.values()):
+                cpu_ratio = (f", py4dgeo / m3c2 {rows['py4dgeo']['cpu'] / rows['m3c2']['cpu']:.1f}x" if both else "")
+                print(f"<!-- {name}: CPU s (user + sys, every thread; best run): "
+                      + ", ".join(f"{t} {r['cpu']:.3f}" for t, r in rows.items()) + cpu_ratio + " -->", flush=True)
             print(f"<!-- {name}: {desc}; {n_in:,} input points, {n_core:,} core points, D={D}, d={d}, depth={L}"
                   + (f"; ratio against the py4dgeo run of {p4_shared}" if p4_shared else "")
                   + (f"; wall: best of {repeat} runs in one process, first runs: "
                      + ", ".join(f"{t} {r['first']:.3f} s" for t, r in rows.items()) if repeat != "1" else "")
                   + " -->", flush=True)
             for tool, r in rows.items():
-                if "cpu" in r and not (tool == "py4dgeo" and p4_shared):
+                if "phases" in r and not (tool == "py4dgeo" and p4_shared):
                     whole_rows.append((name, tool, r))
             if name.startswith("S") and both:
                 sweep_rows.append((name, rows["m3c2"]["wall"] / n_core, rows["py4dgeo"]["wall"] / n_core))
             if args.lower_bound and "m3c2" in rows:
                 lb = lower_bound(args.lower_bound, folder, D, d, L, normals, args.threads)
                 ours = rows["m3c2"].get("engine", rows["m3c2"]["wall"])
-                bound_rows.append((name, lb, ours))
+                # CPU of the computation (W7: the whole process's, not its engine phase alone: no CPU split)
+                ours_cpu = rows["m3c2"].get("cpu", float("nan")) if name not in WHOLE else float("nan")
+                bound_rows.append((name, lb, ours, ours_cpu))
                 if sweep_rows and sweep_rows[-1][0] == name:
                     sweep_rows[-1] += (lb["neighbours_mean"], lb["total_s"] / n_core)
             tiled = rows.get("m3c2", {}).get("tiled")
@@ -604,12 +613,14 @@ def main() -> None:
                   f"m3c2 s: the computation's wall (W7: the engine phase of the whole process):")
             print()
             print("| workload | neighbours | cylinder points | bound build s | bound normals s | bound cylinders s | "
-                  "bound s | m3c2 s | m3c2 / bound |")
-            print("|---|---|---|---|---|---|---|---|---|")
-            for name, lb, ours in bound_rows:
+                  "bound s | m3c2 s | m3c2 / bound | bound CPU s | m3c2 CPU s | m3c2 / bound, CPU |")
+            print("|---|---|---|---|---|---|---|---|---|---|---|---|")
+            for name, lb, ours, ours_cpu in bound_rows:
+                cpu = (f"{lb['cpu_total_s']:.3f} | {ours_cpu:.3f} | {ours_cpu / lb['cpu_total_s']:.1f}x"
+                       if ours_cpu == ours_cpu else f"{lb['cpu_total_s']:.3f} | — | —")
                 print(f"| {name} | {lb['neighbours_mean']:.0f} | {lb['cylinder_points_mean']:.0f} | {lb['build_s']:.3f} | "
                       f"{lb['normals_s']:.3f} | {lb['cylinders_s']:.3f} | {lb['total_s']:.3f} | {ours:.3f} | "
-                      f"{ours / lb['total_s']:.1f}x |", flush=True)
+                      f"{ours / lb['total_s']:.1f}x | {cpu} |", flush=True)
         if args.plot and sweep_rows:
             plot_sweep(args.plot, sweep_rows, args.threads)
             print(f"wrote {args.plot}")

@@ -250,7 +250,8 @@ int main(int argc, char** argv) {
       // FNV-1a over the bits of the columns a speed change must leave alone.
       hash = 1469598103934665603ull;
       const auto mix = [&](const void* data, std::size_t bytes) {
-        for (std::size_t i = 0; i < bytes; ++i) hash = (hash ^ static_cast<const unsigned char*>(data)[i]) * 1099511628211ull;
+        for (std::size_t i = 0; i < bytes; ++i)
+          hash = (hash ^ static_cast<const unsigned char*>(data)[i]) * 1099511628211ull;
       };
       for (const auto* v : {&res.distance, &res.lod, &res.sigma1, &res.sigma2, &res.normal, &res.roughness,
                             &res.normal_scale, &res.i1, &res.i2})
@@ -265,5 +266,6 @@ int main(int argc, char** argv) {
       "\"cpu_total_s\": %.6f, \"engine_s\": %.6f, \"cpu_engine_s\": %.6f, \"engine_hash\": \"%016llx\", "
       "\"neighbours_mean\": %.2f, \"cylinder_points_mean\": %.2f, \"sink\": %.6g}\n",
       m, threads, t_build, t_normals, t_cylinders, t_build + t_normals + t_cylinders, cpu_build, cpu_normals,
-      cpu_cylinders, cpu_build + cpu_normals + cpu_cylinders, t_engine, cpu_engine, (unsigned long long)hash, neighbours, in_cylinders, sink);
+      cpu_cylinders, cpu_build + cpu_normals + cpu_cylinders, t_engine, cpu_engine, (unsigned long long)hash,
+      neighbours, in_cylinders, sink);
 }
