@@ -71,10 +71,10 @@ WORKLOADS = {
            "every tenth reference point a core point", [2.0], 1.0, 5.0, "reference"),
 }
 # The sweep of the normal sphere's population (S<n>: about n reference points within D / 2) on
-# W7's surface (100 points/m2), 20,000 core points, d = 1, depth 1: D = 2 sqrt(n / (100 pi)).
+# W7's surface (100 points/m2), 50,000 core points, d = 1, depth 1: D = 2 sqrt(n / (100 pi)).
 SWEEP = (20, 60, 200, 600, 2000, 6000, 20000)
 for _n in SWEEP:
-    WORKLOADS[f"S{_n}"] = (f"sweep: about {_n} points per normal sphere (W7's surface, 20k core points)",
+    WORKLOADS[f"S{_n}"] = (f"sweep: about {_n} points per normal sphere (W7's surface, 50k core points)",
                            [round(2.0 * float(np.sqrt(_n / (100.0 * np.pi))), 4)], 1.0, 1.0, "reference")
 # Workloads that share one set of inputs (generated once per run).
 INPUTS = {"W1": "toronto", "W2": "rough1M", "W3": "rough1M", "W4": "rough1M", "W6": "rough1M",
@@ -85,7 +85,7 @@ WHOLE = {"W7"}  # each tool timed as a whole process from LAZ files to a result 
 # Per set of inputs: (points per cloud, core points, side of the square in m) at scale 1.
 SIZES = {"rough1M": (1_000_000, 100_000, 10.0), "rough10M": (10_000_000, 2_000_000, 10.0 * np.sqrt(10.0)),
          "moderate1M": (1_000_000, 100_000, 100.0), "sparse1M": (1_000_000, 100_000, 1000.0),
-         "sweep": (1_000_000, 20_000, 100.0)}
+         "sweep": (1_000_000, 50_000, 100.0)}
 SMALL_INPUT, SMALL_REPEAT = 500_000, 5  # --repeat auto
 LAS_SCALE = 1e-5  # W5's files: coordinates quantised to 0.01 mm (the noise is 1 mm)
 COLUMNS = ("distance", "lod", "significant", "n1", "n2", "sigma1", "sigma2", "nx", "ny", "nz", "normal_scale",
