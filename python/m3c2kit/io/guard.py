@@ -3,6 +3,7 @@ from __future__ import annotations
 
 import os
 import struct
+import sys
 from contextlib import contextmanager
 from pathlib import Path
 from typing import Iterator
@@ -18,18 +19,20 @@ _INPUT_ERRORS: tuple[type[BaseException], ...] = (
     ValueError, OSError, EOFError, struct.error, RuntimeError, LookupError, ArithmeticError,
     BufferError, MemoryError,
 )
-try:
-    import laspy
 
-    _INPUT_ERRORS += (laspy.LaspyException,)
-except ImportError:  # laspy is a dependency, but a missing one must not break the other formats
-    pass
-try:
-    import pye57
 
-    _INPUT_ERRORS += (pye57.libe57.E57Exception,)
-except ImportError:
-    pass
+def _input_errors() -> tuple[type[BaseException], ...]:
+    """_INPUT_ERRORS plus laspy's and pye57's own, from those already imported: a library not
+    imported raised nothing, and importing laspy (with requests) and pye57 here, for every run
+    whatever its formats, cost about 0.2 s of CPU per process (docs/performance.md)."""
+    errors = _INPUT_ERRORS
+    laspy = sys.modules.get("laspy")
+    if laspy is not None and hasattr(laspy, "LaspyException"):
+        errors += (laspy.LaspyException,)
+    pye57 = sys.modules.get("pye57.libe57")
+    if pye57 is not None and hasattr(pye57, "E57Exception"):
+        errors += (pye57.E57Exception,)
+    return errors
 
 
 def _is_rust_panic(err: BaseException) -> bool:
@@ -57,7 +60,7 @@ def _library_errors(error: type[M3C2Error], path: object, panic_note: str) -> It
         yield
     except M3C2Error:
         raise
-    except _INPUT_ERRORS as e:
+    except _input_errors() as e:  # evaluated when an exception arrives
         raise error(f"{path}: {library_message(e)}") from e
     except BaseException as e:
         if _is_rust_panic(e):

@@ -5,9 +5,21 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Callable
 
-from . import ascii, e57, las, npy, ply
+from . import ascii, e57, npy, ply
 
 __all__ = ["Format", "FORMATS", "SUPPORTED_READ", "SUPPORTED_WRITE", "format_for", "sniff"]
+
+
+def _las_read(*args, **kwargs):
+    from . import las  # imports laspy: only when a LAS/LAZ file is read (docs/performance.md)
+
+    return las.read(*args, **kwargs)
+
+
+def _las_write(*args, **kwargs):
+    from . import las
+
+    return las.write(*args, **kwargs)
 
 
 @dataclass(frozen=True)
@@ -23,7 +35,7 @@ class Format:
 
 
 FORMATS: tuple[Format, ...] = (
-    Format("LAS/LAZ", (".las", ".laz", ".copc.laz"), las.read, las.write),
+    Format("LAS/LAZ", (".las", ".laz", ".copc.laz"), _las_read, _las_write),
     Format("E57", (".e57",), e57.read),
     Format("PLY", (".ply",), ply.read, ply.write),
     Format("ASCII", ascii.EXTENSIONS, ascii.read, ascii.write, takes_columns=True),
