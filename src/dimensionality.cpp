@@ -1,11 +1,22 @@
-// Multi-scale dimensionality (Brodu & Lague 2012): the neighbourhood moments of every scale from
-// one octree traversal (the sums normals use, octree.hpp), then the eigenvalues of each centred
-// co-moment matrix with Eigen's iterative solver.
+// Multi-scale dimensionality (Brodu & Lague 2012): the neighbours of the largest scale gathered
+// once (their offsets from the core point, in the octree's key order), each assigned to the
+// shell between two consecutive scales; the moments of each shell in one pass of sums shifted
+// by the shell's first point, then the balls as the union of their shells (merge_into, innermost
+// first); the eigenvalues of each centred co-moment matrix (Eigen's closed form, its iterative
+// solver near double roots).
+//
+// Why shells and not the octree's node moments (octree.hpp, as normals use): every point of the
+// cloud is a core point here, at 10 scales of up to several hundred neighbours, and folding the
+// nodes crossing each of the 10 spheres cost more than touching each neighbour of the largest
+// sphere once (with the closed-form eigenvalues, measured ~2.2x less CPU on
+// bench/dimensionality_bench.cpp, docs/performance.md).
+// The sums are a function of the neighbour set and its key order (the order of the points' grid
+// cells, ties by input order), so every thread count and every tile gives the same bits.
 
 #include <m3c2/dimensionality.hpp>
 #include <m3c2/errors.hpp>
 
-#include "normals.hpp"
+#include "moments.hpp"
 #include "octree.hpp"
 #include "parallel_for.hpp"
 #include "spatial_order.hpp"
@@ -22,16 +33,33 @@
 namespace m3c2 {
 namespace {
 
+/// Octree cells of about D_max / 8: measured on bench/dimensionality_bench.cpp as fast as D_max / 4
+/// and 15 % faster than D_max / 16 (fewer nodes against fewer points tested outside the sphere).
+constexpr double kCellDivisor = 8.0;
+
 /// Proportions (descending) of the eigenvalues of a centred co-moment sum (v - mean)(v - mean)^T.
 /// The co-moment is about the neighbours' own mean (moments.hpp), so its entries carry no
 /// coordinate offset whatever the distance to the origin. Scaled to unit largest entry before
 /// the solve (the proportions do not depend on the scale). False where there is no variance.
+///
+/// Eigen's closed form (computeDirect, the roots of the characteristic cubic) is 4x cheaper than
+/// its iterative solver, and accurate to ~1e-15 of the largest eigenvalue when the eigenvalues
+/// are apart; near a double root its error grows to ~sqrt(eps) (8e-9 on a line of points). So
+/// where two roots lie within kCloseRoots of the largest, the iterative solver is run instead.
 bool eigen_proportions(const Eigen::Matrix3d& comoment, double* p) {
+  constexpr double kCloseRoots = 1e-3;
   const double scale = comoment.cwiseAbs().maxCoeff();
   if (!(scale > 0.0) || !std::isfinite(scale)) return false;
-  const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> solver(comoment / scale, Eigen::EigenvaluesOnly);
-  if (solver.info() != Eigen::Success) return false;
-  const Eigen::Vector3d ascending = solver.eigenvalues().cwiseMax(0.0);  // rounding can leave -1e-17
+  const Eigen::Matrix3d scaled = comoment / scale;
+  Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> solver;
+  solver.computeDirect(scaled, Eigen::EigenvaluesOnly);
+  Eigen::Vector3d e = solver.eigenvalues();  // ascending
+  if (!e.allFinite() || e(1) - e(0) < kCloseRoots * std::abs(e(2)) || e(2) - e(1) < kCloseRoots * std::abs(e(2))) {
+    solver.compute(scaled, Eigen::EigenvaluesOnly);
+    if (solver.info() != Eigen::Success) return false;
+    e = solver.eigenvalues();
+  }
+  const Eigen::Vector3d ascending = e.cwiseMax(0.0);  // rounding can leave -1e-17
   const double total = ascending.sum();
   if (!(total > 0.0)) return false;
   for (int j = 0; j < 3; ++j) p[j] = ascending(2 - j) / total;
@@ -42,6 +70,71 @@ void barycentric_of(const double* p, double* abc) {
   abc[0] = p[0] - p[1];
   abc[1] = 2.0 * (p[1] - p[2]);
   abc[2] = 3.0 * p[2];
+}
+
+struct ShellScratch {
+  detail::DescentCache descent;
+  std::vector<double> offsets;       // 3 per neighbour of the largest sphere: p - core
+  std::vector<double> pivot;         // 3 per shell: its first point's offset
+  std::vector<double> sum;           // 3 per shell
+  std::vector<double> comoment;      // 6 per shell (xx, xy, xz, yy, yz, zz)
+  std::vector<std::uint32_t> count;  // per shell
+  std::vector<detail::Moments> balls;  // per scale rank: the moments of its ball
+};
+
+/// The moments of the balls of radius sqrt(r2[r]) (ascending) about `core` from the offsets of
+/// the largest ball's points: j is within ball r iff its squared distance (computed as
+/// detail::squared_distance does, from the same differences) is <= r2[r].
+void ball_moments_by_shell(const std::vector<double>& r2, ShellScratch& s) {
+  const std::size_t scales = r2.size(), m = s.offsets.size() / 3;
+  const double* v = s.offsets.data();
+  s.pivot.resize(3 * scales);
+  s.sum.assign(3 * scales, 0.0);
+  s.comoment.assign(6 * scales, 0.0);
+  s.count.assign(scales, 0);
+  // One pass in key order: each neighbour's shell, and the shell's sums of w and w w^T, w the
+  // offset from the shell's first point (its pivot). The shifted sums give the co-moment about
+  // the shell's mean, C = S_ww - S_w S_w^T / n, with a rounding error ~eps n max|w|^2: a pivot
+  // inside the shell keeps it of the order of the shell's own spread (a pivot far from a tight
+  // cluster would not), far below the 1e-9 of the brute-force check.
+  for (std::size_t j = 0; j < m; ++j) {
+    const double dx = v[3 * j], dy = v[3 * j + 1], dz = v[3 * j + 2];
+    const double d2 = dx * dx + dy * dy + dz * dz;
+    std::size_t r = 0;  // the smallest scale holding j: the radii it lies beyond (no branch)
+    for (std::size_t q = 0; q + 1 < scales; ++q) r += d2 > r2[q];
+    double* pivot = &s.pivot[3 * r];
+    if (s.count[r]++ == 0) pivot[0] = dx, pivot[1] = dy, pivot[2] = dz;
+    const double x = dx - pivot[0], y = dy - pivot[1], z = dz - pivot[2];
+    double* sum = &s.sum[3 * r];
+    sum[0] += x, sum[1] += y, sum[2] += z;
+    double* c = &s.comoment[6 * r];
+    c[0] += x * x, c[1] += x * y, c[2] += x * z, c[3] += y * y, c[4] += y * z, c[5] += z * z;
+  }
+  // The balls: the union of their shells, innermost first (Chan et al.'s exact merge).
+  s.balls.resize(scales);
+  detail::Moments acc;
+  for (std::size_t r = 0; r < scales; ++r) {
+    detail::Moments shell;
+    if (s.count[r] > 0) {
+      const double n = double(s.count[r]);
+      const double* sum = &s.sum[3 * r];
+      const double* c = &s.comoment[6 * r];
+      const double mx = sum[0] / n, my = sum[1] / n, mz = sum[2] / n;
+      shell.count = n;
+      shell.mean = Vec3(s.pivot[3 * r] + mx, s.pivot[3 * r + 1] + my, s.pivot[3 * r + 2] + mz);
+      shell.comoment = {c[0] - sum[0] * mx, c[1] - sum[0] * my, c[2] - sum[0] * mz,
+                        c[3] - sum[1] * my, c[4] - sum[1] * mz, c[5] - sum[2] * mz};
+    }
+    detail::merge_into(acc, shell);
+    s.balls[r] = acc;
+  }
+}
+
+Eigen::Matrix3d comoment_matrix(const detail::Moments& m) {
+  const auto& c = m.comoment;
+  Eigen::Matrix3d out;
+  out << c[0], c[1], c[2], c[1], c[3], c[4], c[2], c[4], c[5];
+  return out;
 }
 
 }  // namespace
@@ -67,13 +160,16 @@ DimensionalityResult dimensionality(PointsView cloud, PointsView core_points, co
   std::vector<double> radii;
   for (const std::size_t k : by_size) radii.push_back(0.5 * diameters[k]);
 
-  // Cells of about D_max / 8 (not D_min / 16 as for normals): a sphere's crossing leaves are then
-  // mostly single cells, folded without keys; measured 1.6x faster than D_min / 16 on the bench's
-  // 10 scales (bench/dimensionality_bench.cpp). Derived from the scales alone, as every tile's.
-  const detail::OctreeGrid grid = detail::octree_grid(radii.back() * 4.0, radii.back() * 2.0);
+  if (scales > 255) throw InvalidArgument("dimensionality takes at most 255 scales, got " + std::to_string(scales));
+  std::vector<double> r2;
+  for (const double r : radii) r2.push_back(r * r);
+
+  // Only the largest sphere is searched, with no node moments; cells of about D_max / kCellDivisor
+  // (octree_grid takes D / 16). Derived from the scales alone, as every tile's.
+  const detail::OctreeGrid grid = detail::octree_grid(radii.back() * 2.0 * 16.0 / kCellDivisor, 0.0);
   const detail::Octree tree = [&] {
     try {
-      return detail::Octree(cloud, grid, true, "the cloud");
+      return detail::Octree(cloud, grid, false, "the cloud");
     } catch (const InvalidArgument&) {
       detail::require_finite_points("cloud", cloud);
       throw;
@@ -89,25 +185,29 @@ DimensionalityResult dimensionality(PointsView cloud, PointsView core_points, co
   out.count.assign(n * scales, 0);
   out.status.assign(n, PointStatus::kTooFewNormalPoints);
   const auto order = detail::morton_order(core_points);
-  detail::parallel_blocks<detail::NormalScratch>(
-      n, run, [&](std::size_t begin, std::size_t end, detail::NormalScratch& s) {
+  detail::parallel_blocks<ShellScratch>(
+      n, run, [&](std::size_t begin, std::size_t end, ShellScratch& s) {
         for (std::size_t j = begin; j < end; ++j) {
           const std::size_t i = order[j];
-          detail::moments_by_scale(tree, core_points[i], radii, s);
+          s.offsets.clear();
+          tree.ball_offsets(core_points[i], radii.back(), s.offsets, &s.descent);
+          ball_moments_by_shell(r2, s);
           // From the largest scale down: a scale without usable neighbours (too few, or coincident)
           // repeats the next larger scale's values, CANUPO's rule. Neighbourhoods are nested, so when
           // the largest scale is unusable every scale is: the point keeps NaN and says why.
           double p[3], abc[3];
           for (std::size_t r = scales; r-- > 0;) {
             const std::size_t k = by_size[r];
-            const auto& m = s.moments[r];
-            out.count[i * scales + k] = m.count;
-            const bool usable = m.count >= min_points && eigen_proportions(m.comoment, p);
+            const detail::Moments& m = s.balls[r];
+            const auto count = static_cast<std::uint32_t>(m.count);
+            out.count[i * scales + k] = count;
+            const bool usable = count >= min_points && eigen_proportions(comoment_matrix(m), p);
             if (r == scales - 1) {
               if (!usable) {
                 out.status[i] =
-                    m.count >= min_points ? PointStatus::kDegenerateNormal : PointStatus::kTooFewNormalPoints;
-                for (std::size_t q = 0; q < r; ++q) out.count[i * scales + by_size[q]] = s.moments[q].count;
+                    count >= min_points ? PointStatus::kDegenerateNormal : PointStatus::kTooFewNormalPoints;
+                for (std::size_t q = 0; q < r; ++q)
+                  out.count[i * scales + by_size[q]] = static_cast<std::uint32_t>(s.balls[q].count);
                 break;
               }
               out.status[i] = PointStatus::kOk;

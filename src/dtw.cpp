@@ -29,12 +29,20 @@ double normalised_dtw(const double* a, const double* b, std::size_t n, double no
   // Early stop: 1 - (dmax - c) / dmax >= at_least once c >= at_least * dmax; the margin keeps the
   // rounding of that expression on the safe side.
   const double stop = at_least < 1.0 ? at_least * dmax * (1.0 + 1e-9) + 1e-300 : INFINITY;
+  // Every cost is finite or +inf, never NaN: `lesser` is std::fmin's value without its call
+  // (std::fmin was not inlined under the strict floating-point flags: 70 % of 4D-OBC's time).
+  const auto lesser = [](double u, double v) { return v < u ? v : u; };
   for (std::size_t i = 1; i < m; ++i) {
-    current[0] = std::abs(x[i] - y[0]) + previous[0];
-    double row_min = current[0];
+    const double xi = x[i];
+    double left = std::abs(xi - y[0]) + previous[0];
+    current[0] = left;
+    double row_min = left, diagonal = previous[0];
     for (std::size_t j = 1; j < m; ++j) {
-      current[j] = std::abs(x[i] - y[j]) + std::fmin(std::fmin(previous[j], current[j - 1]), previous[j - 1]);
-      row_min = std::fmin(row_min, current[j]);
+      const double up = previous[j];
+      left = std::abs(xi - y[j]) + lesser(lesser(up, left), diagonal);
+      current[j] = left;
+      row_min = lesser(row_min, left);
+      diagonal = up;
     }
     std::swap(previous, current);
     if (row_min > stop) return 1.0;

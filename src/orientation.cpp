@@ -14,6 +14,7 @@ Vec3 orient(const Vec3& normal, const Vec3& core, const Orientation& orientation
       const double d2 = to.squaredNorm();
       if (d2 < best) best = d2, reference = to;
     }
+    if (orientation.away) reference = -reference;
   }
   double dot = normal.dot(reference);
   if (dot == 0.0) dot = normal.z() != 0.0 ? normal.z() : normal.y() != 0.0 ? normal.y() : normal.x();

@@ -62,6 +62,7 @@ void validate_orientation(const Orientation& o) {
   if (o.points.size() % 3 != 0) throw InvalidArgument("orientation points must hold 3 coordinates per point");
   for (const double c : o.points)
     if (!std::isfinite(c)) fail("orientation point coordinate", "finite", c);
+  if (o.away && o.points.empty()) throw InvalidArgument("orientation away from a point needs orientation points");
 }
 
 void validate_params(const Params& p) {

@@ -38,8 +38,9 @@ struct DimensionalityResult {
 /// with fewer than `min_points` (>= 3) neighbours, or with coincident ones, takes the values of
 /// the next larger scale, as CANUPO does (Brodu & Lague 2012; qCANUPO's descriptor): its count
 /// says so. Bit-identical for any thread count and any tile holding each neighbourhood whole
-/// (the octree's canonical sums, octree.hpp: a function of the neighbours and their relative input
-/// order). Throws InvalidArgument on bad inputs.
+/// (sums over the neighbours in the octree's key order, src/dimensionality.cpp: a function of the
+/// neighbours and their relative input order). At most 255 scales. Throws InvalidArgument on bad
+/// inputs.
 DimensionalityResult dimensionality(PointsView cloud, PointsView core_points, const std::vector<double>& diameters,
                                     std::uint32_t min_points = 3, const RunOptions& run = {});
 

@@ -63,6 +63,9 @@ enum class ScaleSelection : std::uint8_t {
 struct Orientation {
   std::array<double, 3> direction = {0.0, 0.0, 1.0};
   std::vector<double> points;  ///< row-major x, y, z of orientation points; may be empty
+  /// Away from the closest orientation point instead of towards it (CloudCompare's "+"
+  /// barycentre, origin and sensor modes: n . (core - point) >= 0); needs points.
+  bool away = false;
 };
 
 /// IQR of a normal distribution in units of its standard deviation: 2 * Phi^-1(0.75).
@@ -135,6 +138,8 @@ constexpr void visit_param_fields(Visitor&& visit) {
       "orientation_direction", [](auto& p) -> auto& { return p.orientation.direction; });
   visit(
       "orientation_points", [](auto& p) -> auto& { return p.orientation.points; });
+  visit(
+      "orientation_away", [](auto& p) -> auto& { return p.orientation.away; });
   visit(
       "projection_diameter", [](auto& p) -> auto& { return p.projection_diameter; });
   visit(

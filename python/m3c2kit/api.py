@@ -109,6 +109,7 @@ def _compare(reference, compared, core_points=None, *, core=None, core_normals=N
         raise UsageError("give core_points or core (the same parameter), not both")
     core_points = core if core_points is None else core_points
     values = resolve(params, "compare", api=True)
+    sensor = getattr(reference if core_points is None else core_points, "scan_positions", None)
     reference, compared = _vegetation_removed(values, reference, compared)
     ref = as_points("reference", reference)
     cmp_ = as_points("compared", compared)
@@ -118,7 +119,7 @@ def _compare(reference, compared, core_points=None, *, core=None, core_normals=N
     core_xyz = core_points_for(ref, core_points, values["core_spacing"])
     if len(core_xyz) == 0:
         raise UsageError("core_points is empty: there is nothing to compute")
-    engine_p = engine_params(values, "compare", read_points)
+    engine_p = engine_params(values, "compare", read_points, core_points=core_xyz, scan_positions=sensor)
     check_memory(len(ref), len(cmp_), len(core_xyz))
     if values["normal_subsample"] is not None:
         check_spacing("--normal-subsample", values["normal_subsample"], ref, cmp_)
@@ -166,7 +167,8 @@ def normals(cloud, core_points=None, *, progress=None, read_points=None, **param
     values = resolve(params, "normals")
     pts = as_points("cloud", cloud)
     core = pts if core_points is None else as_points("core_points", core_points)
-    p = engine_params(values, "normals", read_points)
+    sensor = getattr(cloud if core_points is None else core_points, "scan_positions", None)
+    p = engine_params(values, "normals", read_points, core_points=core, scan_positions=sensor)
     out = engine.compute_normals(pts, core, p, threads=values["threads"], progress=progress)
     out["core"] = core
     return out

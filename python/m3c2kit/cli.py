@@ -14,17 +14,16 @@ import numpy as np
 from . import api, raster
 from .analysis.cli import analysis_parsers
 from .classify.cli import classify_parsers
-from .cli_parser import ArgumentParser
+from .cli_parser import ArgumentParser, add_progress_option, phases_for
 from .errors import M3C2Error, M3C2Warning, UsageError, printable
 from .io import read_cloud, write_cloud_table
 from .io import crs as crs_mod
 from .io.collisions import check_outputs
 from .io.describe import describe, describe_text
-from .phases import Phases
-from .progress import ProgressBar
 from .report.outputs import CompareOutputs, write_compare_outputs
 from .settings import by_name, parameters_of
-from .settings.cloudcompare_params import read_cloudcompare_params
+from .settings import orientation
+from .settings.cloudcompare_params import ORIENT_KEY_VALUES, read_cloudcompare_params
 from .summary import summary_lines
 
 
@@ -73,8 +72,7 @@ def _compare_parser(sub) -> None:
                    help="run the tiles as tasks on this Dask distributed scheduler; every worker must be able to "
                         "read the inputs and the work folder beside the output (docs/scaling.md)")
     _verbosity_options(p)
-    p.add_argument("--progress", action="store_true",
-                   help="show the progress bars on stderr even when it is not a terminal (default: only on a terminal)")
+    add_progress_option(p)
     p.set_defaults(run=run_compare)
 
 
@@ -101,18 +99,21 @@ def add_table_options(parser, command: str, groups: dict | None = None) -> None:
 
 def _normals_parser(sub) -> None:
     p = sub.add_parser("normals", help="normals at the most planar scale, with roughness (section 6.3)")
-    p.add_argument("input", type=Path)
-    p.add_argument("-o", "--output", type=Path, required=True)
+    p.add_argument("input", type=Path, help="the point cloud")
+    p.add_argument("-o", "--output", type=Path, required=True,
+                   help="output: .csv .txt .ply .las .laz (nx, ny, nz, normal_scale, roughness, count, status)")
     p.add_argument("--core", type=Path, help="core points (default: every point)")
     add_table_options(p, "normals")
     _verbosity_options(p)
+    add_progress_option(p)
     p.set_defaults(run=run_normals)
 
 
 def _subsample_parser(sub) -> None:
     p = sub.add_parser("subsample", help="subsample to a minimum spacing (core points)")
-    p.add_argument("input", type=Path)
-    p.add_argument("-o", "--output", type=Path, required=True)
+    p.add_argument("input", type=Path, help="the point cloud")
+    p.add_argument("-o", "--output", type=Path, required=True,
+                   help="the kept points with their attributes: .csv .txt .ply .las .laz")
     p.add_argument("--spacing", type=float, required=True, help="minimum distance between kept points")
     p.set_defaults(run=run_subsample)
 
@@ -159,11 +160,28 @@ def _read(path: Path, args):
     return read_cloud(path, drop_nonfinite=getattr(args, "drop_nonfinite", False))
 
 
-def _orient_spec(args, settings: dict, reference):
-    if "orient" in settings:
-        return settings["orient"]
-    positions = getattr(reference, "scan_positions", None)
-    return positions if positions is not None and len(positions) else "+z"
+def _orient_spec(args, settings: dict, reference, core=None):
+    """--orient as the engine takes it: the reference's E57 scan positions when not given, and
+    ``sensor`` read from the file the core points come from (the --core file, as CloudCompare;
+    the reference when that file has no scanner pose, or when there is no --core file)."""
+    if "orient" not in settings:
+        positions = getattr(reference, "scan_positions", None)
+        return positions if positions is not None and len(positions) else "+z"
+    spec = settings["orient"]
+    if not orientation.needs_scan_positions(spec):
+        return spec
+    main_file = getattr(args, "reference", None) or getattr(args, "input", None)  # compare / normals
+    positions, path, also = getattr(reference, "scan_positions", None), str(main_file), None
+    if args.core is not None:  # the core points' own scanner first (CloudCompare's), else the reference's
+        own = getattr(core, "scan_positions", None)
+        if own is not None and len(own):
+            positions = own
+        elif positions is None or not len(positions):
+            path, also = str(args.core), str(main_file)
+    origin = f"--orient {spec}"
+    if getattr(args, "orient", None) is None and getattr(args, "params", None) is not None:
+        origin = f"{args.params}: NormalPreferedOri={ORIENT_KEY_VALUES[spec]}"
+    return orientation.sensor_points(spec, positions, path, origin, also)
 
 
 def run_compare_tiled(args, settings: dict, grid=None) -> int:
@@ -179,7 +197,7 @@ def run_compare_tiled(args, settings: dict, grid=None) -> int:
         raise UsageError("--dask-scheduler needs --tile-size S or --memory-limit SIZE to cut the work into tiles")
 
     settings = dict(settings)
-    for name, default in (("field_names", "m3c2"), ("float64", False)):
+    for name, default in (("field_names", "m3c2"), ("float64", False), ("all_fields", False)):
         if settings.pop(name, default) not in (default, None):
             raise UsageError(f"{by_name()[name].flag} cannot be combined with tiling (--tile-size, --memory-limit, "
                              f"--dask-scheduler): the tiled writer writes m3c2's columns")
@@ -189,10 +207,8 @@ def run_compare_tiled(args, settings: dict, grid=None) -> int:
     drop = bool(getattr(args, "drop_nonfinite", False))
     ref_src = PointSource(args.reference, drop_nonfinite=drop)
     cmp_src = PointSource(args.compared, drop_nonfinite=drop)
-    if "orient" not in settings:
-        positions = ref_src.cloud.scan_positions if ref_src.cloud is not None else None
-        settings["orient"] = positions if positions is not None and len(positions) else "+z"
     core_cloud = read_cloud(args.core, drop_nonfinite=drop) if args.core is not None else None
+    settings["orient"] = _orient_spec(args, settings, ref_src.cloud, core_cloud)
     check_same_crs(ref_src.like(), cmp_src.like(), core_cloud, ignore=getattr(args, "ignore_crs", False))
     core_normals = _core_normals(args, core_cloud) if settings.get("normal_source") == "core" else None
     say = (lambda s: None) if args.quiet else (lambda s: print(f"m3c2: {s}", flush=True))
@@ -214,6 +230,8 @@ def _inputs(args, settings: dict | None = None) -> dict:
              "input cloud": getattr(args, "input", None), "core points file": getattr(args, "core", None),
              "core normals file": getattr(args, "core_normals", None), "params file": getattr(args, "params", None)}
     orient = (settings or {}).get("orient", getattr(args, "orient", None))
+    if isinstance(orient, str) and orient.strip().lower().startswith(orientation.AWAY):
+        orient = orient.strip()[len(orientation.AWAY):].strip()
     if isinstance(orient, (str, Path)) and str(orient) and Path(orient).exists():
         files["orientation file"] = orient
     return files
@@ -241,7 +259,7 @@ def run_compare(args) -> int:
             raise UsageError("--crs is not available with --tile-size, --memory-limit or --dask-scheduler; "
                              "give the inputs a CRS (e.g. convert them to LAS with one) or run in memory")
         return run_compare_tiled(args, settings, grid=cell)  # out-of-core / Dask (docs/scaling.md)
-    phases = Phases(enabled=False if args.quiet else (True if getattr(args, "progress", False) else None))
+    phases = phases_for(args)
     files = [f for f in (args.reference, args.compared, args.core) if f is not None]
     with phases.phase("reading", total=len(files)) as step:
         reference = _read(args.reference, args)
@@ -258,10 +276,11 @@ def run_compare(args) -> int:
     if cell is not None:
         grid = raster.grid_core_points(reference, cell)
         core_cloud = grid.core_points
-    settings["orient"] = _orient_spec(args, settings, reference)
+    settings["orient"] = _orient_spec(args, settings, reference, core_cloud)
     position = settings.pop("position", "core")
     field_names = settings.pop("field_names", "m3c2")
     float64 = bool(settings.pop("float64", False))
+    all_fields = bool(settings.pop("all_fields", False))
     threads = settings.pop("threads", 0)
     core_normals = None
     if settings.get("normal_source") == "core":
@@ -273,7 +292,7 @@ def run_compare(args) -> int:
                              progress=step, read_points=lambda p: _read(p, args).xyz, **settings)
     outputs = CompareOutputs(table=args.output, report=args.report, report_png=args.report_png,
                              projected=args.projected, position=position, field_names=field_names,
-                             float64=float64, core_spacing=settings.get("core_spacing"),
+                             float64=float64, all_fields=all_fields, core_spacing=settings.get("core_spacing"),
                              inputs={"reference": args.reference, "compared": args.compared})
     with phases.phase("writing", total=1) as step:
         extra = write_compare_outputs(outputs, result, reference, grid=grid)
@@ -338,21 +357,30 @@ def _core_normals(args, core_cloud) -> np.ndarray:
 
 def run_normals(args) -> int:
     check_outputs({"-o": args.output}, _inputs(args))
-    cloud = _read(args.input, args)
-    core = _read(args.core, args).xyz if args.core is not None else None
-    bar = ProgressBar("normals", enabled=not args.quiet)
+    phases = phases_for(args)
+    files = [f for f in (args.input, args.core) if f is not None]
+    with phases.phase("reading", total=len(files)) as step:
+        cloud = _read(args.input, args)
+        step(1, len(files))
+        core_cloud = _read(args.core, args) if args.core is not None else None
+        step(len(files), len(files))
     given = {param.name: getattr(args, param.name) for param in parameters_of("normals")}
-    out = api.normals(cloud, core, progress=bar.update, read_points=lambda p: _read(p, args).xyz, **given)
-    bar.close()
+    if orientation.needs_scan_positions(given.get("orient")):
+        given["orient"] = _orient_spec(args, given, cloud, core_cloud)
+    with phases.phase("indexing, normals") as step:
+        out = api.normals(cloud, core_cloud.xyz if core_cloud is not None else None, progress=step,
+                          read_points=lambda p: _read(p, args).xyz, **given)
     n = out["normal"]
     fields = {"nx": n[:, 0], "ny": n[:, 1], "nz": n[:, 2], "normal_scale": out["normal_scale"],
               "roughness": out["roughness"], "count": out["count"].astype(np.uint32), "status": out["status"]}
-    write_cloud_table(args.output, out["core"], fields, like=cloud)
+    with phases.phase("writing", total=1) as step:
+        write_cloud_table(args.output, out["core"], fields, like=cloud)
+        step(1, 1)
     if not args.quiet:
         ok = int(np.count_nonzero(np.asarray(out["status"]) == 0))
-        print(f"{args.output}: normals at {ok:,} of {len(out['core']):,} points "
+        print(f"wrote {args.output}: normals at {ok:,} of {len(out['core']):,} points "
               f"({100.0 * ok / max(len(out['core']), 1):.1f} %); median roughness "
-              f"{np.nanmedian(out['roughness']) if ok else float('nan'):.4g}")
+              f"{np.nanmedian(out['roughness']) if ok else float('nan'):.4g}; columns {', '.join(fields)}")
     return 0
 
 

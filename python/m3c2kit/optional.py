@@ -4,15 +4,22 @@ The core install (numpy, laspy[lazrs]) reads and writes LAS/LAZ, PLY, ASCII and 
 every computation. A feature whose library is missing fails when it is used, with a message
 naming the extra that brings it, never at ``import m3c2kit``:
 
-==========  ====================  ==========================================
-extra       library               needed for
-==========  ====================  ==========================================
-``raster``  rasterio              ``--grid`` GeoTIFFs, CRS comparison
-``e57``     pye57                 reading .e57 files
-``dask``    dask[distributed]     ``--dask-scheduler``
-``report``  matplotlib            ``--report``, ``--report-png``, analysis plots
-``all``     all of the above
-==========  ====================  ==========================================
+============  ====================  ==========================================
+extra         library               needed for
+============  ====================  ==========================================
+``crs``       pyproj                telling two different CRS texts apart (the
+                                    same text always passes), CRS names and
+                                    units, ``--crs``
+``progress``  tqdm                  progress bars (without it: one line per
+                                    phase on stderr)
+``raster``    rasterio              ``--grid`` GeoTIFFs
+``e57``       pye57                 reading .e57 files
+``dask``      dask[distributed]     ``--dask-scheduler``
+``report``    matplotlib, plotly    ``--report``, ``--report-png``, analysis plots
+``classify``  scikit-learn          ``m3c2 classify train``
+``series``    xarray, zarr, dask    ``m3c2 series``
+``all``       all of the above
+============  ====================  ==========================================
 """
 from __future__ import annotations
 

@@ -45,7 +45,7 @@ from .io.streaming import DEFAULT_CHUNK, PointSource, TableWriter, _in_box
 from .io.fields import typed_columns
 from .optional import require
 from .result import Result
-from .settings import engine_params, resolve
+from .settings import engine_params, orientation, resolve
 
 __all__ = ["halo", "run_tiled", "streaming_subsample", "parse_memory", "choose_tile_size", "plan_memory",
            "MemoryPlan", "compute_tile", "TileTask", "TiledReport", "BYTES_PER_POINT", "BYTES_PER_CORE",
@@ -436,7 +436,7 @@ def run_tiled(reference, compared, *, output=None, core=None, core_spacing=None,
     read_points = params.pop("read_points", None)
     given = dict(params, normal_scale=normal_scale, projection_scale=projection_scale, max_depth=max_depth)
     values = resolve(given, "compare", api=True)
-    engine_p = engine_params(values, "compare", read_points)
+    engine_p = engine_params(values, "compare", read_points, core_points=orientation.LATER)
     if engine_p.normal_subsample_spacing > 0:
         raise UsageError("--normal-subsample cannot be combined with tiling (--tile-size, --memory-limit, "
                          "--dask-scheduler): the subsampled normal cloud depends on the whole cloud's order, "
@@ -497,6 +497,9 @@ def run_tiled(reference, compared, *, output=None, core=None, core_spacing=None,
         cores = _CoreStream(source=ref_src, normals=None)
     if normals_arr is not None and (core_arr is None or len(normals_arr) != len(core_arr)):
         raise UsageError("core_normals must have one row per core point")
+    if orientation.needs_core_points(values["orient"]):  # their barycentre, the same bits as in memory
+        engine_p = engine_params(values, "compare", read_points,
+                                 core_points=lambda: (xyz for xyz, _ in cores.chunks(stream_rows)))
 
     # Tiles are anchored at the core points' lowest x and y where that is known without a pass
     # (any anchor gives the same results): a tile as large as the survey is then one tile.
@@ -894,7 +897,7 @@ def _merge(work: Path, result_spill: _Spills, dtype: np.dtype, counts, n_core: i
         if writer is not None:
             table = chunk.columns(projected=projected, position=position)
             xyz = np.column_stack([table.pop("x"), table.pop("y"), table.pop("z")])
-            writer.write(xyz, typed_columns(table))  # the stored types of m3c2kit.write
+            writer.write(xyz, typed_columns(table, las=writer.mode == "las"))  # the stored types of m3c2kit.write
             del xyz, table
         if return_result:
             gathered.append(chunk)

@@ -13,19 +13,21 @@ from .result import Result
 
 def write(path, result: Result, *, like: Cloud | None = None, projected: bool = False,
           position: str = "core", field_names: str = "m3c2", float64: bool = False,
-          attributes: bool = True) -> None:
+          attributes: bool = True, all_fields: bool = False) -> None:
     """Writes the output columns of `result` to `path` (.las/.laz/.ply/.csv/.txt), keeping `like`'s
     CRS, scale and offset for LAS. `position` places rows at the core points, or at their
     projections on the reference or compared cloud. `field_names` ("m3c2", "cloudcompare",
     "pdal") names the columns (m3c2kit.io.fields.FIELDS); measured values are stored as float32
-    unless `float64`. The attributes of `like`'s points that are the core points (intensity,
+    (LAS/LAZ: as integers at 0.1 mm, m3c2kit.io.quantised) unless `float64`; a LAS/LAZ file
+    carries CloudCompare's default columns and ``status`` unless `all_fields`. The attributes of `like`'s points that are the core points (intensity,
     classification, GPS time, RGB, ...) are carried beside them (LAS standard fields filled)
     unless not `attributes` (tiled runs stream the reference and carry none)."""
     table = result.columns(projected=projected, position=position)
     xyz = np.column_stack([table.pop("x"), table.pop("y"), table.pop("z")])
     fmt = format_for(Path(path), writing=True)
     spaces = fmt is not None and fmt.name == "LAS/LAZ"  # text and PLY names cannot hold spaces
-    fields = typed_columns(table, field_names=field_names, float64=float64, spaces=spaces)
+    fields = typed_columns(table, field_names=field_names, float64=float64, spaces=spaces, las=spaces,
+                           all_fields=all_fields)
     if attributes:
         fields.update(core_attributes(like, result.core, set(fields)))
     write_cloud_table(Path(path), xyz, fields, like=like)

@@ -77,6 +77,31 @@ TEST(Dimensionality, EqualsBruteForceEigenvaluesAtUtmCoordinates) {
   EXPECT_GT(compared, 3 * cores.size() * 9 / 10);
 }
 
+TEST(Dimensionality, TightClusterFarFromTheCorePointEqualsBruteForce) {
+  // The shells' sums are taken about each shell's first point (dimensionality.cpp): two tight
+  // clusters (1e-4 and 1e-5 wide, one flat, one linear) 0.9 and 0.36 from a core point that is
+  // not a cloud point, at UTM-sized coordinates, where sums about the core point lose ~8 digits
+  // (this test fails with them).
+  const Vec3 offset(512345.0, 5123456.0, 250.0);
+  std::mt19937_64 rng(7);
+  std::normal_distribution<double> g(0.0, 1.0);
+  Cloud cloud;
+  for (int i = 0; i < 400; ++i) cloud.add(offset + Vec3(0.9 + 1e-4 * g(rng), 1e-4 * g(rng), 1e-6 * g(rng)));
+  for (int i = 0; i < 100; ++i) cloud.add(offset + Vec3(0.2 + 1e-5 * g(rng), 0.3 + 3e-5 * g(rng), 2e-6 * g(rng)));
+  Cloud core;
+  core.add(offset);
+  const std::vector<double> diameters = {0.8, 2.0};
+  const DimensionalityResult r = dimensionality(cloud.view(), core.view(), diameters, 3);
+  ASSERT_EQ(r.status[0], PointStatus::kOk);
+  for (std::size_t k = 0; k < diameters.size(); ++k) {
+    std::uint32_t n = 0;
+    const auto p = brute_proportions(cloud, core[0], diameters[k], &n);
+    ASSERT_EQ(r.count[k], n);
+    for (int j = 0; j < 3; ++j) EXPECT_NEAR(r.proportions[k * 3 + j], p[j], 1e-9) << k << " " << j;
+  }
+  EXPECT_GT(r.proportions[2 * 0 + 2], 0.0);  // the flat cluster keeps its small third share
+}
+
 TEST(Dimensionality, LatticeLinePlaneAndVolumeAreTheTriangleVertices) {
   // Centred on a lattice point, a ball of a line, square or cubic lattice has the lattice's
   // symmetry: one, two equal or three equal eigenvalues, so (a, b, c) is (1,0,0), (0,1,0), (0,0,1).

@@ -100,6 +100,29 @@ TEST(Orientation, EachNormalUsesItsClosestOrientationPoint) {
   EXPECT_NEAR(nr.normal[3], 1.0, 1e-12);
 }
 
+TEST(Orientation, AwayFromThePointFlipsEveryNormal) {
+  // CloudCompare's "+" point modes (barycentre 6, origin 8, sensor 11): n . (core - point) >= 0.
+  const Vec3 centre(3.0, -2.0, 1.0);
+  const SpherePatches s = sphere_patches(centre, 10.0);
+  Params p;
+  p.normal_diameters = {1.0};
+  p.orientation.points = {centre.x(), centre.y(), centre.z()};
+  p.orientation.away = true;
+  const NormalsResult nr = compute_normals(s.cloud.view(), s.cores.view(), p);
+  for (std::size_t i = 0; i < s.cores.size(); ++i) {
+    ASSERT_EQ(nr.status[i], PointStatus::kOk) << i;
+    EXPECT_GT(normal_at(nr.normal, i).dot(s.cores[i] - centre), 0.0) << "core " << i;
+  }
+}
+
+TEST(Orientation, AwayWithoutPointsIsRefused) {
+  const Cloud wall = wall_x(0.0);
+  Params p;
+  p.normal_diameters = {2.0};
+  p.orientation.away = true;
+  EXPECT_THROW(compute_normals(wall.view(), wall.every_nth(13).view(), p), InvalidArgument);
+}
+
 struct DirectionCase {
   const char* name;
   Vec3 plane_normal;

@@ -53,7 +53,8 @@ def test_crs_assignment_info_json_and_field_names(tmp_path, capsys):
     assert main(["compare", ref, cmp_, "-o", out, "--crs", "EPSG:32617", "--field-names", "cloudcompare",
                  *BASE]) == 0
     back = m3c2kit.read(out)
-    assert "M3C2 distance" in back.fields and back.fields["M3C2 distance"].dtype == np.float32
+    # LAS: the distance as an integer count of 0.1 mm, read back as float64 (m3c2kit.io.quantised)
+    assert "M3C2 distance" in back.fields and back.fields["M3C2 distance"].dtype == np.float64
     capsys.readouterr()
     assert main(["info", out, "--json"]) == 0
     d = json.loads(capsys.readouterr().out)
@@ -94,8 +95,21 @@ def test_one_crs_only_and_angular_units(tmp_path, capsys):
 def test_normals_prints_a_summary(tmp_path, capsys):
     ref, _ = _pair(tmp_path)
     assert main(["normals", ref, "-o", tmp_path / "n.csv", "--normal-scale", "2"]) == 0
-    line = capsys.readouterr().out.strip().splitlines()[-1]
-    assert line.startswith(f"{tmp_path / 'n.csv'}: normals at 3,000 of 3,000 points (100.0 %); median roughness ")
+    captured = capsys.readouterr()
+    line = captured.out.strip().splitlines()[-1]
+    assert line.startswith(f"wrote {tmp_path / 'n.csv'}: normals at 3,000 of 3,000 points (100.0 %); median roughness ")
+    assert line.endswith("columns nx, ny, nz, normal_scale, roughness, count, status")
+    assert captured.err == ""  # not a terminal: no progress bar
+
+
+def test_normals_progress_covers_every_phase(tmp_path, capsys):
+    ref, _ = _pair(tmp_path)
+    assert main(["normals", ref, "-o", tmp_path / "n.csv", "--normal-scale", "2", "--progress"]) == 0
+    err = capsys.readouterr().err
+    for phase in ("reading", "indexing, normals", "writing"):
+        assert f"{phase}:" in err
+    assert main(["normals", ref, "-o", tmp_path / "q.csv", "--normal-scale", "2", "--progress", "-q"]) == 0
+    assert capsys.readouterr().err == ""
 
 
 def test_toronto_no_overlap_warning_never_advises_depth(tmp_path, capsys):

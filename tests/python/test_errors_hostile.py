@@ -223,8 +223,9 @@ def test_an_empty_orientation_says_so(tmp_path, capsys):
     ref = _escape_cloud(tmp_path / "ref.xyz")
     assert main(["compare", str(ref), str(ref), "-o", str(tmp_path / "o.csv"), "--normal-scale", "1",
                  "--projection-scale", "1", "--max-depth", "1", "--orient", "", "--quiet"]) == 2
-    assert capsys.readouterr().err == ("m3c2: error: --orient is empty: give +x|-x|+y|-y|+z|-z, X,Y,Z or a file "
-                                       "of points\n")
+    assert capsys.readouterr().err == ("m3c2: error: --orient is empty: give +x|-x|+y|-y|+z|-z, X,Y,Z, an "
+                                       "existing FILE of points, origin, barycentre or sensor (away:POINT for "
+                                       "away from a point)\n")
 
 
 def test_a_nan_in_the_reference_is_the_references():

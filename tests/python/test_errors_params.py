@@ -88,7 +88,7 @@ BAD_VALUES = [
     ("first-pass-depth", "2", "--first-pass-depth (2.0) must not exceed --max-depth (0.5)"),
     ("normal-subsample", "-1", "--normal-subsample must be finite and > 0, got -1.0"),
     ("orient", "0,0,nan", "--orient point must be finite, got '0,0,nan'"),
-    ("orient", "sideways", "--orient must be +x|-x|+y|-y|+z|-z, X,Y,Z or an existing file, got 'sideways'"),
+    ("orient", "sideways", "--orient must be +x|-x|+y|-y|+z|-z, X,Y,Z, an existing FILE of points, origin, barycentre or sensor (away:POINT for away from a point), got 'sideways'"),
 ]
 
 

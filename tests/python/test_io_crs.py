@@ -104,9 +104,14 @@ def test_without_pyproj_every_crs_is_unknown(monkeypatch):
         assert C.parse_crs(OGC_2994) is None
         assert C.same_crs(OGC_2994, ESRI_2992) is None and C.same_crs(OGC_2994, OGC_2994) is True
         assert C.crs_label("EPSG:2994") == "EPSG:2994" and C.crs_units(OGC_2994) is None
-        C.check_crs(_cloud(OGC_2994, path="a.las"), _cloud(ESRI_2992, path="b.las"))  # unknown: not refused
+        # The same text (white space aside) passes; texts that differ need pyproj to be told apart.
+        C.check_crs(_cloud(OGC_2994, path="a.las"), _cloud(" ".join(OGC_2994.split()), path="b.las"))
+        with pytest.raises(C.CrsMismatch, match=r"a.las and compared b.las have CRS texts that differ.*"
+                                                r"needs the crs extra \(pyproj\): pip install 'm3c2kit\[crs\]'"):
+            C.check_crs(_cloud(OGC_2994, path="a.las"), _cloud(ESRI_2992, path="b.las"))
+        C.check_crs(_cloud(OGC_2994, path="a.las"), _cloud(ESRI_2992, path="b.las"), ignore=True)
         assert C.crs_info(OGC_2994)["readable"] is False
-        with pytest.raises(UsageError, match="needs pyproj"):
+        with pytest.raises(UsageError, match=r"needs the crs extra \(pyproj\): pip install 'm3c2kit\[crs\]'"):
             C.assign_crs("EPSG:32617")
     finally:
         C.parse_crs.cache_clear()

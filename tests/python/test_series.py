@@ -256,6 +256,36 @@ def test_objects_match_the_planted_ones(synthetic, tmp_path):
     assert report.read_text().count("<img") == 2 + len(rows)
 
 
+def test_objects_beyond_the_memory_limit_run_on_a_mapped_file_with_the_same_result(synthetic, tmp_path, monkeypatch,
+                                                                                   capsys):
+    from m3c2kit.series import analysis
+    s, store = synthetic
+    values, name = analysis.distances_for_analysis(store)
+    mapped, same_name = analysis.distances_for_analysis(store, in_memory_limit=values.nbytes - 1)
+    assert isinstance(mapped, np.memmap) and not isinstance(values, np.memmap) and name == same_name
+    assert same(np.asarray(mapped), values)
+    # The engine reads the mapped file in place (no copy of the whole series in memory).
+    assert np.shares_memory(np.ascontiguousarray(mapped, dtype=np.float64), mapped)
+    tables = []
+    for limit in (None, 1):
+        monkeypatch.setattr(analysis, "IN_MEMORY_LIMIT", analysis.IN_MEMORY_LIMIT if limit is None else limit)
+        table = tmp_path / f"objects_{limit}.csv"
+        assert main(["series", "objects", str(store), "-o", str(table), "--quiet"]) == 0
+        tables.append((table.read_text(), table.with_name(table.stem + "_members.csv").read_text(),
+                       xr.open_zarr(store)["object"].values))
+    assert tables[0][0] == tables[1][0] and tables[0][1] == tables[1][1]
+    assert np.array_equal(tables[0][2], tables[1][2], equal_nan=True)  # NaN: no object
+    # changepoints reads one core point's series: the same as that row of the whole variable.
+    capsys.readouterr()
+    assert main(["series", "changepoints", str(store), "--core", "3"]) == 0
+    printed = capsys.readouterr().out
+    ts = values[3]
+    good = ~np.isnan(ts)
+    ts = np.interp(np.arange(len(ts)), np.flatnonzero(good), ts[good])
+    cps = engine.change_points(ts, 24, 12, 1, 1.0)
+    assert f"change points at epochs {', '.join(map(str, cps)) or 'none'}" in printed
+
+
 def test_add_keeps_derived_variables_the_series_length(small, tmp_path):
     folder, paths = small
     store = series_store(tmp_path, paths[:4], "d.zarr")

@@ -9,8 +9,8 @@ import numpy as np
 
 from ..errors import UsageError
 from ..io import read_cloud, write_cloud_table
+from ..cli_parser import phases_for
 from ..io.collisions import check_outputs
-from ..progress import ProgressBar
 from importlib import import_module
 
 # The package exports functions named like these modules, so `from . import calibrate` would give
@@ -22,6 +22,7 @@ from .common import scales, value_range, write_csv
 
 D_HELP = "D, the normal scale: a DIAMETER"
 d_HELP = "d, the projection scale: the cylinder's DIAMETER"
+THREADS_HELP = "worker threads (0: every core; the results do not depend on it)"
 
 
 def _read(path: Path):
@@ -58,87 +59,94 @@ def analysis_parsers(sub) -> None:
     p = sub.add_parser("roughness", help="roughness sigma(D) vs scale and the self-affine fit (section 5.1, Fig. 6a)",
                        description="Mean and standard deviation of sigma(D) over core points per scale D, and the "
                                    "fit of eq. (3) <sigma(D)> = sigma(l0) (D/l0)^beta in log-log.")
-    p.add_argument("cloud", type=Path)
-    p.add_argument("--normal-scale", required=True, help=D_HELP + "s: 'MIN:MAX:STEP' or a list 'a,b,c'")
+    p.add_argument("cloud", type=Path, help="the point cloud")
+    p.add_argument("--normal-scale", required=True, help=D_HELP + " for each scale: 'MIN:MAX:STEP' or a list 'a,b,c'")
     _core_options(p)
     p.add_argument("--fit-range", help="MIN:MAX: scales used in the fit (default all)")
     p.add_argument("--l0", type=float, default=roughness_mod.L0, help="reference scale l0 of eq. (3) (default 0.5)")
     p.add_argument("--min-points", type=int, default=10, help="fewest neighbours for sigma(D) (default 10)")
-    p.add_argument("--variance", choices=["sample", "population"], default="sample")
+    p.add_argument("--variance", choices=["sample", "population"], default="sample",
+                   help="sigma(D) with the n - 1 (sample) or n (population) denominator")
     p.add_argument("-o", "--output", type=Path, required=True, help="CSV table")
     p.add_argument("--plot", type=Path, help="log-log plot (PNG, PDF, SVG)")
-    p.add_argument("--threads", type=int, default=0)
-    p.add_argument("--quiet", action="store_true")
+    p.add_argument("--threads", type=int, default=0, help=THREADS_HELP)
+    p.add_argument("-q", "--quiet", action="store_true",
+                   help="no progress bar or summary (warnings and errors still go to stderr)")
     p.set_defaults(run=run_roughness)
 
     p = sub.add_parser("calibrate", help="LOD95 calibration on subsampled copies of one cloud (5.2.1-5.2.2, Figs. 8-9)",
                        description="Compares a cloud with differently subsampled versions of itself: per d, the "
                                    "percentage of core points correctly NOT significant with eq. (1) z, Welch t "
                                    "(eq. 2) and the bootstrap, the mean LOD95 and its scaling d^alpha vs beta - 0.95.")
-    p.add_argument("cloud", type=Path)
-    p.add_argument("--projection-scales", required=True, help=d_HELP + "s: 'MIN:MAX:STEP' or 'a,b,c'")
+    p.add_argument("cloud", type=Path, help="the point cloud, compared with subsampled copies of itself")
+    p.add_argument("--projection-scales", required=True, help=d_HELP + " for each scale: 'MIN:MAX:STEP' or 'a,b,c'")
     p.add_argument("--spacings", default="raw,3x",
                    help="minimum spacings of cloud 1 and cloud 2: 'raw', a length, or 'Nx' = N times the median "
                         "point spacing (default raw,3x; the paper: raw,0.1 and 0.045,0.05)")
     p.add_argument("--normal-scale", help=D_HELP + " (default: vertical normals, as the paper: 'We impose a fixed "
                                                    "normal direction')")
     _core_options(p)
-    p.add_argument("--max-core", type=int, default=2000, help="at most this many core points, drawn with --seed")
+    p.add_argument("--max-core", type=int, default=2000,
+                   help="at most this many core points, drawn with --seed (default 2000)")
     p.add_argument("--max-depth", type=float, help="cylinder half-length (default: the largest d)")
     p.add_argument("--bootstrap", type=int, default=100, help="bootstrap resamples (0: skip; default 100)")
-    p.add_argument("--seed", type=int, default=0)
-    p.add_argument("--min-points", type=int, default=4)
+    p.add_argument("--seed", type=int, default=0, help="seed of the core-point draw and the bootstrap")
+    p.add_argument("--min-points", type=int, default=4, help="fewest points per cylinder for a LOD")
     p.add_argument("--fit-range", help="MIN:MAX of d used in the LOD and roughness fits (default all)")
-    p.add_argument("--orient", default="+z")
+    p.add_argument("--orient", default="+z", help="normal orientation, as m3c2 compare's --orient")
     p.add_argument("-o", "--output", type=Path, required=True, help="CSV table")
-    p.add_argument("--plot", type=Path)
-    p.add_argument("--threads", type=int, default=0)
+    p.add_argument("--plot", type=Path, help="plot of the calibration (PNG, PDF, SVG)")
+    p.add_argument("--threads", type=int, default=0, help=THREADS_HELP)
     p.set_defaults(run=run_calibrate)
 
     p = sub.add_parser("c2c", help="closest-point baselines C2C and C2C_HF (section 3.4)",
                        description="Distance from each compared point (or core point) to the closest reference point "
                                    "(C2C) and, with --model plane, to the least-squares plane of that point's "
                                    "reference neighbours (C2C_HF). Unsigned, as in CloudCompare.")
-    p.add_argument("reference", type=Path)
-    p.add_argument("compared", type=Path)
+    p.add_argument("reference", type=Path, help="the reference cloud")
+    p.add_argument("compared", type=Path, help="the compared cloud (its points are the query points by default)")
     p.add_argument("-o", "--output", type=Path, required=True, help="output: .csv .txt .ply .las .laz")
     _core_options(p, "compared cloud")
-    p.add_argument("--model", choices=["none", "plane"], default="none", help="local model (C2C_HF with plane)")
+    p.add_argument("--model", choices=["none", "plane"], default="none",
+                   help="local model: none (C2C) or plane (also C2C_HF)")
     p.add_argument("--model-radius", type=float, help="model neighbours within this radius of the closest point")
     p.add_argument("--model-knn", type=int, default=6, help="else its k nearest reference points (default 6)")
     p.add_argument("--rule", choices=["closer", "model"], default="closer",
                    help="closer: min(C2C, plane) as CloudCompare >= 2.5 (default); model: the plane distance as "
                         "CloudCompare 2.3")
-    p.add_argument("--threads", type=int, default=0)
-    p.add_argument("--quiet", action="store_true")
+    p.add_argument("--threads", type=int, default=0, help=THREADS_HELP)
+    p.add_argument("-q", "--quiet", action="store_true",
+                   help="no progress bar or summary (warnings and errors still go to stderr)")
     p.set_defaults(run=run_c2c)
 
     p = sub.add_parser("simplify", help="self-comparison: local averaging or outlier removal (section 6.3)",
                        description="Compares the cloud with itself at core points and writes the projected "
                                    "positions core + i n (mean: local averaging; --median: outlier removal) with "
                                    "roughness, density and normals.")
-    p.add_argument("cloud", type=Path)
+    p.add_argument("cloud", type=Path, help="the point cloud")
     _core_options(p)
     p.add_argument("--projection-scale", type=float, required=True, help=d_HELP + " (the averaging scale)")
     p.add_argument("--normal-scale", help=D_HELP + " (default 2 d)")
     p.add_argument("--vertical", action="store_true", help="impose vertical normals instead")
     p.add_argument("--median", action="store_true", help="median instead of mean (outlier removal)")
     p.add_argument("--max-depth", type=float, help="cylinder half-length (default d)")
-    p.add_argument("--orient", default="+z")
-    p.add_argument("-o", "--output", type=Path, required=True)
-    p.add_argument("--threads", type=int, default=0)
-    p.add_argument("--quiet", action="store_true")
+    p.add_argument("--orient", default="+z", help="normal orientation, as m3c2 compare's --orient")
+    p.add_argument("-o", "--output", type=Path, required=True,
+                   help="the projected points: .csv .txt .ply .las .laz")
+    p.add_argument("--threads", type=int, default=0, help=THREADS_HELP)
+    p.add_argument("-q", "--quiet", action="store_true",
+                   help="no progress bar or summary (warnings and errors still go to stderr)")
     p.set_defaults(run=run_simplify)
 
     p = sub.add_parser("suggest", help="suggest D, d and the max depth for a pair of clouds",
                        description="Proposes D (smallest scale with xi >= 25 at 95% of sampled core points), d "
                                    "(smallest with median n >= 30 in both clouds) and a max depth (3 x the 99th "
                                    "percentile of |distance| of a first pass), printing the numbers behind each.")
-    p.add_argument("reference", type=Path)
-    p.add_argument("compared", type=Path)
+    p.add_argument("reference", type=Path, help="the reference cloud")
+    p.add_argument("compared", type=Path, help="the compared cloud")
     p.add_argument("--sample", type=int, default=2000, help="sampled core points (default 2000)")
-    p.add_argument("--seed", type=int, default=0)
-    p.add_argument("--threads", type=int, default=0)
+    p.add_argument("--seed", type=int, default=0, help="seed of the core-point sample")
+    p.add_argument("--threads", type=int, default=0, help=THREADS_HELP)
     p.set_defaults(run=run_suggest)
 
 
@@ -147,10 +155,9 @@ def run_roughness(args) -> int:
     cloud = _read(args.cloud)
     diameters = scales("--normal-scale", args.normal_scale)
     core = _core_points(args, cloud.xyz)
-    bar = ProgressBar("roughness", enabled=not args.quiet)
-    sigma = roughness_mod.roughness_by_scale(cloud.xyz, core, diameters, variance=args.variance,
-                                             min_points=args.min_points, threads=args.threads, progress=bar.update)
-    bar.close()
+    with phases_for(args).phase("roughness") as step:
+        sigma = roughness_mod.roughness_by_scale(cloud.xyz, core, diameters, variance=args.variance,
+                                                 min_points=args.min_points, threads=args.threads, progress=step)
     table = roughness_mod.roughness_table(sigma, diameters)
     fit = roughness_mod.fit_scaling(diameters, table["mean_sigma"], value_range("--fit-range", args.fit_range), args.l0)
     write_csv(args.output, dict(table, in_fit=fit["in_fit"].astype(int)))
@@ -187,10 +194,9 @@ def run_c2c(args) -> int:
     if args.model == "none" and args.model_radius is not None:
         raise UsageError("--model-radius needs --model plane")
     queries = _core_points(args, compared.xyz)
-    bar = ProgressBar("C2C", enabled=not args.quiet)
-    r = c2c(reference.xyz, queries, model=args.model, model_radius=args.model_radius, model_neighbours=args.model_knn,
-            rule=args.rule, threads=args.threads, progress=bar.update)
-    bar.close()
+    with phases_for(args).phase("C2C") as step:
+        r = c2c(reference.xyz, queries, model=args.model, model_radius=args.model_radius,
+                model_neighbours=args.model_knn, rule=args.rule, threads=args.threads, progress=step)
     fields = {"c2c": r["distance"]}
     if args.model != "none":
         fields["c2c_hf"] = r["hf_distance"]
@@ -208,12 +214,12 @@ def run_simplify(args) -> int:
     _check_outputs(args)
     cloud = _read(args.cloud)
     core = _read(args.core).xyz if args.core is not None else None
-    bar = ProgressBar("simplify", enabled=not args.quiet)
-    points, fields = simplify_mod.simplify(cloud.xyz, core, projection_scale=args.projection_scale,
-                                           normal_scale=args.normal_scale, core_spacing=args.core_spacing,
-                                           median=args.median, max_depth=args.max_depth, vertical=args.vertical,
-                                           orient=args.orient, threads=args.threads, progress=bar.update)
-    bar.close()
+    with phases_for(args).phase("simplify") as step:
+        points, fields = simplify_mod.simplify(cloud.xyz, core, projection_scale=args.projection_scale,
+                                               normal_scale=args.normal_scale, core_spacing=args.core_spacing,
+                                               median=args.median, max_depth=args.max_depth,
+                                               vertical=args.vertical, orient=args.orient, threads=args.threads,
+                                               progress=step)
     write_cloud_table(args.output, points, fields, like=cloud)
     if not args.quiet:
         print(f"wrote {args.output}: {len(points)} projected points ({'median' if args.median else 'mean'}, "

@@ -19,6 +19,9 @@ from .model import read_classifier, write_classifier
 DEFAULT_SCALE_FACTORS = (4, 6, 8, 12, 16, 24, 32)  # times the point spacing sqrt(XY area / N)
 
 
+THREADS_HELP = "worker threads (0: every core; the results do not depend on it)"
+
+
 def classify_parsers(sub) -> None:
     """Adds `classify` with its `train` and `apply` subcommands."""
     p = sub.add_parser("classify", help="CANUPO multi-scale dimensionality classification (Brodu & Lague 2012)",
@@ -29,7 +32,9 @@ def classify_parsers(sub) -> None:
     t = csub.add_parser("train", help="train a classifier from labelled samples",
                         description="A SAMPLE is FILE=LABEL (every point of FILE has that label) or a FILE "
                                     "whose --label-field (or --polygons) gives per-point labels.")
-    t.add_argument("samples", nargs="+", metavar="SAMPLE")
+    t.add_argument("samples", nargs="+", metavar="SAMPLE",
+                   help="labelled samples: FILE=LABEL (every point of FILE has that label), or a FILE with "
+                        "--label-field or --polygons")
     t.add_argument("-o", "--output", type=Path, required=True, metavar="CLASSIFIER",
                    help="classifier file: JSON (any extension) or CloudCompare .prm (integer labels)")
     t.add_argument("--scales", help="sphere DIAMETERS: a list 'a,b,c' or MIN:MAX:STEP (default: 4 to 32 times "
@@ -43,26 +48,30 @@ def classify_parsers(sub) -> None:
     t.add_argument("--min-points", type=int, default=3, help="fewest neighbours of a scale (default 3)")
     t.add_argument("--max-per-class", type=int, default=50_000,
                    help="training points drawn per class and sample, seeded (default 50000; 0: all)")
-    t.add_argument("--seed", type=int, default=0)
+    t.add_argument("--seed", type=int, default=0, help="seed of the per-class sample draw")
     t.add_argument("--plot", type=Path, metavar="FILE", help="PNG of the samples in the classifier's plane")
-    t.add_argument("--threads", type=int, default=0)
-    t.add_argument("--quiet", action="store_true")
+    t.add_argument("--threads", type=int, default=0, help=THREADS_HELP)
+    t.add_argument("-q", "--quiet", action="store_true",
+                   help="no progress bar or summary (warnings and errors still go to stderr)")
     t.set_defaults(run=run_train)
 
     a = csub.add_parser("apply", help="classify every point of a cloud",
                         description="Writes the cloud with the predicted class in the classification field "
                                     "(or --label-field) and a 'confidence' field (0 to 1).")
-    a.add_argument("cloud", type=Path)
-    a.add_argument("--classifier", type=Path, required=True, metavar="CLASSIFIER")
-    a.add_argument("-o", "--output", type=Path, required=True)
+    a.add_argument("cloud", type=Path, help="the point cloud to classify")
+    a.add_argument("--classifier", type=Path, required=True, metavar="CLASSIFIER",
+                   help="a classifier written by m3c2 classify train")
+    a.add_argument("-o", "--output", type=Path, required=True,
+                   help="the cloud with its class codes: .csv .txt .ply .las .laz")
     a.add_argument("--label-field", default="classification", help="field receiving the class code "
                                                                      "(default classification)")
     a.add_argument("--class-map", help="LABEL=CODE,... codes written for the classifier's labels (default: "
                                        "integer labels are their own codes)")
     a.add_argument("--unclassified", type=int, default=0,
                    help="code of points without features (too few neighbours at the largest scale; default 0)")
-    a.add_argument("--threads", type=int, default=0)
-    a.add_argument("--quiet", action="store_true")
+    a.add_argument("--threads", type=int, default=0, help=THREADS_HELP)
+    a.add_argument("-q", "--quiet", action="store_true",
+                   help="no progress bar or summary (warnings and errors still go to stderr)")
     a.set_defaults(run=run_apply)
 
 

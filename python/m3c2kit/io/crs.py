@@ -3,8 +3,9 @@
 A CRS travels through the package as text (``Cloud.crs``: WKT 1 or 2, ESRI WKT, or
 ``"EPSG:<code>"``); pyproj (PROJ) parses it. Two texts are the same CRS when pyproj says they are
 equivalent (``CRS.equals``, axis order ignored), so the ESRI and OGC WKT of one CRS are equal.
-Without pyproj (it is a dependency, but an environment can lack it) every CRS is "unknown"
-except byte-equal texts: nothing is refused on a guess.
+Without pyproj (the ``crs`` extra) every CRS is "unknown" except texts equal but for white
+space: two such texts pass; two that differ are refused by :func:`check_crs` with a message
+naming the extra (they may be one CRS spelled twice, or two CRSs: nothing is decided on a guess).
 
 Only :func:`looks_like_wkt` (a sniff that tells WKT from junk in a LAS record) and the GeoTIFF
 key tables (:func:`geokey_crs`, :func:`geokey_units`: numbers, not WKT) are done by hand.
@@ -29,7 +30,15 @@ _LINEAR_UNITS = {9001: "metre", 9002: "foot", 9003: "US survey foot", 9030: "nau
 _USER_DEFINED = 32767
 _ANGULAR = ("degree", "radian", "grad", "arc-second", "arc-minute")
 
-PYPROJ_MISSING = "pyproj is not installed (pip install pyproj): CRSs are unknown"
+PYPROJ_MISSING = "pyproj is not installed (pip install 'm3c2kit[crs]'): CRSs are unknown"
+
+
+def _has_pyproj() -> bool:
+    try:
+        import pyproj  # noqa: F401
+    except ImportError:
+        return False
+    return True
 
 
 class CrsMismatch(M3C2Error):
@@ -256,10 +265,8 @@ def assign_crs(spec: str) -> str:
             text = p.read_text(encoding="utf-8", errors="replace")
     except OSError:
         pass
-    try:
-        import pyproj  # noqa: F401
-    except ImportError:
-        raise UsageError(f"--crs {spec!r} needs pyproj (pip install pyproj)") from None
+    if not _has_pyproj():
+        raise UsageError(f"--crs {spec!r} needs the crs extra (pyproj): pip install 'm3c2kit[crs]'")
     crs = parse_crs(text.strip())
     if crs is None:
         raise UsageError(f"--crs {spec!r} is not a CRS PROJ can read (give e.g. EPSG:32617, a WKT or a .prj file)")
@@ -306,7 +313,12 @@ def check_crs(reference, compared, core=None, *, ignore: bool = False, allow_ang
                 f"only one cloud has a CRS: {_role(has, has_role)} is in {crs_label(has.crs)}, "
                 f"{_role(lacks, lacks_role)} has none; give it one with --crs (e.g. --crs EPSG:<code>), "
                 f"or pass --ignore-crs if the coordinates are comparable")
-        if same_crs(ref_crs, other_crs, _extent_corners(reference)) is False:
+        same = same_crs(ref_crs, other_crs, _extent_corners(reference))
+        if same is None and ref_crs and other_crs and not _has_pyproj():
+            raise CrsMismatch(f"{_role(reference, 'reference')} and {_role(other, role)} have CRS texts that differ, "
+                              f"and telling whether they are the same CRS needs the crs extra (pyproj): pip install "
+                              f"'m3c2kit[crs]', or pass --ignore-crs if the coordinates are comparable")
+        if same is False:
             raise CrsMismatch(f"the clouds have different CRSs: {_role(reference, 'reference')} is in "
                               f"{crs_label(ref_crs)}, {_role(other, role)} in {crs_label(other_crs)}; "
                               f"reproject one of them, or pass --ignore-crs if the coordinates are comparable")

@@ -6,14 +6,23 @@ docs/python.md's field table is generated from it (:func:`markdown_table`, check
 tests/python/test_io_fields.py).
 
 Stored types (``float64=False``, the default): values a survey measures (distance, LOD, spreads,
-normal scale, roughness, normal components) as float32, whose relative precision is
-2**-24 = 6e-8: below 1 km that is under 0.06 mm, far below any lidar or photogrammetric
-precision; counts as float32 (exact below 2**24 points per cylinder; NaN where no cylinder was searched,
-never a 0 that reads as "an empty cylinder": ``status`` 1 or 2 says why);
-``status`` as uint8; ``significant`` as float32 (0 or 1, NaN where there is no LOD: unknown is
-not "no change"). Projected positions (x1 ... z2) stay float64: they are coordinates, and
-float32 would lose centimetres at UTM magnitudes. ``float64=True`` (--float64) stores every
-float column as float64.
+normal scale, roughness, normal components) as float32 in text and PLY files, whose relative
+precision is 2**-24 = 6e-8: below 1 km that is under 0.06 mm, far below any lidar or
+photogrammetric precision; counts as float32 (exact below 2**24 points per cylinder; NaN where
+no cylinder was searched, never a 0 that reads as "an empty cylinder": ``status`` 1 or 2 says
+why); ``status`` as uint8; ``significant`` as float32 (0 or 1, NaN where there is no LOD:
+unknown is not "no change"). Projected positions (x1 ... z2) stay float64: they are
+coordinates, and float32 would lose centimetres at UTM magnitudes. ``float64=True``
+(--float64) stores every float column as float64.
+
+LAS/LAZ files (``las=True``) store them as scaled integers with a ``no_data`` value for NaN
+(m3c2kit.io.quantised): lengths in int32 at 1e-4 of the CRS unit (0.1 mm: at most 0.05 mm
+off), normal components in int16 at 1e-4, counts in uint32, ``significant`` in uint8; a column
+that does not fit (a length beyond 214 km) stays float32. That keeps a LAZ output within twice
+the size of the same points' input (tests/python/test_output_size.py). LAS files also carry
+only the columns marked ``compact`` (CloudCompare's default set: distance, uncertainty,
+significance, the counts; and ``status``) unless ``all_fields`` (--all-fields); text and PLY
+files carry every column.
 """
 from __future__ import annotations
 
@@ -21,6 +30,8 @@ from dataclasses import dataclass
 from typing import Literal
 
 import numpy as np
+
+from .quantised import Quantised, quantised
 
 __all__ = ["Field", "FIELDS", "FIELD_NAME_SETS", "FieldNames", "output_name", "typed_columns",
            "core_attributes", "markdown_table", "FLOAT32_RELATIVE_PRECISION"]
@@ -43,24 +54,26 @@ class Field:
     pdal: str | None
     dtype: str  # "measure" (float32, float64 on request), "coordinate" (float64), "uint8"
     meaning: str
+    las: str | None = None  # LAS storage (m3c2kit.io.quantised.KINDS); None: as `dtype` says
+    compact: bool = True  # in a LAS file without --all-fields
 
 
 FIELDS: tuple[Field, ...] = (
-    Field("distance", "M3C2 distance", "m3c2_distance", "measure", "M3C2 distance i2 - i1 along the normal (eq. 1)"),
-    Field("lod", "distance uncertainty", "m3c2_uncertainty", "measure", "level of detection at --confidence (eq. 1)"),
-    Field("significant", "significant change", "m3c2_significant", "measure", "1 when |distance| > lod, 0 when not, NaN without LOD"),
-    Field("n1", "Npoints_cloud1", "m3c2_count1", "measure", "reference points in the cylinder"),
-    Field("n2", "Npoints_cloud2", "m3c2_count2", "measure", "compared points in the cylinder"),
-    Field("sigma1", "STD_cloud1", "m3c2_std_dev1", "measure", "spread of the reference points along the normal"),
-    Field("sigma2", "STD_cloud2", "m3c2_std_dev2", "measure", "spread of the compared points along the normal"),
-    Field("nx", "NormalX", None, "measure", "normal, x component"),
-    Field("ny", "NormalY", None, "measure", "normal, y component"),
-    Field("nz", "NormalZ", None, "measure", "normal, z component"),
-    Field("normal_scale", "normal scale", None, "measure", "the diameter D the normal was fitted at"),
-    Field("roughness", None, None, "measure", "sigma(D), the spread of the normal neighbourhood about its plane"),
+    Field("distance", "M3C2 distance", "m3c2_distance", "measure", "M3C2 distance i2 - i1 along the normal (eq. 1)", las="length"),
+    Field("lod", "distance uncertainty", "m3c2_uncertainty", "measure", "level of detection at --confidence (eq. 1)", las="length"),
+    Field("significant", "significant change", "m3c2_significant", "measure", "1 when |distance| > lod, 0 when not, NaN without LOD", las="flag"),
+    Field("n1", "Npoints_cloud1", "m3c2_count1", "measure", "reference points in the cylinder", las="count"),
+    Field("n2", "Npoints_cloud2", "m3c2_count2", "measure", "compared points in the cylinder", las="count"),
+    Field("sigma1", "STD_cloud1", "m3c2_std_dev1", "measure", "spread of the reference points along the normal", las="length", compact=False),
+    Field("sigma2", "STD_cloud2", "m3c2_std_dev2", "measure", "spread of the compared points along the normal", las="length", compact=False),
+    Field("nx", "NormalX", None, "measure", "normal, x component", las="unit", compact=False),
+    Field("ny", "NormalY", None, "measure", "normal, y component", las="unit", compact=False),
+    Field("nz", "NormalZ", None, "measure", "normal, z component", las="unit", compact=False),
+    Field("normal_scale", "normal scale", None, "measure", "the diameter D the normal was fitted at", las="length", compact=False),
+    Field("roughness", None, None, "measure", "sigma(D), the spread of the normal neighbourhood about its plane", las="length", compact=False),
     Field("status", None, None, "uint8", "reason code: 0 ok, 1-5 why a value is NaN (README)"),
-    Field("spread1", None, None, "measure", "sqrt(n^T S_1 n), the reference mean's propagated spread along the normal (pm / ep, algorithm.md 6.5)"),
-    Field("spread2", None, None, "measure", "sqrt(n^T S_2 n), the compared mean's propagated spread along the normal (pm / ep)"),
+    Field("spread1", None, None, "measure", "sqrt(n^T S_1 n), the reference mean's propagated spread along the normal (pm / ep, algorithm.md 6.5)", las="length", compact=False),
+    Field("spread2", None, None, "measure", "sqrt(n^T S_2 n), the compared mean's propagated spread along the normal (pm / ep)", las="length", compact=False),
     Field("x1", None, None, "coordinate", "projection on the reference, x (--projected)"),
     Field("y1", None, None, "coordinate", "projection on the reference, y"),
     Field("z1", None, None, "coordinate", "projection on the reference, z"),
@@ -89,21 +102,28 @@ def output_name(name: str, field_names: str = "m3c2", *, spaces: bool = True) ->
     return out if spaces else out.replace(" ", "_")
 
 
-def _stored(name: str, values: np.ndarray, float64: bool) -> np.ndarray:
-    kind = _BY_NAME[name].dtype if name in _BY_NAME else None
+def _stored(name: str, values: np.ndarray, float64: bool, las: bool = False) -> np.ndarray | Quantised:
+    field = _BY_NAME.get(name)
+    kind = field.dtype if field is not None else None
     values = np.asarray(values)
     if kind == "uint8":
         return values.astype(np.uint8)
     if kind == "measure":
+        if las and not float64 and field.las is not None:
+            return quantised(values, field.las)
         return values.astype(np.float64 if float64 else np.float32)
     return values.astype(np.float64) if values.dtype.kind == "f" else values
 
 
 def typed_columns(table: dict[str, np.ndarray], *, field_names: str = "m3c2", float64: bool = False,
-                  spaces: bool = True) -> dict[str, np.ndarray]:
-    """The result table (Result.columns() without x, y, z) renamed and cast for storage."""
+                  spaces: bool = True, las: bool = False,
+                  all_fields: bool = False) -> dict[str, np.ndarray | Quantised]:
+    """The result table (Result.columns() without x, y, z) renamed and cast for storage; for a
+    LAS file (`las`) quantised, and only the ``compact`` columns unless `all_fields`."""
     _check_names(field_names)
-    return {output_name(k, field_names, spaces=spaces): _stored(k, v, float64) for k, v in table.items()}
+    if las and not all_fields:
+        table = {k: v for k, v in table.items() if k not in _BY_NAME or _BY_NAME[k].compact}
+    return {output_name(k, field_names, spaces=spaces): _stored(k, v, float64, las) for k, v in table.items()}
 
 
 def core_attributes(source, core: np.ndarray, taken: set[str]) -> dict[str, np.ndarray]:
@@ -147,11 +167,23 @@ def _match_rows(points: np.ndarray, queries: np.ndarray) -> np.ndarray | None:
 
 def markdown_table() -> str:
     """docs/python.md's table of output names and stored types, from :data:`FIELDS`."""
+    from .quantised import KINDS
     types = {"measure": "float32 (float64 with --float64)", "coordinate": "float64", "uint8": "uint8"}
-    lines = ["| m3c2kit | CloudCompare (`--field-names cloudcompare`) | PDAL (`--field-names pdal`) | stored as | meaning |",
-             "|---|---|---|---|---|"]
+
+    def in_las(f: Field) -> str:
+        if f.las is None:
+            text = types[f.dtype].replace(" (float64 with --float64)", "")
+        else:
+            dtype, scale = KINDS[f.las]
+            text = f"{dtype.name} at {scale:g}" if scale is not None else dtype.name
+            text += ", NaN as no_data (float64 with --float64)"
+        return text + ("" if f.compact else "; only with --all-fields")
+
+    lines = ["| m3c2kit | CloudCompare (`--field-names cloudcompare`) | PDAL (`--field-names pdal`) | stored as "
+             "(text, PLY) | stored in LAS/LAZ | meaning |",
+             "|---|---|---|---|---|---|"]
     for f in FIELDS:
         cc = f"`{f.cloudcompare}`" if f.cloudcompare else f"(`{f.name}`)"
         pdal = f"`{f.pdal}`" if f.pdal else f"(`{f.name}`)"
-        lines.append(f"| `{f.name}` | {cc} | {pdal} | {types[f.dtype]} | {f.meaning} |")
+        lines.append(f"| `{f.name}` | {cc} | {pdal} | {types[f.dtype]} | {in_las(f)} | {f.meaning} |")
     return "\n".join(lines)

@@ -11,6 +11,7 @@ from ..fault_hook import checkpoint as fault_checkpoint
 from .cloud import Cloud
 from .guard import available_memory, format_bytes, read_errors
 from .las_header import check_las_file
+from .quantised import Quantised
 from .registry import SUPPORTED_READ, SUPPORTED_WRITE, extension_of, format_for, sniff
 
 __all__ = ["read_cloud", "write_cloud_table", "info"]
@@ -152,14 +153,19 @@ def write_cloud_table(path: str | os.PathLike, xyz: np.ndarray, fields: dict[str
     xyz = np.asarray(xyz, dtype=np.float64)
     if xyz.ndim != 2 or xyz.shape[1] != 3:
         raise CloudWriteError(f"{path}: points must have shape (N, 3), got {xyz.shape}")
-    fields = {str(name): np.asarray(values) for name, values in fields.items()}
+    # A Quantised column (LAS: scaled integers, m3c2kit.io.quantised) is checked through its values.
+    fields = {str(name): values if isinstance(values, Quantised) else np.asarray(values)
+              for name, values in fields.items()}
     for name, values in fields.items():
-        if values.shape != (len(xyz),):
-            raise CloudWriteError(f"{path}: field {name!r} has shape {values.shape}, expected ({len(xyz)},)")
+        shape = np.shape(values.values) if isinstance(values, Quantised) else values.shape
+        if shape != (len(xyz),):
+            raise CloudWriteError(f"{path}: field {name!r} has shape {shape}, expected ({len(xyz)},)")
     if Path(path).is_dir():  # before the extension: a folder has none ("cannot write '' files")
         raise CloudWriteError(f"{path}: is a directory")
     fmt = format_for(Path(path), writing=True)
     if fmt is None or fmt.write is None:
         raise CloudWriteError(f"{path}: cannot write {extension_of(Path(path))!r} files "
                               f"(supported: {' '.join(SUPPORTED_WRITE)})")
+    if fmt.name != "LAS/LAZ":  # only LAS declares a scale and no_data: elsewhere the values themselves
+        fields = {k: v.values.astype(np.float32) if isinstance(v, Quantised) else v for k, v in fields.items()}
     fmt.write(Path(path), xyz, fields, like)

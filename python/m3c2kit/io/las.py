@@ -19,6 +19,7 @@ import laspy
 import numpy as np
 
 from ..errors import CloudReadError, CloudWriteError, QuantisationWarning
+from .quantised import Quantised
 from .atomic import atomic_output
 from .cloud import Cloud
 from .crs import geokey_crs, geokey_units, looks_like_wkt, wkt_units
@@ -56,12 +57,27 @@ def read(path: Path) -> Cloud:
                  _crs_vlrs=crs_vlrs)
 
 
+def _no_data(header: laspy.LasHeader) -> dict[str, float]:
+    """The declared no_data value of each one-element extra-bytes dimension (laspy keeps the
+    declaration in the record but does not apply it)."""
+    out = {}
+    for vlr in header.vlrs.get("ExtraBytesVlr"):
+        for struct in vlr.extra_bytes_structs:
+            if struct.data_type != 0 and struct.options & struct.NO_DATA_BIT_MASK and struct.num_elements() == 1:
+                out[struct.name.rstrip(b"\0").decode("ascii", "replace")] = struct.no_data[0]
+    return out
+
+
 def _fields(las: laspy.LasData) -> dict[str, np.ndarray]:
     fields: dict[str, np.ndarray] = {}
+    no_data = _no_data(las.header)
     for name in las.point_format.dimension_names:
         if name in ("X", "Y", "Z"):
             continue
         values = np.asarray(las[name])
+        if name in no_data:  # NaN where the stored value is the declared no_data (io/quantised.py)
+            values = values.astype(np.float64)
+            values[las.points.array[name] == no_data[name]] = np.nan
         if values.ndim == 1:
             fields[name] = values
         else:
@@ -139,7 +155,7 @@ def write(path: Path, xyz: np.ndarray, fields: dict[str, np.ndarray], like: Clou
     extra = _plan_extra_dims(path, fields, standard)
     with write_errors(path):
         if extra:
-            header.add_extra_dims([laspy.ExtraBytesParams(name=name, type=t) for name, t in extra])
+            header.add_extra_dims(extra_bytes_params(extra))
     scale, offset = _scale_offset(xyz, like)
     ints = _quantise(path, xyz, scale, offset)
     header.scales, header.offsets = np.array(scale), np.array(offset)
@@ -148,8 +164,12 @@ def write(path: Path, xyz: np.ndarray, fields: dict[str, np.ndarray], like: Clou
         points = laspy.ScaleAwarePointRecord.zeros(n, header=header)
         las = laspy.LasData(header=header, points=points)
         las.X, las.Y, las.Z = ints[:, 0], ints[:, 1], ints[:, 2]
+        types = {name: t for name, t, *_ in extra}
         for name, values in fields.items():
-            las[name] = _exact_cast(path, name, values, las[name].dtype if name in standard else dict(extra)[name])
+            if isinstance(values, Quantised):
+                las.points.array[name] = values.encoded()
+            else:
+                las[name] = _exact_cast(path, name, values, las[name].dtype if name in standard else types[name])
         # laspy picks compression from a path's suffix (the temporary has none): pass a stream.
         with atomic_output(path) as tmp, open(tmp, "wb+") as out:
             las.write(out, do_compress=Path(path).suffix.lower() == ".laz")
@@ -157,7 +177,9 @@ def write(path: Path, xyz: np.ndarray, fields: dict[str, np.ndarray], like: Clou
         warn_if_quantised(path, xyz, ints, scale, offset)  # once written: a failed write says only why
 
 
-def _plan_extra_dims(path, fields: dict[str, np.ndarray], standard: set[str]) -> list[tuple[str, type]]:
+def _plan_extra_dims(path, fields: dict, standard: set[str]) -> list[tuple]:
+    """(name, type, scale, no_data) of each field that is not a standard dimension (scale and
+    no_data None unless the field is a :class:`~m3c2kit.io.quantised.Quantised` column)."""
     plan = []
     for name, values in fields.items():
         if name in standard:
@@ -170,8 +192,24 @@ def _plan_extra_dims(path, fields: dict[str, np.ndarray], standard: set[str]) ->
             raise CloudWriteError(f"{path}: LAS extra-bytes names must be ASCII, got {name!r}") from None
         if not 0 < len(encoded) <= 32:
             raise CloudWriteError(f"{path}: LAS extra-bytes names must be 1 to 32 characters, got {name!r}")
-        plan.append((name, _extra_type(np.asarray(values).dtype)))
+        if isinstance(values, Quantised):
+            plan.append((name, values.dtype, values.scale, values.no_data))
+        else:
+            plan.append((name, _extra_type(np.asarray(values).dtype), None, None))
     return plan
+
+
+def extra_bytes_params(plan: list[tuple]) -> list:
+    """laspy's ExtraBytesParams for a :func:`_plan_extra_dims` plan."""
+    out = []
+    for name, dtype, scale, no_data in plan:
+        kw = {}
+        if scale is not None:
+            kw.update(scales=np.array([scale]), offsets=np.array([0.0]))
+        if no_data is not None:
+            kw.update(no_data=np.array([no_data]))
+        out.append(laspy.ExtraBytesParams(name=name, type=dtype, **kw))
+    return out
 
 
 #: Extra-bytes types LAS defines (LAS 1.4 R15, Table 24): a field keeps its own numeric type

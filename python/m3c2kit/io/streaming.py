@@ -34,6 +34,7 @@ from .atomic import atomic_output
 from .cloud import Cloud
 from .files import read_cloud, write_cloud_table
 from .guard import read_errors, write_errors
+from .quantised import Quantised
 from .registry import extension_of, format_for
 
 __all__ = ["PointSource", "TableWriter", "DEFAULT_CHUNK"]
@@ -289,7 +290,7 @@ class TableWriter:
         self._extra = las._plan_extra_dims(self.path, fields, self._standard)
         with write_errors(self.path):
             if self._extra:
-                header.add_extra_dims([laspy.ExtraBytesParams(name=n, type=t) for n, t in self._extra])
+                header.add_extra_dims(las.extra_bytes_params(self._extra))
         like = self.like
         if like is not None and like.scale is not None and like.offset is not None:
             scale, offset = tuple(like.scale), tuple(like.offset)
@@ -349,8 +350,11 @@ class TableWriter:
         with write_errors(self.path):
             points = laspy.ScaleAwarePointRecord.zeros(len(xyz), header=self._header)
             points.X, points.Y, points.Z = ints[:, 0], ints[:, 1], ints[:, 2]
-            extra = dict(self._extra)
+            extra = {name: t for name, t, *_ in self._extra}
             for name, values in fields.items():
+                if isinstance(values, Quantised):
+                    points.array[name] = values.encoded()
+                    continue
                 dtype = points[name].dtype if name in self._standard else extra[name]
                 points[name] = las._exact_cast(self.path, name, values, dtype)
             if self._first_points is None and len(points):

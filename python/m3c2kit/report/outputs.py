@@ -24,6 +24,7 @@ class CompareOutputs:
     position: str = "core"
     field_names: str = "m3c2"   # the columns' names: m3c2's or a peer's (writing.write)
     float64: bool = False
+    all_fields: bool = False    # LAS/LAZ: every column, not only CloudCompare's default set
     core_spacing: float | None = None
     inputs: dict = field(default_factory=dict)
 
@@ -44,7 +45,7 @@ def write_compare_outputs(outputs: CompareOutputs, result: Result, reference, *,
     written besides the table."""
     html_path, png_prefix, table = outputs.report, outputs.report_png, Path(outputs.table)
     projected, position = outputs.projected, outputs.position
-    columns = {"field_names": outputs.field_names, "float64": outputs.float64}
+    columns = {"field_names": outputs.field_names, "float64": outputs.float64, "all_fields": outputs.all_fields}
     if grid is None and html_path is None and png_prefix is None:
         write(table, result, like=reference, projected=projected, position=position, **columns)
         return []

@@ -57,24 +57,53 @@ def smooth(store: Path, window: int, threads: int = 0) -> int:
     return epochs
 
 
-def distances_for_analysis(store: Path, use: str = "auto", epochs: slice | None = None) -> tuple[np.ndarray, str]:
-    """The (core, epoch) float64 series 4D-OBC runs on: smoothed_distance when it covers every
-    epoch (use auto or smoothed), else distance; only that variable is read."""
+#: Above this many bytes, the series 4D-OBC runs on is held in a memory-mapped temporary file
+#: (filled one core chunk at a time) rather than in memory: the kernel pages it in and out, so
+#: the process's own memory stays at one chunk. Region growing reads any core point's series,
+#: which is why the whole variable is mapped rather than streamed.
+IN_MEMORY_LIMIT = 1 << 30
+
+
+def analysed_variable(store: Path, use: str = "auto") -> str:
+    """smoothed_distance when it covers every epoch (use auto or smoothed), else distance."""
     group = st.open_group(store)
     n = group["distance"].shape[1]
-    name = "distance"
     if use in ("auto", "smoothed") and SMOOTHED in group and int(group[SMOOTHED].attrs.get("epochs", -1)) == n:
-        name = SMOOTHED
-    elif use == "smoothed":
+        return SMOOTHED
+    if use == "smoothed":
         raise UsageError(f"{store}: no smoothed_distance covering all {n} epochs; run m3c2 series smooth {store}")
+    return "distance"
+
+
+def distances_for_analysis(store: Path, use: str = "auto", epochs: slice | None = None,
+                           in_memory_limit: int | None = None) -> tuple[np.ndarray, str]:
+    """The (core, epoch) float64 series 4D-OBC runs on (analysed_variable), read one core chunk
+    at a time; only that variable is read. Larger than `in_memory_limit` (IN_MEMORY_LIMIT) bytes,
+    it is a numpy.memmap of an unlinked temporary file."""
+    group = st.open_group(store)
+    n = group["distance"].shape[1]
+    name = analysed_variable(store, use)
     sl = epochs or slice(0, n)
-    values = np.empty((group[name].shape[0], len(range(*sl.indices(n)))))
+    shape = (group[name].shape[0], len(range(*sl.indices(n))))
+    limit = IN_MEMORY_LIMIT if in_memory_limit is None else in_memory_limit
+    if shape[0] * shape[1] * 8 > limit:
+        import tempfile
+        values = np.memmap(tempfile.TemporaryFile(prefix="m3c2-series-"), dtype=np.float64, mode="w+", shape=shape)
+    else:
+        values = np.empty(shape)
     for begin, end in _core_chunks(group, name):
-        block = np.asarray(group[name][begin:end, sl]).astype(np.float64)
-        values[begin:end] = block
-    if name == "distance":
-        pass  # stored as float64: NaN where compare writes NaN
+        values[begin:end] = np.asarray(group[name][begin:end, sl]).astype(np.float64)
     return values, name
+
+
+def series_of(store: Path, core: int, use: str = "auto") -> tuple[np.ndarray, str]:
+    """One core point's series of the analysed variable (reads its chunks only)."""
+    group = st.open_group(store)
+    name = analysed_variable(store, use)
+    n_core = group[name].shape[0]
+    if not 0 <= core < n_core:
+        raise UsageError(f"--core {core} is not a core point of {store} (0..{n_core - 1})")
+    return np.asarray(group[name][core, :]).astype(np.float64), name
 
 
 def objects(store: Path, output: Path, params, *, use="auto", threads=0, first_epoch=0, progress=None) -> dict:

@@ -19,6 +19,8 @@ from pathlib import Path
 from ..errors import UsageError
 
 ACTIONS = ("add", "smooth", "changepoints", "objects", "report", "import")
+STORE_HELP = "the series store (a Zarr directory)"
+THREADS_HELP = "worker threads (default: every core); the results do not depend on it"
 SCALE_HELP = "D, the normal scale: a DIAMETER (one value, a list 'a,b' or 'MIN:MAX:STEP')"
 #: The compare parameters a series takes: the parameter table's engine parameters (their flags,
 #: types, ranges and help), the core spacing and --compat; not the per-point uncertainty's inputs
@@ -82,7 +84,7 @@ def create_parser():
 def add_parser():
     p = _parser("m3c2 series add", "Append epochs to a store with its stored parameters; epochs already in it are "
                                    "skipped, so rerunning a killed command resumes it.")
-    p.add_argument("store", type=Path)
+    p.add_argument("store", type=Path, help=STORE_HELP)
     p.add_argument("epochs", nargs="+", help="epoch files, globs or a list file of 'PATH, TIME' lines")
     _compare_options(p, required=False)
     _run_options(p)
@@ -92,17 +94,17 @@ def add_parser():
 def smooth_parser():
     p = _parser("m3c2 series smooth", "Temporal median of distance over WINDOW epochs, written to the store as "
                                       "smoothed_distance (Anders et al. 2021, 2.2), chunk by chunk.")
-    p.add_argument("store", type=Path)
+    p.add_argument("store", type=Path, help=STORE_HELP)
     p.add_argument("--window", type=int, default=24, help="epochs in the median window, centred (default 24)")
-    p.add_argument("--threads", type=int)
+    p.add_argument("--threads", type=int, help=THREADS_HELP)
     return p
 
 
 def _objects_options(p) -> None:
     g = p.add_argument_group("seeds: change points (Anders et al. 2021, 2.3.1; py4dgeo's defaults)")
     g.add_argument("--window-width", type=int, default=24, help="sliding window of the change-point detection")
-    g.add_argument("--window-min-size", type=int, default=12)
-    g.add_argument("--window-jump", type=int, default=1)
+    g.add_argument("--window-min-size", type=int, default=12, help="fewest epochs between two change points")
+    g.add_argument("--window-jump", type=int, default=1, help="epochs between the change-point candidates")
     g.add_argument("--window-penalty", type=float, default=1.0, help="> 0: least cost decrease of a change point")
     g.add_argument("--min-period", type=int, default=24, help="fewest epochs of a seed's change")
     g.add_argument("--height-threshold", type=float, default=0.0, help="least magnitude of a seed's change")
@@ -114,7 +116,7 @@ def objects_parser():
     p = _parser("m3c2 series objects", "4D objects-by-change (Anders et al. 2021): seeds, region growing on the "
                                        "normalised DTW with adaptive thresholds, filters. Writes OBJECTS (CSV), "
                                        "OBJECTS_members.csv and the store's `object` label per core point and epoch.")
-    p.add_argument("store", type=Path)
+    p.add_argument("store", type=Path, help=STORE_HELP)
     p.add_argument("-o", "--output", type=Path, required=True, help="objects table (CSV)")
     _objects_options(p)
     g = p.add_argument_group("region growing (2.3.2) and filters (2.3.3)")
@@ -127,25 +129,26 @@ def objects_parser():
                    help="py4dgeo's DTW: whole series from the first epoch (default: the seed's epochs, the paper's)")
     p.add_argument("--use", choices=("auto", "smoothed", "raw"), default="auto",
                    help="series to segment: smoothed_distance when present (auto), or distance (raw)")
-    p.add_argument("--threads", type=int)
-    p.add_argument("--quiet", action="store_true")
+    p.add_argument("--threads", type=int, help=THREADS_HELP)
+    p.add_argument("--quiet", action="store_true", help="no progress lines")
     return p
 
 
 def changepoints_parser():
     p = _parser("m3c2 series changepoints", "Change points of core points' series (the detection 4D-OBC's seeds use).")
-    p.add_argument("store", type=Path)
+    p.add_argument("store", type=Path, help=STORE_HELP)
     p.add_argument("--core", type=int, action="append", required=True, help="core point index (repeatable)")
     _objects_options(p)
-    p.add_argument("--use", choices=("auto", "smoothed", "raw"), default="auto")
+    p.add_argument("--use", choices=("auto", "smoothed", "raw"), default="auto",
+                   help="series to use: smoothed_distance when present (auto), or distance (raw)")
     return p
 
 
 def report_parser():
     p = _parser("m3c2 series report", "HTML report of a store: time series with LOD band per core point, object "
                                       "extents and their series (after m3c2 series objects).")
-    p.add_argument("store", type=Path)
-    p.add_argument("-o", "--output", type=Path, required=True)
+    p.add_argument("store", type=Path, help=STORE_HELP)
+    p.add_argument("-o", "--output", type=Path, required=True, help="the report (HTML)")
     p.add_argument("--core", type=int, action="append", help="core point to plot (repeatable; default: a few)")
     p.add_argument("--objects", type=Path, help="objects table of m3c2 series objects (default: none)")
     return p
@@ -153,8 +156,8 @@ def report_parser():
 
 def import_parser():
     p = _parser("m3c2 series import", "Convert a py4dgeo SpatiotemporalAnalysis archive (.zip) into a store.")
-    p.add_argument("archive", type=Path)
-    p.add_argument("-o", "--output", type=Path, required=True)
+    p.add_argument("archive", type=Path, help="a py4dgeo SpatiotemporalAnalysis archive (.zip)")
+    p.add_argument("-o", "--output", type=Path, required=True, help="the store to write (a Zarr directory)")
     return p
 
 
@@ -168,7 +171,8 @@ def series_parsers(sub) -> None:
                        add_help=False, prefix_chars="\0",
                        usage="m3c2 series REFERENCE EPOCH... -o STORE | m3c2 series {add,smooth,changepoints,"
                              "objects,report,import} ...")
-    p.add_argument("words", nargs=argparse.REMAINDER)
+    p.add_argument("words", nargs=argparse.REMAINDER, help="REFERENCE EPOCH... -o STORE, or an action and its "
+                                                           "arguments (m3c2 series ACTION --help)")
     p.set_defaults(run=run_series)
 
 
@@ -284,14 +288,9 @@ def _run_objects(args) -> int:
 def _run_changepoints(args) -> int:
     import numpy as np
     from . import engine
-    from .analysis import distances_for_analysis
-    from . import store as st
-    group = st.open_group(args.store)
-    values, name = distances_for_analysis(args.store, args.use)
+    from .analysis import series_of
     for c in args.core:
-        if not 0 <= c < len(values):
-            raise UsageError(f"--core {c} is not a core point of {args.store} (0..{len(values) - 1})")
-        ts = values[c]
+        ts, name = series_of(args.store, c, args.use)
         good = ~np.isnan(ts)
         if good.sum() < 3:
             print(f"core {c}: fewer than 3 epochs with a distance")

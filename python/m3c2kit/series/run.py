@@ -9,6 +9,7 @@ import datetime as dt
 import hashlib
 import json
 import os
+import time
 import uuid
 from pathlib import Path
 
@@ -193,14 +194,60 @@ def _add_epochs(store, resolved, comparison, core, reference, *, threads, dask_s
         return _add_dask(store, todo, index, core, settings, threads, dask_scheduler, client, drop_nonfinite,
                          ignore_crs, log)
     from ..io.crs import check_crs
-    for k, epoch in enumerate(todo):
-        cloud = read_cloud(epoch.path, drop_nonfinite=drop_nonfinite)
-        check_crs(reference, cloud, None, ignore=ignore_crs)
-        raw = comparison.compare(cloud.xyz, cloud, threads)
-        st.append(store, index + k, epoch_columns(core, raw), _info(epoch, len(cloud)))
-        log(f"epoch {index + k}: {epoch.path} committed")
-        del cloud, raw
+    batch = Batch(store, index, len(core), log)
+    with batch:
+        for epoch in todo:
+            cloud = read_cloud(epoch.path, drop_nonfinite=drop_nonfinite)
+            check_crs(reference, cloud, None, ignore=ignore_crs)
+            raw = comparison.compare(cloud.xyz, cloud, threads)
+            batch.add(epoch_columns(core, raw), _info(epoch, len(cloud)), epoch.path)
+            del cloud, raw
     return len(todo)
+
+
+class Batch:
+    """The epochs computed but not yet committed, committed together (store.append_batch) when
+    the next one would start a new epoch chunk, when they hold more than MAX_BYTES, when the
+    oldest waited MAX_SECONDS, and when the run ends, also by an error (the epochs before the
+    failing one are kept, as when each was committed alone). Writing whole chunks at once instead
+    of one column per epoch (each column rewrote every chunk it touched and every array's
+    metadata) was 90 % of a series' time (docs/performance.md). A kill loses at most the
+    batch's computation: the store stays at its last commit (store.py)."""
+
+    MAX_BYTES = 256 << 20
+    MAX_SECONDS = 60.0
+
+    def __init__(self, store: Path, index: int, n_core: int, log):
+        self.store, self.index, self.log = store, index, log
+        self.chunk = st.epoch_chunk(store)
+        self.epoch_bytes = n_core * 64  # 8 columns of at most 8 bytes
+        self.pending: list = []
+        self.started = 0.0
+
+    def add(self, columns: dict, info: dict, path) -> None:
+        if not self.pending:
+            self.started = time.monotonic()
+        self.pending.append((columns, info, path))
+        end = self.index + len(self.pending)
+        if (end % self.chunk == 0 or len(self.pending) * self.epoch_bytes >= self.MAX_BYTES
+                or time.monotonic() - self.started >= self.MAX_SECONDS):
+            self.commit()
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc) -> bool:
+        self.commit()
+        return False
+
+    def commit(self) -> None:
+        if not self.pending:
+            return
+        st.append_batch(self.store, self.index, [(c, i) for c, i, _ in self.pending])
+        for k, (_, _, path) in enumerate(self.pending):
+            self.log(f"epoch {self.index + k}: {path} committed")
+        self.index += len(self.pending)
+        self.pending = []
 
 
 # Dask: a worker prepares the reference once per store and parameter set, then compares epochs.
@@ -252,14 +299,14 @@ def _add_dask(store, todo, index, core, settings, threads, address, client, drop
 
         while submitted < min(window, len(todo)):
             submit()
-        for k, epoch in enumerate(todo):  # committed in epoch order, whatever order they finish in
-            out = futures[k].result()
-            futures[k].release()
-            futures[k] = None
-            if submitted < len(todo):
-                submit()
-            st.append(store, index + k, out, _info(epoch, out["points"]))
-            log(f"epoch {index + k}: {epoch.path} committed")
+        with Batch(store, index, len(core), log) as batch:
+            for k, epoch in enumerate(todo):  # committed in epoch order, whatever order they finish in
+                out = futures[k].result()
+                futures[k].release()
+                futures[k] = None
+                if submitted < len(todo):
+                    submit()
+                batch.add(out, _info(epoch, out["points"]), epoch.path)
         return len(todo)
     finally:
         if own:

@@ -6,11 +6,13 @@ x, y, z, nx, ny, nz, normal_scale, roughness; per core point and epoch the colum
 writes NaN; per epoch the ``time`` coordinate (CF, UTC; NaT when unknown) and the provenance of
 the epoch's file. Root attributes: the compare parameters, the reference and the format.
 
-Commit protocol. An epoch is written past the committed end of every array (each array resized,
-its column written: every chunk write of zarr's local store is a file replaced atomically), then
-committed by consolidating the metadata: one atomic replace of the root ``zarr.json``, whose
-consolidated shapes are what xarray.open_zarr reads. A run killed before that leaves the store
-as it was at the last commit; the next run overwrites the uncommitted column."""
+Commit protocol. A batch of epochs (up to the next epoch-chunk boundary: run.py) is written past
+the committed end of every array (each array resized once, its block of columns written: every
+chunk write of zarr's local store is a file replaced atomically), then committed by consolidating
+the metadata: one atomic replace of the root ``zarr.json``, whose consolidated shapes are what
+xarray.open_zarr reads. A run killed before that leaves the store as it was at the last commit;
+the next run overwrites the uncommitted columns. A kill loses the computation of at most one
+batch, never an epoch of the store, and never adds one twice."""
 from __future__ import annotations
 
 import json
@@ -27,6 +29,7 @@ FORMAT_VERSION = 1
 EPOCH_COLUMNS = ("distance", "lod", "significant", "n1", "n2", "sigma1", "sigma2", "status")
 CORE_COLUMNS = ("x", "y", "z", "nx", "ny", "nz", "normal_scale", "roughness")
 EPOCH_INFO = ("time", "source", "source_size", "source_mtime_ns", "time_source", "points")
+TEXT_INFO = ("source", "time_source")
 #: Encoded integer columns: NaN in the compare table is this fill value in the store.
 INT_FILL = {"significant": (np.int8, -1), "n1": (np.uint32, 2**32 - 1), "n2": (np.uint32, 2**32 - 1)}
 TIME_UNITS = "microseconds since 1970-01-01T00:00:00"
@@ -129,24 +132,43 @@ def epoch_info(path: Path) -> dict:
 
 def append(path: Path, index: int, columns: dict, info: dict) -> None:
     """Writes epoch `index` (= the committed count) and commits it (see the module docstring)."""
+    append_batch(path, index, [(columns, info)])
+
+
+def epoch_chunk(path: Path) -> int:
+    """Epochs per chunk of the store's (core, epoch) arrays."""
+    return int(open_group(path)["distance"].chunks[1])
+
+
+def append_batch(path: Path, index: int, batch: list) -> None:
+    """Writes the epochs index, index + 1, ... of `batch` ((columns, info) pairs; index = the
+    committed count) and commits them together (the module docstring): one resize and one block
+    write per array, one consolidation. A block that starts and ends on chunk boundaries writes
+    whole chunks, never reading back what it replaces."""
+    if not batch:
+        return
     _, zarr = require_extra()
     group = zarr.open_group(str(path), mode="r+", use_consolidated=False)
+    end = index + len(batch)
     for name in EPOCH_COLUMNS:
         array = group[name]
-        if array.shape[1] != index + 1:
-            array.resize((array.shape[0], index + 1))
-        array[:, index] = encode(name, columns[name])
-    for name in ("smoothed_distance", "object"):  # derived variables (analysis.DERIVED): not for this epoch
-        if name in group and group[name].shape[1] != index + 1:
-            group[name].resize((group[name].shape[0], index + 1))
+        if array.shape[1] != end:
+            array.resize((array.shape[0], end))
+        array[:, index:end] = np.column_stack([encode(name, columns[name]) for columns, _ in batch])
+    for name in ("smoothed_distance", "object"):  # derived variables (analysis.DERIVED): not for these epochs
+        if name in group and group[name].shape[1] != end:
+            group[name].resize((group[name].shape[0], end))
     for name in EPOCH_INFO:
         array = group[name]
-        if array.shape[0] != index + 1:
-            array.resize((index + 1,))
-        value = info[name]
-        if name == "time":
-            value = NAT if value is None or np.isnat(value) else np.datetime64(value, "us").astype(np.int64)
-        array[index] = value
+        if array.shape[0] != end:
+            array.resize((end,))
+        values = []
+        for _, info in batch:
+            value = info[name]
+            if name == "time":
+                value = NAT if value is None or np.isnat(value) else np.datetime64(value, "us").astype(np.int64)
+            values.append(value)
+        array[index:end] = np.asarray(values, dtype=np.dtypes.StringDType() if name in TEXT_INFO else np.int64)
     zarr.consolidate_metadata(str(path))
 
 

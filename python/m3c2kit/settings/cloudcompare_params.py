@@ -79,15 +79,15 @@ def _name(key: str) -> str:
     """The parameter (Python name, m3c2kit.settings.table) that CloudCompare's `key` sets."""
     return by_cloudcompare_key()[key].name
 
-_ORIENT = {0: "+x", 1: "-x", 2: "+y", 3: "-y", 4: "+z", 5: "-z", 9: (0.0, 0.0, 0.0)}
-_ORIENT_UNSUPPORTED = {
-    6: "away from the core points' barycenter",
-    7: "towards the core points' barycenter",
-    8: "away from the origin",
-    10: "keep the normals' existing orientation",
-    11: "away from the sensor position",
-    12: "towards the sensor position",
-}
+# ccNormalVectors::Orientation, as m3c2's --orient values (m3c2kit.settings.orientation): "+" of a
+# point mode is away from it (n . (P - point) >= 0), "-" towards it; the barycentre is the core
+# points', as in qM3C2 (it orients the core points' normals).
+_ORIENT = {0: "+x", 1: "-x", 2: "+y", 3: "-y", 4: "+z", 5: "-z",
+           6: "away:barycentre", 7: "barycentre", 8: "away:origin", 9: "origin",
+           11: "away:sensor", 12: "sensor"}
+#: The key's value for each --orient value it maps to (for messages naming the key).
+ORIENT_KEY_VALUES = {v: k for k, v in _ORIENT.items()}
+_ORIENT_UNSUPPORTED = {10: "keep the normals' existing orientation"}
 _PROJ_DEST = {0: "reference", 1: "compared", 2: "core"}
 _NORMAL_SOURCE = {0: "reference", 2: "reference", 3: "vertical", 4: "horizontal", 5: "core"}
 
@@ -153,7 +153,8 @@ def read_cloudcompare_params(path: str | os.PathLike) -> dict[str, object]:
         if ori in _ORIENT_UNSUPPORTED:
             raise fail(
                 f"NormalPreferedOri={ori} ({_ORIENT_UNSUPPORTED[ori]}) is not supported; "
-                "orient the normals with --orient X,Y,Z (towards a point) or --orient FILE instead"
+                "qM3C2 computes new normals, which have no previous orientation to keep; orient them with "
+                "--orient (an axis, X,Y,Z, FILE, origin, barycentre or sensor) instead"
             )
         if ori not in _ORIENT:
             raise fail(f"NormalPreferedOri={ori} is not a CloudCompare orientation (0 to 12)")

@@ -84,43 +84,6 @@ def _empty(name: str):
     raise UsageError(f"{name} is empty")
 
 
-def orientation(spec, read_points=None) -> tuple[tuple[float, float, float], np.ndarray]:
-    """(preferred direction, orientation points (K, 3)) from '+z'..'-x', 'X,Y,Z', a 3-vector,
-    a (K, 3) array, or a file of points (read with `read_points(path)`)."""
-    if spec is None:
-        return AXES["+z"], np.empty((0, 3))
-    if isinstance(spec, str):
-        key = spec.strip().lower()
-        if not key:  # Path("") is ".": it read the working folder ("is a directory")
-            raise UsageError("--orient is empty: give +x|-x|+y|-y|+z|-z, X,Y,Z or a file of points")
-        if key in AXES:
-            return AXES[key], np.empty((0, 3))
-        parts = key.split(",")
-        if len(parts) == 3:
-            try:
-                point = [float(p) for p in parts]
-            except ValueError:
-                point = None
-            if point is not None:
-                if not all(math.isfinite(c) for c in point):
-                    raise UsageError(f"--orient point must be finite, got {spec!r}")
-                return AXES["+z"], np.asarray([point], dtype=float)
-        path = Path(spec)
-        if read_points is not None and path.exists():
-            pts = read_points(path)
-            return AXES["+z"], np.asarray(pts, dtype=float).reshape(-1, 3)
-        raise UsageError(f"--orient must be +x|-x|+y|-y|+z|-z, X,Y,Z or an existing file, got {spec!r}")
-    try:
-        arr = np.asarray(spec, dtype=float)
-    except (TypeError, ValueError):
-        raise UsageError(f"--orient must be +x|-x|+y|-y|+z|-z, X,Y,Z, a 3-vector or (K, 3) points, got {spec!r}") from None
-    if arr.ndim == 1 and arr.shape == (3,):
-        arr = arr.reshape(1, 3)
-    if arr.ndim != 2 or arr.shape[1] != 3 or not np.isfinite(arr).all():
-        raise UsageError("orient must be an axis name, a point or a finite (K, 3) array of points")
-    return AXES["+z"], arr
-
-
 UINT32_MAX = 2**32 - 1
 UINT64_MAX = 2**64 - 1
 
@@ -248,11 +211,12 @@ class Scales:
 
 
 class Orientation:
-    """+z / -z / +x / -x / +y / -y, a point X,Y,Z, a file of points or an array; kept as given
-    (a file is read when the engine parameters are built)."""
+    """An axis, a point, a file of points, origin, barycentre, sensor, away:POINT or an array
+    (m3c2kit.settings.orientation); kept as given (a file is read, the barycentre taken, when
+    the engine parameters are built)."""
 
     def __call__(self, name: str, value):
         return value
 
     def describe(self) -> str:
-        return "+x -x +y -y +z -z, X,Y,Z, FILE"
+        return "+x -x +y -y +z -z, X,Y,Z, FILE, origin, barycentre, sensor, away:POINT"

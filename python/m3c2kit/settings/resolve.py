@@ -45,13 +45,16 @@ def _checked(p: Parameter, value):
     return None if value is None else p.kind(p.flag, value)
 
 
-def engine_params(values: Mapping, command: str = "compare",
-                  read_points: Callable | None = None) -> engine.Params:
-    """The engine's Params for resolved `values` (an orientation FILE is read with read_points)."""
+def engine_params(values: Mapping, command: str = "compare", read_points: Callable | None = None,
+                  core_points=None, scan_positions=None) -> engine.Params:
+    """The engine's Params for resolved `values`: an orientation FILE is read with read_points,
+    ``--orient barycentre`` takes the mean of `core_points` (an array, a callable giving chunks,
+    or m3c2kit.settings.orientation.LATER) and ``sensor`` the `scan_positions`."""
     fields = {}
     for p in parameters_of(command):
         if p.engine is not None:
-            fields.update(p.engine.to_engine(values[p.name], read_points=read_points))
+            fields.update(p.engine.to_engine(values[p.name], read_points=read_points, core_points=core_points,
+                                             scan_positions=scan_positions))
     return engine.make_params(fields)
 
 

@@ -15,7 +15,7 @@ from dataclasses import dataclass
 from typing import Any, Callable
 
 from .. import engine
-from . import parsers
+from . import orientation, parsers
 from .parsers import UINT32_MAX, UINT64_MAX, Choice, Flag, Integer, Positives, Real, Scales, Text
 
 __all__ = ["Parameter", "EngineField", "PARAMETERS", "FROM_ENGINE", "SAME", "by_name", "parameters_of"]
@@ -50,17 +50,21 @@ def unset_is_zero(field: str, zero: Any = 0.0) -> EngineField:
                        lambda f: f[field] or None)
 
 
-def _orientation_fields(spec, read_points=None, **_) -> dict:
-    direction, points = parsers.orientation(spec, read_points)
-    return {"orientation_direction": list(direction), "orientation_points": points.ravel().tolist()}
+def _orientation_fields(spec, read_points=None, core_points=None, scan_positions=None, **_) -> dict:
+    direction, points, away = orientation.orientation(spec, read_points, core_points, scan_positions)
+    return {"orientation_direction": list(direction), "orientation_points": points.ravel().tolist(),
+            "orientation_away": away}
 
 
 def _orientation_name(f: dict) -> str:
     axes = {tuple(v): k for k, v in parsers.AXES.items()}
-    return axes.get(tuple(f["orientation_direction"]), "+z") if not f["orientation_points"] else "points"
+    if f["orientation_points"]:
+        return "away:points" if f["orientation_away"] else "points"
+    return axes.get(tuple(f["orientation_direction"]), "+z")
 
 
-ORIENTATION = EngineField(("orientation_direction", "orientation_points"), _orientation_fields, _orientation_name)
+ORIENTATION = EngineField(("orientation_direction", "orientation_points", "orientation_away"),
+                          _orientation_fields, _orientation_name)
 PRECISION_SCALES = EngineField(("precision_scale1", "precision_scale2"),
                                lambda v, **_: {"precision_scale1": v[0], "precision_scale2": v[1]},
                                lambda f: [f["precision_scale1"], f["precision_scale2"]])
@@ -151,8 +155,10 @@ PARAMETERS: tuple[Parameter, ...] = (
     Parameter("orient", "--orient", parsers.Orientation(), section="3.1.2", engine=ORIENTATION, default="+z",
               cli_type=str, cloudcompare_keys=("NormalPreferedOri",), py4dgeo="orientation_vector",
               commands=BOTH,
-              help="normal orientation: +z -z +x -x +y -y, a point X,Y,Z, or a FILE of points (scanner "
-                   "positions; E57 scan positions by default)"),
+              help="normal orientation: +z -z +x -x +y -y; towards a point X,Y,Z, the closest point of a "
+                   "FILE (scanner positions), origin (0,0,0), the core points' barycentre, or the sensor "
+                   "(E57 scan positions; the default when the reference has them); away:POINT for away "
+                   "from a point (away:barycentre, away:origin, away:sensor, away:X,Y,Z)"),
     # Projection (section 3.1.3)
     Parameter("projection_scale", "--projection-scale", Real(), section="3.1.3",
               engine=same("projection_diameter"), default=None, cloudcompare_keys=("SearchScale",),
@@ -272,7 +278,12 @@ PARAMETERS: tuple[Parameter, ...] = (
               help="output column names: m3c2kit's, CloudCompare's scalar fields (M3C2 distance, distance "
                    "uncertainty, ...) or PDAL's m3c2_* (table in docs/python.md)"),
     Parameter("float64", "--float64", Flag(), section="-", default=False, cli_type=None, scope="output",
-              help="store measured values as float64 (default float32: relative error 6e-8, < 0.06 mm below 1 km)"),
+              help="store measured values as float64 (default: float32, relative error 6e-8, < 0.06 mm below "
+                   "1 km; in LAS/LAZ integers at 0.1 mm, at most 0.05 mm off, NaN kept)"),
+    Parameter("all_fields", "--all-fields", Flag(), section="-", default=False, cli_type=None, scope="output",
+              help="LAS/LAZ: also write sigma1, sigma2, the normal (nx, ny, nz), normal_scale, roughness "
+                   "and spread1, spread2 (otherwise only distance, lod, significant, n1, n2 and status, as "
+                   "CloudCompare; text and PLY files have every column)"),
 )
 
 
