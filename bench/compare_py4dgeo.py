@@ -64,11 +64,28 @@ WORKLOADS = {
            "limit (memory and scaling)", [0.5], 0.2, 0.5, "reference"),
     "W5mem": ("W5's inputs, in memory", [0.5], 0.2, 0.5, "reference"),
     "W6": ("W2 with vertical normals (2D mode)", [1.0], 0.2, 0.5, "vertical"),
+    "W7": ("1M + 1M-point rough pair at 100 points/m2 as LAZ files, 100k core points, whole processes "
+           "(`m3c2 compare` on the files against a py4dgeo script reading and writing them)", [2.0], 1.0, 1.0,
+           "reference"),
+    "W8": ("sparse: 1M + 1M-point rough pair at 1 point/m2 (as W1, a few points per normal sphere), "
+           "every tenth reference point a core point", [2.0], 1.0, 5.0, "reference"),
 }
+# The sweep of the normal sphere's population (S<n>: about n reference points within D / 2) on
+# W7's surface (100 points/m2), 50,000 core points, d = 1, depth 1: D = 2 sqrt(n / (100 pi)).
+SWEEP = (20, 60, 200, 600, 2000, 6000, 20000)
+for _n in SWEEP:
+    WORKLOADS[f"S{_n}"] = (f"sweep: about {_n} points per normal sphere (W7's surface, 50k core points)",
+                           [round(2.0 * float(np.sqrt(_n / (100.0 * np.pi))), 4)], 1.0, 1.0, "reference")
 # Workloads that share one set of inputs (generated once per run).
 INPUTS = {"W1": "toronto", "W2": "rough1M", "W3": "rough1M", "W4": "rough1M", "W6": "rough1M",
-          "W5": "rough10M", "W5mem": "rough10M"}
+          "W5": "rough10M", "W5mem": "rough10M", "W7": "moderate1M", "W8": "sparse1M",
+          **{f"S{n}": "sweep" for n in SWEEP}}
 STREAMED = {"W5"}  # run through the out-of-core path (m3c2kit.tiling.run_tiled) from files
+WHOLE = {"W7"}  # each tool timed as a whole process from LAZ files to a result file
+# Per set of inputs: (points per cloud, core points, side of the square in m) at scale 1.
+SIZES = {"rough1M": (1_000_000, 100_000, 10.0), "rough10M": (10_000_000, 2_000_000, 10.0 * np.sqrt(10.0)),
+         "moderate1M": (1_000_000, 100_000, 100.0), "sparse1M": (1_000_000, 100_000, 1000.0),
+         "sweep": (1_000_000, 50_000, 100.0)}
 SMALL_INPUT, SMALL_REPEAT = 500_000, 5  # --repeat auto
 LAS_SCALE = 1e-5  # W5's files: coordinates quantised to 0.01 mm (the noise is 1 mm)
 COLUMNS = ("distance", "lod", "significant", "n1", "n2", "sigma1", "sigma2", "nx", "ny", "nz", "normal_scale",
@@ -86,15 +103,20 @@ def make_inputs(key: str, folder: Path, scale: float, stream_format: str) -> Non
         cmp = m3c2kit.read(REPO / "data/toronto-ttp/TTP_23.laz").xyz
         core = ref.copy()
     else:
-        big = key == "rough10M"
-        n, n_core = (10_000_000, 2_000_000) if big else (1_000_000, 100_000)
+        files = key in ("rough10M", "moderate1M")  # streamed (W5) or whole-process (W7) inputs
+        n, n_core, side = SIZES[key]
         n, n_core = int(n * scale), int(n_core * scale)
-        size = 10.0 * np.sqrt(n / 1_000_000)  # the density of W2: 10,000 points per m²
-        ref, cmp, core = rough_pair(seed=5, n_points=n, n_core=n_core, size=size)
+        size = side * np.sqrt(scale)  # the density does not change with the scale
+        if key == "sparse1M":  # every tenth reference point a core point (W1: every one)
+            ref, cmp, core = rough_pair(seed=7, n_points=n, n_core=n, size=size)
+            core = core[::10]
+        else:
+            ref, cmp, core = rough_pair(seed={"moderate1M": 6, "sweep": 8}.get(key, 5), n_points=n, n_core=n_core,
+                                        size=size)
         # Core points 0.5 mm above reference points: no cloud point sits on py4dgeo's segment
         # boundary through the core point (its defect a) merely because the core is a cloud point.
         core = core + np.array([0.0, 0.0, 5e-4])
-        if big:
+        if files:
             import m3c2kit
             for name in ("ref", "cmp"):
                 path = folder / f"{name}.{stream_format}"
@@ -146,11 +168,12 @@ def run_m3c2(folder: Path, D, d, L, normals: str, threads: int, tag: str, wall_o
     if normals == "vertical":
         params.update(normal_source="vertical")
         del params["normal_scale"]
-    walls = []
+    walls, cpus = [], []
     for _ in range(repeat):
-        t0 = time.perf_counter()
+        t0, c0 = time.perf_counter(), time.process_time()
         r = m3c2kit.compare(ref, cmp, core, **params)
         walls.append(time.perf_counter() - t0)
+        cpus.append(time.process_time() - c0)  # every thread's CPU: what holds on a loaded machine
     t_index = t_normals = t_projection = float("nan")
     if not wall_only:
         # Phases, measured after the real run: index builds (normals on no core point), normals,
@@ -173,7 +196,7 @@ def run_m3c2(folder: Path, D, d, L, normals: str, threads: int, tag: str, wall_o
         t_projection = time.perf_counter() - t - t_index
     peak = peak_rss_bytes()
     save_table(folder / f"m3c2-{tag}.npz", r.columns())
-    return dict(wall=min(walls), first=walls[0], index=t_index, normals=t_normals,
+    return dict(wall=min(walls), first=walls[0], cpu=min(cpus), index=t_index, normals=t_normals,
                 projection=t_projection, peak=peak)
 
 
@@ -216,9 +239,9 @@ def run_py4dgeo(folder: Path, D, d, L, normals: str, threads: int, tag: str, rep
     logging.getLogger("py4dgeo").setLevel(logging.WARNING)
     py4dgeo.set_num_threads(threads)
     ref, cmp, core = (np.load(folder / f"{k}.npy") for k in ("ref", "cmp", "core"))
-    walls = []
+    walls, cpus = [], []
     for _ in range(repeat):  # the phases are those of the last run
-        t0 = time.perf_counter()
+        t0, c0 = time.perf_counter(), time.process_time()
         e1, e2 = py4dgeo.Epoch(ref), py4dgeo.Epoch(cmp)
         e1.build_kdtree()
         e2.build_kdtree()
@@ -236,6 +259,7 @@ def run_py4dgeo(folder: Path, D, d, L, normals: str, threads: int, tag: str, rep
         dist, unc = alg.run()
         t_projection = time.perf_counter() - t
         walls.append(time.perf_counter() - t0)
+        cpus.append(time.process_time() - c0)
         if len(walls) == 1:
             # The first run's results are checked: py4dgeo 1.2's later runs in the same process
             # differ from it at some core points (W1: 2,617 of 89,815).
@@ -246,7 +270,112 @@ def run_py4dgeo(folder: Path, D, d, L, normals: str, threads: int, tag: str, rep
     np.savez(folder / f"py4dgeo-{tag}.npz", distance=np.asarray(dist, float),
              lod=np.asarray(unc["lodetection"], float),
              n1=np.asarray(unc["num_samples1"]), n2=np.asarray(unc["num_samples2"]))
-    return dict(wall=wall, first=walls[0], index=t_index, normals=t_normals, projection=t_projection, peak=peak)
+    return dict(wall=wall, first=walls[0], cpu=min(cpus), index=t_index, normals=t_normals, projection=t_projection,
+                peak=peak)
+
+
+# W7, whole processes. m3c2: the command line's own entry point (what the `m3c2` script runs),
+# its phases timed by wrapping m3c2kit.phases.Phases.phase (reading, computing, writing).
+M3C2_WHOLE = r"""
+import sys, time, json
+t0 = time.perf_counter()
+import m3c2kit.cli, m3c2kit.phases
+t_import = time.perf_counter() - t0
+seconds = {"import": t_import}
+original = m3c2kit.phases.Phases.phase
+import contextlib
+@contextlib.contextmanager
+def timed(self, name, total=None):
+    t = time.perf_counter()
+    with original(self, name, total) as step:
+        yield step
+    seconds[name] = seconds.get(name, 0.0) + time.perf_counter() - t
+m3c2kit.phases.Phases.phase = timed
+rc = m3c2kit.cli.main(sys.argv[1:])
+print("PHASES " + json.dumps(seconds), file=sys.stderr)
+sys.exit(rc)
+"""
+# py4dgeo: read the LAZ files (its own reader), M3C2, write the core points with the distance,
+# LOD and counts as a LAZ file (laspy, lazrs), each phase timed.
+PY4DGEO_WHOLE = r"""
+import sys, time, json
+t0 = time.perf_counter()
+import numpy as np, laspy, py4dgeo, logging
+logging.getLogger("py4dgeo").setLevel(logging.WARNING)
+seconds = {"import": time.perf_counter() - t0}
+ref_path, cmp_path, core_path, out_path, D, d, L, threads = sys.argv[1:9]
+py4dgeo.set_num_threads(int(threads))
+t = time.perf_counter()
+e1, e2 = py4dgeo.read_from_las(ref_path, cmp_path)
+core = np.load(core_path)
+seconds["reading"] = time.perf_counter() - t
+t = time.perf_counter()
+alg = py4dgeo.M3C2(epochs=(e1, e2), corepoints=core, normal_radii=[float(D) / 2], cyl_radius=float(d) / 2,
+                   max_distance=float(L), registration_error=0.0, robust_aggr=False,
+                   orientation_vector=np.array([0.0, 0.0, 1.0]))
+dist, unc = alg.run()
+seconds["computing"] = time.perf_counter() - t
+t = time.perf_counter()
+header = laspy.LasHeader(point_format=0, version="1.4")
+header.scales = np.full(3, 1e-5)
+header.offsets = np.floor(core.min(axis=0))
+header.add_extra_dims([laspy.ExtraBytesParams(name=k, type=np.float64) for k in ("distance", "lod")]
+                      + [laspy.ExtraBytesParams(name=k, type=np.float64) for k in ("n1", "n2")])
+las = laspy.LasData(header)
+las.x, las.y, las.z = core[:, 0], core[:, 1], core[:, 2]
+las.distance, las.lod = np.asarray(dist, float), np.asarray(unc["lodetection"], float)
+las.n1, las.n2 = np.asarray(unc["num_samples1"], float), np.asarray(unc["num_samples2"], float)
+las.write(out_path)
+seconds["writing"] = time.perf_counter() - t
+print("PHASES " + json.dumps(seconds), file=sys.stderr)
+"""
+
+
+def run_whole(tool: str, folder: Path, D, d, L, threads: int, tag: str) -> dict:
+    """One whole process of `tool` from the LAZ files to a LAZ result: wall and CPU (user + sys of
+    the child, from getrusage) of the process, its own phases, and its result saved for the checks."""
+    import resource
+
+    out = folder / f"{tool}-{tag}.laz"
+    if tool == "m3c2":
+        cmd = [sys.executable, "-c", M3C2_WHOLE, "compare", str(folder / "ref.laz"), str(folder / "cmp.laz"),
+               "--core", str(folder / "core.npy"), "-o", str(out), "--normal-scale", str(D[0]),
+               "--projection-scale", str(d), "--max-depth", str(L), "--min-points", "1", "--threads", str(threads),
+               "--quiet"]
+    else:
+        cmd = [sys.executable, "-c", PY4DGEO_WHOLE, str(folder / "ref.laz"), str(folder / "cmp.laz"),
+               str(folder / "core.npy"), str(out), str(D[0]), str(d), str(L), str(threads)]
+    before = resource.getrusage(resource.RUSAGE_CHILDREN)
+    t0 = time.perf_counter()
+    proc = subprocess.run(cmd, capture_output=True, text=True)
+    wall = time.perf_counter() - t0
+    after = resource.getrusage(resource.RUSAGE_CHILDREN)
+    if proc.returncode != 0:
+        sys.exit(f"{tool} whole process failed:\n{proc.stderr}")
+    phases = json.loads(next(line for line in proc.stderr.splitlines() if line.startswith("PHASES "))[7:])
+    cpu = (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
+    peak = after.ru_maxrss * 1024  # the largest child's, in KiB on Linux: this worker's only child
+    import laspy
+    las = laspy.read(out)
+    if tool == "m3c2":
+        save_table(folder / f"m3c2-{tag}.npz", {k: np.asarray(las[k]) for k in COLUMNS})
+    else:
+        np.savez(folder / f"py4dgeo-{tag}.npz", **{k: np.asarray(las[k], float) for k in ("distance", "lod", "n1", "n2")})
+    out.unlink()
+    engine = phases.get("indexing, normals, distances", phases.get("computing", float("nan")))
+    return dict(wall=wall, cpu=cpu, phases={k: round(v, 3) for k, v in phases.items()}, index=float("nan"),
+                normals=float("nan"), projection=float("nan"), engine=engine, peak=peak)
+
+
+def lower_bound(binary: str, folder: Path, D, d, L, normals: str, threads: int) -> dict:
+    """bench/lower_bound_bench on these inputs (docs/performance.md, "Lower bound")."""
+    diameter = 0.0 if normals == "vertical" else max(D)
+    cmd = [binary, str(folder / "ref.npy"), str(folder / "cmp.npy"), str(folder / "core.npy"), str(diameter),
+           str(d), str(L), str(threads), "3"]
+    out = subprocess.run(cmd, capture_output=True, text=True)
+    if out.returncode != 0:
+        sys.exit(f"{binary} failed:\n{out.stderr}")
+    return json.loads(out.stdout.strip().splitlines()[-1])
 
 
 def agreement(folder: Path, ours_tag: str, theirs_tag: str, D, d, L, normals: str) -> str:
@@ -292,7 +421,9 @@ def same_bits(folder: Path, tag_a: str, tag_b: str) -> str:
 def worker(args) -> None:
     spec = WORKLOADS[args.workload]
     folder = Path(args.folder)
-    if args.tool == "py4dgeo":
+    if args.workload in WHOLE:
+        out = run_whole(args.tool, folder, spec[1], spec[2], spec[3], args.threads, args.tag)
+    elif args.tool == "py4dgeo":
         out = run_py4dgeo(folder, *spec[1:], args.threads, args.tag, args.repeat)
     elif args.workload in STREAMED:
         out = run_m3c2_tiled(folder, *spec[1:], args.threads, args.tag, args.memory_limit, args.tile_size,
@@ -333,6 +464,11 @@ def main() -> None:
                     help="runs of each tool's whole computation in its process, the shortest wall reported; auto: "
                          f"{SMALL_REPEAT} for workloads of fewer than {SMALL_INPUT:,} input points (W1: a single "
                          "run of ~35 ms is at the mercy of the scheduler), else 1")
+    ap.add_argument("--lower-bound", metavar="BINARY",
+                    help="bench/lower_bound_bench (built with -DM3C2_BUILD_BENCH=ON): also time the least work on "
+                         "every workload and print m3c2's ratio to it")
+    ap.add_argument("--plot", type=Path, metavar="PNG",
+                    help="plot the sweep's rows (S...): time per core point against the normal sphere's population")
     ap.add_argument("--worker", nargs=2, metavar=("TOOL", "WORKLOAD"), help=argparse.SUPPRESS)
     ap.add_argument("--folder", help=argparse.SUPPRESS)
     ap.add_argument("--tag", help=argparse.SUPPRESS)
@@ -363,7 +499,7 @@ def main() -> None:
     root = Path(tempfile.mkdtemp(prefix="m3c2-bench-"))
     folders: dict[str, Path] = {}
     py4dgeo_rows: dict[tuple, tuple[str, dict]] = {}  # (inputs, parameters) -> (workload, row): run once
-    scaling_rows, notes = [], []
+    scaling_rows, notes, bound_rows, whole_rows, sweep_rows = [], [], [], [], []
     try:
         for i, name in enumerate(names):
             desc, D, d, L, normals = WORKLOADS[name]
@@ -376,7 +512,7 @@ def main() -> None:
             n_in = sum(len(np.load(folder / f"{k}.npy", mmap_mode="r")) for k in ("ref", "cmp"))
             n_core = len(np.load(folder / "core.npy", mmap_mode="r"))
             repeat = str(args.repeat if args.repeat != "auto" else
-                         SMALL_REPEAT if n_in < SMALL_INPUT and name not in STREAMED else 1)
+                         SMALL_REPEAT if n_in < SMALL_INPUT and name not in STREAMED | WHOLE else 1)
             memory_limit = args.memory_limit
             if memory_limit == "auto":
                 memory_limit = str(max(40 * n_in, 512 * 2**20))
@@ -419,11 +555,28 @@ def main() -> None:
                       f"{r['wall']:.2f} | {r['peak'] / n_in:.0f} ({r['peak'] / 2**20:.0f} MiB) | {n_core / r['wall']:,.0f} | "
                       f"{f'{ratio:.1f}x' if tool == 'm3c2' and ratio == ratio else ''} | {agree if tool == 'm3c2' else ''} |",
                       flush=True)
+            if all("cpu" in r for r in rows.values()):
+                cpu_ratio = (f", py4dgeo / m3c2 {rows['py4dgeo']['cpu'] / rows['m3c2']['cpu']:.1f}x" if both else "")
+                print(f"<!-- {name}: CPU s (user + sys, every thread; best run): "
+                      + ", ".join(f"{t} {r['cpu']:.3f}" for t, r in rows.items()) + cpu_ratio + " -->", flush=True)
             print(f"<!-- {name}: {desc}; {n_in:,} input points, {n_core:,} core points, D={D}, d={d}, depth={L}"
                   + (f"; ratio against the py4dgeo run of {p4_shared}" if p4_shared else "")
                   + (f"; wall: best of {repeat} runs in one process, first runs: "
                      + ", ".join(f"{t} {r['first']:.3f} s" for t, r in rows.items()) if repeat != "1" else "")
                   + " -->", flush=True)
+            for tool, r in rows.items():
+                if "phases" in r and not (tool == "py4dgeo" and p4_shared):
+                    whole_rows.append((name, tool, r))
+            if name.startswith("S") and both:
+                sweep_rows.append((name, rows["m3c2"]["wall"] / n_core, rows["py4dgeo"]["wall"] / n_core))
+            if args.lower_bound and "m3c2" in rows:
+                lb = lower_bound(args.lower_bound, folder, D, d, L, normals, args.threads)
+                ours = rows["m3c2"].get("engine", rows["m3c2"]["wall"])
+                # CPU of the computation (W7: the whole process's, not its engine phase alone: no CPU split)
+                ours_cpu = rows["m3c2"].get("cpu", float("nan")) if name not in WHOLE else float("nan")
+                bound_rows.append((name, lb, ours, ours_cpu))
+                if sweep_rows and sweep_rows[-1][0] == name:
+                    sweep_rows[-1] += (lb["neighbours_mean"], lb["total_s"] / n_core)
             tiled = rows.get("m3c2", {}).get("tiled")
             if tiled:
                 limit = tiled["memory_limit"]
@@ -441,6 +594,36 @@ def main() -> None:
                 shutil.rmtree(folder, ignore_errors=True)
         for note in notes:
             print(note, flush=True)
+        if whole_rows:
+            print()
+            print("Whole processes (from the LAZ files to a LAZ result; CPU = user + sys of the process):")
+            print()
+            print("| workload | tool | wall s | CPU s | import s | reading s | computing s | writing s | peak MiB |")
+            print("|---|---|---|---|---|---|---|---|---|")
+            for name, tool, r in whole_rows:
+                ph = r["phases"]
+                compute = ph.get("indexing, normals, distances", ph.get("computing", float("nan")))
+                print(f"| {name} | {tool} | {r['wall']:.2f} | {r['cpu']:.2f} | {fmt_s(ph.get('import', float('nan')))} | "
+                      f"{fmt_s(ph.get('reading', float('nan')))} | {fmt_s(compute)} | "
+                      f"{fmt_s(ph.get('writing', float('nan')))} | {r['peak'] / 2**20:.0f} |", flush=True)
+        if bound_rows:
+            print()
+            print(f"Lower bound (bench/lower_bound_bench, {args.threads} threads, best of 3: grid build, then per core "
+                  f"point a brute-force gather-and-sum of the exact neighbours and cylinder points, one plane fit); "
+                  f"m3c2 s: the computation's wall (W7: the engine phase of the whole process):")
+            print()
+            print("| workload | neighbours | cylinder points | bound build s | bound normals s | bound cylinders s | "
+                  "bound s | m3c2 s | m3c2 / bound | bound CPU s | m3c2 CPU s | m3c2 / bound, CPU |")
+            print("|---|---|---|---|---|---|---|---|---|---|---|---|")
+            for name, lb, ours, ours_cpu in bound_rows:
+                cpu = (f"{lb['cpu_total_s']:.3f} | {ours_cpu:.3f} | {ours_cpu / lb['cpu_total_s']:.1f}x"
+                       if ours_cpu == ours_cpu else f"{lb['cpu_total_s']:.3f} | — | —")
+                print(f"| {name} | {lb['neighbours_mean']:.0f} | {lb['cylinder_points_mean']:.0f} | {lb['build_s']:.3f} | "
+                      f"{lb['normals_s']:.3f} | {lb['cylinders_s']:.3f} | {lb['total_s']:.3f} | {ours:.3f} | "
+                      f"{ours / lb['total_s']:.1f}x | {cpu} |", flush=True)
+        if args.plot and sweep_rows:
+            plot_sweep(args.plot, sweep_rows, args.threads)
+            print(f"wrote {args.plot}")
         if scaling_rows:
             print()
             print(f"Thread scaling, m3c2 (each run in its own process, same inputs; speed-up = 1-thread wall / "
@@ -452,6 +635,26 @@ def main() -> None:
                 print(f"| {name} | {w1:.2f} | {wn:.2f} | {w1 / wn:.2f}x | {same} |", flush=True)
     finally:
         shutil.rmtree(root, ignore_errors=True)
+
+
+def plot_sweep(path: Path, rows: list, threads: int) -> None:
+    """Time per core point against the normal sphere's population, both tools (and the bound)."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    n = [int(r[0][1:]) for r in rows]
+    fig, ax = plt.subplots(figsize=(6, 4))
+    ax.loglog(n, [r[1] * 1e6 for r in rows], "o-", label="m3c2")
+    ax.loglog(n, [r[2] * 1e6 for r in rows], "s-", label="py4dgeo 1.2")
+    if all(len(r) > 3 for r in rows):
+        ax.loglog(n, [r[4] * 1e6 for r in rows], "^--", label="lower bound (gather-and-sum)")
+    ax.set_xlabel("points per normal sphere (nominal)")
+    ax.set_ylabel(f"wall time per core point, µs ({threads} threads)")
+    ax.grid(True, which="both", alpha=0.3)
+    ax.legend()
+    fig.tight_layout()
+    fig.savefig(path, dpi=120)
 
 
 def _installed(name: str) -> bool:

@@ -142,8 +142,9 @@ def main():
     epoch_bytes = max(f.stat().st_size for f in (args.work / "epochs").glob("epoch_*.npy"))
     print(f"inputs: {inputs['epochs']} epochs of {inputs['points']} points, {inputs['core']} core points, "
           f"{args.threads} threads (made in {time.perf_counter() - t:.0f} s); largest epoch {epoch_bytes / 2**20:.1f} MiB")
+    load_before = os.getloadavg()[0]
     results = {tool: child(tool, args.work, args.threads) for tool in args.tools.split(",")}
-    print(f"load average before the runs: {os.getloadavg()[0]:.2f}")
+    print(f"load average before the runs: {load_before:.2f}")
     print(f"{'tool':8} {'add wall s':>10} {'add CPU s':>9} {'OBC wall s':>10} {'OBC CPU s':>9} {'total CPU s':>11} "
           f"{'objects':>7} {'store MiB':>10} {'peak MiB':>9}")
     for tool, r in results.items():

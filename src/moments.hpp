@@ -55,4 +55,18 @@ inline Moments two_pass_moments(const double* xyz, const std::uint32_t* slots, s
   return m;
 }
 
+/// two_pass_moments() of the one point p - origin, without its loops: count 1, mean
+/// 0 + (p - origin) (the sum's first addition, kept for the sign of zero) divided by 1, co-moment
+/// zero (the offset from the mean is exactly 0 for finite p). The same bits.
+inline Moments one_point_moments(const double* p, const Vec3& origin) {
+  Moments m;
+  m.count = 1.0;
+  m.mean = (Vec3::Zero() + Vec3(p[0] - origin.x(), p[1] - origin.y(), p[2] - origin.z())) / m.count;
+  const Vec3 v = Vec3(p[0] - origin.x(), p[1] - origin.y(), p[2] - origin.z()) - m.mean;
+  auto& c = m.comoment;
+  c[0] += v.x() * v.x(), c[1] += v.x() * v.y(), c[2] += v.x() * v.z();
+  c[3] += v.y() * v.y(), c[4] += v.y() * v.z(), c[5] += v.z() * v.z();
+  return m;
+}
+
 }  // namespace m3c2::detail

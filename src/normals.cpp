@@ -8,6 +8,10 @@
 namespace m3c2::detail {
 namespace {
 
+// Neighbours of the previous core point, in multiples of min_points, above which the count
+// before the moments is skipped (NormalEstimator::estimate).
+constexpr std::uint32_t kDenseAfter = 4;
+
 /// Smaller is more planar. kMostPlanar: the paper's lambda3 share (3.2). kCloudCompare: minus
 /// its score 2 s0 + 4 s1 - 2, s_k the squared eigenvalues' shares, largest first. kPy4dgeo: minus
 /// py4dgeo's planarity (lambda2 - lambda3) / lambda1.
@@ -77,9 +81,18 @@ NormalEstimator::NormalEstimator(const Octree& tree, const Params& params)
 
 NormalEstimate NormalEstimator::estimate(const Vec3& core, NormalScratch& scratch) const {
   // Fewer than min_points within the largest sphere: too few at every scale (the common case
-  // on sparse clouds), known from a count that stops at min_points.
-  if (radii_.empty() || !tree_.ball_holds(core, radii_.back(), min_points_, &scratch.octree.descent)) return {};
+  // on sparse clouds), known from a count that stops at min_points. Where the last core point
+  // had many neighbours the count is skipped: its answer would almost surely be yes, and the
+  // moments say the same when it is no (every scale below min_points: the estimate stays {}),
+  // so the result does not depend on the skip, only the time.
+  if (radii_.empty()) return {};
+  const bool likely_dense = scratch.last_count >= kDenseAfter * std::max(min_points_, 1u);
+  if (!likely_dense && !tree_.ball_holds(core, radii_.back(), min_points_, &scratch.octree.descent)) {
+    scratch.last_count = 0;
+    return {};
+  }
   moments_by_scale(tree_, core, radii_, scratch);
+  scratch.last_count = scratch.moments.back().count;
   NormalEstimate best;
   bool best_centred = false;  // sigma(D) of `best` needs the centred pass
   double best_cost = std::numeric_limits<double>::infinity();

@@ -25,6 +25,10 @@ struct NormalScratch {
   std::vector<double> offsets;  // the chosen scale's points, for the centred roughness pass
   std::vector<Moments> sums;
   std::vector<ScaleMoments> moments;
+  /// Neighbours of the last core point of this thread within the largest sphere (0: unknown or
+  /// too few): where they were many, the next core point (its Morton neighbour) skips the count
+  /// that only spares sparse neighbourhoods their moments (NormalEstimator::estimate).
+  std::uint32_t last_count = 0;
 };
 
 /// Moments at every radius of `radii_ascending` (j is within radius r iff squared_distance <=

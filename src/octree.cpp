@@ -202,7 +202,7 @@ void require_within_grid(const char* what, PointsView points, OctreeGrid grid) {
                               "); remove far outliers or shift the coordinates to a local origin");
 }
 
-CellKey Octree::cell_of(const double* p) const {
+inline CellKey Octree::cell_of(const double* p) const {
   CellKey k;
   for (int a = 0; a < 3; ++a) {
     // floor() without the library call: the constructor checked |x| < 2^41, so the truncation
@@ -443,23 +443,30 @@ void Octree::ball_offsets(const Vec3& centre, double radius, std::vector<double>
   const std::uint32_t start = covering_node(centre, radius, cache);
   if (start == kNoNode) return;
   const double r2 = radius * radius, prune_r2 = r2 * (1.0 + kRelativeMargin) + 1e-300;
-  std::uint32_t stack[8 * 128];
+  std::uint32_t stack[kTraversalStack];  // the depth bound above
   int top = 0;
   stack[top++] = start;
   while (top > 0) {
     const Node& node = nodes_[stack[--top]];
     if (nearest_distance2(node.lo, node.hi, centre) > prune_r2) continue;
-    if (node.first_child != 0) {
+    if (node.first_child != 0 && farthest_distance2(node.lo, node.hi, centre) > r2) {
+      M3C2_ASSERT(top + int(node.children) <= kTraversalStack, "the traversal stack's depth bound");
       for (std::uint32_t k = node.children; k-- > 0;) stack[top++] = node.first_child + k;  // key order
       continue;
     }
+    // A leaf crossing the sphere, or a node inside it (whose points all pass the test,
+    // farthest_distance2): about half a crossing leaf's points are kept, at random, so no branch
+    // per point: each point is written and the end advanced by its test.
+    const std::size_t old = offsets.size();
+    offsets.resize(old + 3 * std::size_t(node.end - node.begin));
+    double* out = offsets.data() + old;
+    std::size_t kept = 0;
     for (std::uint32_t slot = node.begin; slot < node.end; ++slot) {
       const double* p = slot_xyz(slot);
-      if (squared_distance(p, centre) > r2) continue;
-      offsets.push_back(p[0] - centre.x());
-      offsets.push_back(p[1] - centre.y());
-      offsets.push_back(p[2] - centre.z());
+      out[3 * kept] = p[0] - centre.x(), out[3 * kept + 1] = p[1] - centre.y(), out[3 * kept + 2] = p[2] - centre.z();
+      kept += squared_distance(p, centre) <= r2;
     }
+    offsets.resize(old + 3 * kept);
   }
 }
 
@@ -475,7 +482,11 @@ Moments Octree::radix_fold(const std::uint32_t* slots, std::uint32_t n, Level&& 
   for (std::uint32_t i = 0; i < n;) {
     std::uint32_t cell_end = i + 1;
     while (cell_end < n && level_between(slots[cell_end], slots[i]) < 0) ++cell_end;
-    const Moments cell = two_pass_moments(xyz_.data(), slots + i, cell_end - i, origin);
+    // A cell of one point (most cells of a survey sparser than ~64 points per cell face) is
+    // two_pass_moments() of it without the loops: mean 0 + (p - origin) (the sum's first add,
+    // kept for the sign of zero), co-moment zero, the same bits.
+    const Moments cell = cell_end - i == 1 ? one_point_moments(xyz_.data() + 3 * std::size_t(slots[i]), origin)
+                                           : two_pass_moments(xyz_.data(), slots + i, cell_end - i, origin);
     if (i > 0) {
       const int level = level_between(slots[i - 1], slots[i]);
       while (!stack.empty() && stack.back().first < level) {
