@@ -200,9 +200,7 @@ def run_compare_tiled(args, settings: dict, grid=None) -> int:
     settings = dict(settings)
     field_names = settings.pop("field_names", "m3c2") or "m3c2"
     float64 = bool(settings.pop("float64", False))
-    if settings.pop("all_fields", False) not in (False, None):
-        raise UsageError(f"{by_name()['all_fields'].flag} cannot be combined with tiling (--tile-size, --memory-limit, "
-                         f"--dask-scheduler): the tiled writer writes m3c2's columns")
+    all_fields = bool(settings.pop("all_fields", False))
     position = settings.pop("position", "core")
     threads = settings.pop("threads", 0)
     core_spacing = settings.pop("core_spacing", None)
@@ -215,13 +213,14 @@ def run_compare_tiled(args, settings: dict, grid=None) -> int:
               read_points=lambda p: read_cloud(p, drop_nonfinite=drop).xyz)
     client = connect(args.dask_scheduler) if args.dask_scheduler is not None else None
     try:
-        return _compare_tiled(args, settings, client, position, threads, core_spacing, drop, field_names, float64)
+        return _compare_tiled(args, settings, client, position, threads, core_spacing, drop,
+                              dict(field_names=field_names, float64=float64, all_fields=all_fields))
     finally:
         if client is not None:
             client.close()
 
 
-def _compare_tiled(args, settings, client, position, threads, core_spacing, drop, field_names, float64) -> int:
+def _compare_tiled(args, settings, client, position, threads, core_spacing, drop, storage: dict) -> int:
     from .io.streaming import PointSource
     from .run import run_tiled
 
@@ -236,7 +235,7 @@ def _compare_tiled(args, settings, client, position, threads, core_spacing, drop
                        core=core_cloud.xyz if core_cloud is not None else None, core_spacing=core_spacing,
                        core_normals=core_normals, tile_size=args.tile_size, memory_limit=args.memory_limit,
                        client=client, threads=threads or 0, projected=args.projected,
-                       position=position, field_names=field_names, float64=float64, drop_nonfinite=drop, log=say,
+                       position=position, **storage, drop_nonfinite=drop, log=say,
                        read_points=lambda p: read_cloud(p, drop_nonfinite=drop).xyz, **settings)
     if not args.quiet:
         for line in report.lines(args.output):

@@ -55,7 +55,7 @@ def scheduler():
 
 
 def run_every_mode(d: Path, tag: str, inputs: list, flags: list, scheduler: str | None,
-                   attributes: bool = False) -> bytes:
+                   attributes: bool = False, suffix: str = ".csv") -> bytes:
     """Runs the comparison in memory, tiled at TILES and on Dask; returns the in-memory output after
     checking that every mode wrote the same bytes. `attributes`: the core points are reference
     points, whose attributes only the in-memory writer carries (docs/scaling.md): the tiled
@@ -65,7 +65,7 @@ def run_every_mode(d: Path, tag: str, inputs: list, flags: list, scheduler: str 
     if scheduler is not None:
         modes["dask"] = ["--tile-size", "1.1", "--dask-scheduler", scheduler]
     for mode, extra in modes.items():
-        out = d / f"{tag}-{mode}.csv"
+        out = d / f"{tag}-{mode}{suffix}"
         assert main(["compare", *inputs, "-o", str(out), *BASE, *flags, *extra]) == 0, mode
         outputs[mode] = out.read_bytes()
     assert not [p for p in d.iterdir() if p.name.startswith(".")], "a spill folder was left"
@@ -119,6 +119,19 @@ def test_float64_and_field_names_in_every_mode(pair, scheduler):
     a, b = columns(data), columns(plain)
     # float64 keeps the engine's doubles: the float32 column is their rounding.
     np.testing.assert_array_equal(np.asarray(list(a.values())[3], np.float32), np.asarray(b["distance"], np.float32))
+
+
+def test_all_fields_in_every_mode(pair, scheduler):
+    """LAS/LAZ keeps CloudCompare's columns unless --all-fields (docs/python.md): every mode writes
+    the same file either way, and --all-fields adds the spreads, normals and scales."""
+    from m3c2kit.io import read_cloud
+
+    compact = run_every_mode(pair, "compact", clouds(pair), [], scheduler, suffix=".laz")
+    every = run_every_mode(pair, "every", clouds(pair), ["--all-fields"], scheduler, suffix=".laz")
+    assert len(every) > len(compact)
+    fields = {name: read_cloud(pair / f"{name}-memory.laz").fields for name in ("compact", "every")}
+    assert {"sigma1", "nx", "roughness"} <= set(fields["every"]) and "nx" not in fields["compact"]
+    np.testing.assert_array_equal(fields["every"]["distance"], fields["compact"]["distance"])
 
 
 def test_classifier_in_every_mode(tmp_path, scheduler):

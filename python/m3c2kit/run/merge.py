@@ -27,7 +27,7 @@ def _output_xyz(chunk: Result, projected: bool, position: str) -> np.ndarray:
 
 
 def merge(spills: SpillFolder, dtype: np.dtype, counts, n_core: int, report: TiledReport, *, output, like,
-          projected, position, field_names="m3c2", float64=False, return_result, chunk_size, record) -> None:
+          projected, position, field_names="m3c2", float64=False, all_fields=False, return_result, chunk_size, record) -> None:
     keys = tuple(k for k in dtype.names if k != "core")
     spaces = output is not None and getattr(format_for(Path(output), writing=True), "name", None) == "LAS/LAZ"
 
@@ -83,7 +83,7 @@ def merge(spills: SpillFolder, dtype: np.dtype, counts, n_core: int, report: Til
             table = chunk.columns(projected=projected, position=position)
             xyz = np.column_stack([table.pop("x"), table.pop("y"), table.pop("z")])
             writer.write(xyz, typed_columns(table, field_names=field_names, float64=float64, spaces=spaces,
-                                             las=writer.mode == "las"))  # the stored types of m3c2kit.write
+                                             las=writer.mode == "las", all_fields=all_fields))  # the stored types of m3c2kit.write
             del xyz, table
         if return_result:
             gathered.append(chunk)

@@ -57,7 +57,7 @@ def run_tiled(reference, compared, *, output=None, core=None, core_spacing=None,
               normal_scale=None, projection_scale, max_depth, tile_size=None, memory_limit=None,
               dask_scheduler=None, client=None, threads: int = 0, work_dir=None, projected: bool = False,
               position: str = "core", field_names: str = "m3c2", float64: bool = False,
-              drop_nonfinite: bool = False, return_result: bool = False, chunk_size: int = DEFAULT_CHUNK,
+              all_fields: bool = False, drop_nonfinite: bool = False, return_result: bool = False, chunk_size: int = DEFAULT_CHUNK,
               retries: int = 3, task_fn: Callable | None = None, log: Callable[[str], object] | None = None,
               **params) -> TiledReport:
     """Tiled M3C2 between the files `reference` and `compared` (paths, or PointSource).
@@ -66,7 +66,7 @@ def run_tiled(reference, compared, *, output=None, core=None, core_spacing=None,
     `core_spacing`. `tile_size` S (XY side of a tile) or `memory_limit` (bytes or '2GB': S is
     chosen so a tile's estimated resident memory fits). `dask_scheduler` (an address) or `client`
     (a distributed.Client) runs tiles as Dask tasks with `retries`. `output`: a file written
-    atomically (same bytes as the untiled run; `field_names` and `float64` as m3c2kit.write's);
+    atomically (same bytes as the untiled run; `field_names`, `float64` and `all_fields` as m3c2kit.write's);
     `return_result` also gathers the Result in memory. Other keywords are
     :func:`m3c2kit.compare`'s parameters, every one of them in every mode.
     """
@@ -98,8 +98,8 @@ def run_tiled(reference, compared, *, output=None, core=None, core_spacing=None,
             return _run(plan, report, ref_src, cmp_src, SpillFolder(work), shared, h, hp, client=client,
                         core=core, core_spacing=core_spacing, core_normals=core_normals, tile_size=tile_size,
                         limit=limit, threads=threads, output=output, projected=projected, position=position,
-                        field_names=field_names, float64=float64, drop_nonfinite=drop_nonfinite,
-                        return_result=return_result, chunk_size=chunk_size, retries=retries,
+                        field_names=field_names, float64=float64, all_fields=all_fields,
+                        drop_nonfinite=drop_nonfinite, return_result=return_result, chunk_size=chunk_size, retries=retries,
                         task_fn=task_fn or compute_tile, log=log, t_start=t_start, read_points=read_points)
         finally:
             if own_dir:
@@ -152,7 +152,7 @@ def _executor(client, retries: int, log, report: TiledReport):
 
 def _run(plan: Plan, report: TiledReport, ref_src, cmp_src, spills: SpillFolder, shared: dict, h: float, hp: float, *,
          client, core, core_spacing, core_normals, tile_size, limit, threads, output, projected, position,
-         field_names, float64, drop_nonfinite, return_result, chunk_size, retries, task_fn, log, t_start,
+         field_names, float64, all_fields, drop_nonfinite, return_result, chunk_size, retries, task_fn, log, t_start,
          read_points=None):
     values, engine_p = plan.values, plan.engine
     execute = _executor(client, retries, log, report)
@@ -307,7 +307,7 @@ def _run(plan: Plan, report: TiledReport, ref_src, cmp_src, spills: SpillFolder,
     t0 = time.perf_counter()
     merge(spills, state["dtype"], counts, tiles.n_core, report, output=output, like=ref_src.like(),
           projected=projected, position=position, field_names=field_names, float64=float64,
-          return_result=return_result, chunk_size=merge_rows, record=plan.record)
+          all_fields=all_fields, return_result=return_result, chunk_size=merge_rows, record=plan.record)
     report.seconds["merge_write"] = time.perf_counter() - t0
     report.warnings = diagnostics.warn(report.evidence, values)  # the same as an in-memory run's
     report.seconds["total"] = time.perf_counter() - t_start
