@@ -481,7 +481,9 @@ def _main(argv) -> int:
             warnings.showwarning = _show_warning
             argv = join_dash_values([str(a) for a in (sys.argv[1:] if argv is None else argv)])
             args = make_parser().parse_args(argv)
-            return args.run(args)
+            code = args.run(args)
+            sys.stdout.flush()  # a closed stdout raises here, not in the interpreter's final flush
+            return code
     except UsageError as e:
         print(f"m3c2: error: {printable(e)}", file=sys.stderr)
         return 2
