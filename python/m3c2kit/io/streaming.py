@@ -141,16 +141,25 @@ class PointSource:
     def chunks(self, size: int = DEFAULT_CHUNK) -> Iterator[np.ndarray]:
         """(n, 3) float64 chunks in file order; non-finite points dropped if asked, else an error."""
         for xyz in self._raw_chunks(size):
-            if self._cloud is None:
-                finite = np.isfinite(xyz).all(axis=1)
-                if not finite.all():
-                    if not self.drop_nonfinite:
-                        raise CloudReadError(f"{self.path}: some points have non-finite (NaN or infinite) "
-                                             f"coordinates; use --drop-nonfinite to drop them")
-                    xyz = xyz[finite]
+            finite = self._finite_rows(xyz)
+            if finite is not None:
+                xyz = xyz[finite]
             if len(xyz):
                 yield xyz
         fault_checkpoint("reading")  # a testing aid (m3c2kit.fault_hook): the whole file streamed
+
+    def _finite_rows(self, xyz: np.ndarray) -> np.ndarray | None:
+        """The mask of a streamed chunk's finite rows to keep (--drop-nonfinite), None when all
+        are kept (a cloud read whole was checked by read_cloud); else an error naming the file."""
+        if self._cloud is not None:
+            return None
+        finite = np.isfinite(xyz).all(axis=1)
+        if finite.all():
+            return None
+        if not self.drop_nonfinite:
+            raise CloudReadError(f"{self.path}: some points have non-finite (NaN or infinite) "
+                                 f"coordinates; use --drop-nonfinite to drop them")
+        return finite
 
     def records(self, size: int = DEFAULT_CHUNK, fields=()) -> Iterator[tuple[np.ndarray, dict]]:
         """As chunks(), with the per-point `fields` (read_cloud's names: LAS dimensions, a
@@ -158,14 +167,10 @@ class PointSource:
         values}) chunks in file order, non-finite points dropped from both."""
         fields = tuple(fields)
         for xyz, values in self._raw_records(size, fields):
-            if self._cloud is None:
-                finite = np.isfinite(xyz).all(axis=1)
-                if not finite.all():
-                    if not self.drop_nonfinite:
-                        raise CloudReadError(f"{self.path}: some points have non-finite (NaN or infinite) "
-                                             f"coordinates; use --drop-nonfinite to drop them")
-                    xyz = xyz[finite]
-                    values = {k: v[finite] for k, v in values.items()}
+            finite = self._finite_rows(xyz)
+            if finite is not None:
+                xyz = xyz[finite]
+                values = {k: v[finite] for k, v in values.items()}
             if len(xyz):
                 yield xyz, values
         fault_checkpoint("reading")  # as chunks()
