@@ -4,6 +4,7 @@ run's, row for row; written chunk by chunk with m3c2kit.io.streaming.TableWriter
 with the columns named and typed as the in-memory writer names and types them."""
 from __future__ import annotations
 
+from dataclasses import dataclass
 from pathlib import Path
 from types import SimpleNamespace
 
@@ -26,8 +27,17 @@ def _output_xyz(chunk: Result, projected: bool, position: str) -> np.ndarray:
     return np.column_stack([table["x"], table["y"], table["z"]])
 
 
+@dataclass(frozen=True)
+class Storage:
+    """How the merged table is stored: m3c2kit.write's names (`field_names`), float64 or the
+    compact stored types, and every column in LAS/LAZ (`all_fields`) or CloudCompare's set."""
+    field_names: str = "m3c2"
+    float64: bool = False
+    all_fields: bool = False
+
+
 def merge(spills: SpillFolder, dtype: np.dtype, counts, n_core: int, report: TiledReport, *, output, like,
-          projected, position, field_names="m3c2", float64=False, all_fields=False, return_result, chunk_size, record) -> None:
+          projected, position, storage: Storage = Storage(), return_result, chunk_size, record) -> None:
     keys = tuple(k for k in dtype.names if k != "core")
     spaces = output is not None and getattr(format_for(Path(output), writing=True), "name", None) == "LAS/LAZ"
 
@@ -82,8 +92,9 @@ def merge(spills: SpillFolder, dtype: np.dtype, counts, n_core: int, report: Til
         if writer is not None:
             table = chunk.columns(projected=projected, position=position)
             xyz = np.column_stack([table.pop("x"), table.pop("y"), table.pop("z")])
-            writer.write(xyz, typed_columns(table, field_names=field_names, float64=float64, spaces=spaces,
-                                             las=writer.mode == "las", all_fields=all_fields))  # the stored types of m3c2kit.write
+            writer.write(xyz, typed_columns(table, field_names=storage.field_names, float64=storage.float64,
+                                             spaces=spaces, las=writer.mode == "las",
+                                             all_fields=storage.all_fields))  # the stored types of m3c2kit.write
             del xyz, table
         if return_result:
             gathered.append(chunk)

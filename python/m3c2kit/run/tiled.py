@@ -27,6 +27,7 @@ import os
 import shutil
 import tempfile
 import time
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Callable
 
@@ -44,7 +45,7 @@ from .checks import as_points
 from .cores import streaming_subsample
 from .memory import (BASE_BYTES, BYTES_PER_CORE, BYTES_PER_POINT, choose_tile_size, density, parse_memory,
                      plan_memory, release_memory, rss_bytes)
-from .merge import merge
+from .merge import Storage, merge
 from .outcome import TiledReport
 from .partition import CoreStream, Tiles, distribute, plan_tiles
 from .plan import Plan, make_plan
@@ -95,18 +96,42 @@ def run_tiled(reference, compared, *, output=None, core=None, core_spacing=None,
             work = Path(work_dir)
             work.mkdir(parents=True, exist_ok=True)
         try:
-            return _run(plan, report, ref_src, cmp_src, SpillFolder(work), shared, h, hp, client=client,
-                        core=core, core_spacing=core_spacing, core_normals=core_normals, tile_size=tile_size,
-                        limit=limit, threads=threads, output=output, projected=projected, position=position,
-                        field_names=field_names, float64=float64, all_fields=all_fields,
-                        drop_nonfinite=drop_nonfinite, return_result=return_result, chunk_size=chunk_size, retries=retries,
-                        task_fn=task_fn or compute_tile, log=log, t_start=t_start, read_points=read_points)
+            options = TiledOptions(core=core, core_spacing=core_spacing, core_normals=core_normals,
+                                   tile_size=tile_size, limit=limit, threads=threads, output=output,
+                                   projected=projected, position=position,
+                                   storage=Storage(field_names, float64, all_fields), drop_nonfinite=drop_nonfinite,
+                                   return_result=return_result, chunk_size=chunk_size, retries=retries,
+                                   task_fn=task_fn or compute_tile, log=log, read_points=read_points)
+            report = _run(plan, report, ref_src, cmp_src, SpillFolder(work), shared, h, hp, client, options)
+            report.seconds["total"] = time.perf_counter() - t_start
+            return report
         finally:
             if own_dir:
                 shutil.rmtree(work, ignore_errors=True)
     finally:
         if own_client:
             client.close()
+
+@dataclass(frozen=True)
+class TiledOptions:
+    """What a tiled run is asked beside its plan: run_tiled's keywords (documented there)."""
+    core: object = None
+    core_spacing: float | None = None
+    core_normals: object = None
+    tile_size: float | None = None
+    limit: int | None = None  # the memory limit in bytes
+    threads: int = 0
+    output: object = None
+    projected: bool = False
+    position: str = "core"
+    storage: Storage = Storage()
+    drop_nonfinite: bool = False
+    return_result: bool = False
+    chunk_size: int = DEFAULT_CHUNK
+    retries: int = 3
+    task_fn: Callable = compute_tile
+    log: Callable[[str], object] = lambda s: None
+    read_points: Callable | None = None
 
 
 def preflight(params: dict, tile_size=None, memory_limit=None, read_points=None):
@@ -150,12 +175,14 @@ def _executor(client, retries: int, log, report: TiledReport):
     return execute
 
 
-def _run(plan: Plan, report: TiledReport, ref_src, cmp_src, spills: SpillFolder, shared: dict, h: float, hp: float, *,
-         client, core, core_spacing, core_normals, tile_size, limit, threads, output, projected, position,
-         field_names, float64, all_fields, drop_nonfinite, return_result, chunk_size, retries, task_fn, log, t_start,
-         read_points=None):
+def _run(plan: Plan, report: TiledReport, ref_src, cmp_src, spills: SpillFolder, shared: dict, h: float, hp: float,
+         client, options: TiledOptions) -> TiledReport:
     values, engine_p = plan.values, plan.engine
-    execute = _executor(client, retries, log, report)
+    core, core_spacing, core_normals = options.core, options.core_spacing, options.core_normals
+    tile_size = options.tile_size  # chosen below from the memory limit when not given
+    limit, threads, chunk_size, log = options.limit, options.threads, options.chunk_size, options.log
+    read_points = options.read_points
+    execute = _executor(client, options.retries, log, report)
     # memory plan: the fixed costs (what this process holds, the streaming and merge chunks)
     mem = None
     stream_rows = merge_rows = chunk_size
@@ -186,7 +213,7 @@ def _run(plan: Plan, report: TiledReport, ref_src, cmp_src, spills: SpillFolder,
     if core is not None:
         if isinstance(core, (str, os.PathLike)):
             from ..io import read_cloud
-            core = read_cloud(core, drop_nonfinite=drop_nonfinite)
+            core = read_cloud(core, drop_nonfinite=options.drop_nonfinite)
         core_arr = as_points("core_points", core)
         cores = CoreStream(array=core_arr, normals=normals_arr)
     elif core_spacing is not None:
@@ -292,7 +319,7 @@ def _run(plan: Plan, report: TiledReport, ref_src, cmp_src, spills: SpillFolder,
         state["tile_points_max"] = max(state["tile_points_max"], pts)
         state["tile_points_total"] += pts
 
-    execute(tasks, task_fn, accept, (engine_p, threads))
+    execute(tasks, options.task_fn, accept, (engine_p, threads))
     if len(state["done"]) != len(tiles):
         raise M3C2Error(f"only {len(state['done'])} of {len(tiles)} tiles were computed")
     report.tile_points_max = state["tile_points_max"]
@@ -305,12 +332,11 @@ def _run(plan: Plan, report: TiledReport, ref_src, cmp_src, spills: SpillFolder,
     # 5. merge in core order and write
     release_memory()
     t0 = time.perf_counter()
-    merge(spills, state["dtype"], counts, tiles.n_core, report, output=output, like=ref_src.like(),
-          projected=projected, position=position, field_names=field_names, float64=float64,
-          all_fields=all_fields, return_result=return_result, chunk_size=merge_rows, record=plan.record)
+    merge(spills, state["dtype"], counts, tiles.n_core, report, output=options.output, like=ref_src.like(),
+          projected=options.projected, position=options.position, storage=options.storage,
+          return_result=options.return_result, chunk_size=merge_rows, record=plan.record)
     report.seconds["merge_write"] = time.perf_counter() - t0
     report.warnings = diagnostics.warn(report.evidence, values)  # the same as an in-memory run's
-    report.seconds["total"] = time.perf_counter() - t_start
     return report
 
 
