@@ -74,11 +74,11 @@ void barycentric_of(const double* p, double* abc) {
 
 struct ShellScratch {
   detail::DescentCache descent;
-  std::vector<double> offsets;       // 3 per neighbour of the largest sphere: p - core
-  std::vector<double> pivot;         // 3 per shell: its first point's offset
-  std::vector<double> sum;           // 3 per shell
-  std::vector<double> comoment;      // 6 per shell (xx, xy, xz, yy, yz, zz)
-  std::vector<std::uint32_t> count;  // per shell
+  std::vector<double> offsets;         // 3 per neighbour of the largest sphere: p - core
+  std::vector<double> pivot;           // 3 per shell: its first point's offset
+  std::vector<double> sum;             // 3 per shell
+  std::vector<double> comoment;        // 6 per shell (xx, xy, xz, yy, yz, zz)
+  std::vector<std::uint32_t> count;    // per shell
   std::vector<detail::Moments> balls;  // per scale rank: the moments of its ball
 };
 
@@ -185,39 +185,37 @@ DimensionalityResult dimensionality(PointsView cloud, PointsView core_points, co
   out.count.assign(n * scales, 0);
   out.status.assign(n, PointStatus::kTooFewNormalPoints);
   const auto order = detail::morton_order(core_points);
-  detail::parallel_blocks<ShellScratch>(
-      n, run, [&](std::size_t begin, std::size_t end, ShellScratch& s) {
-        for (std::size_t j = begin; j < end; ++j) {
-          const std::size_t i = order[j];
-          s.offsets.clear();
-          tree.ball_offsets(core_points[i], radii.back(), s.offsets, &s.descent);
-          ball_moments_by_shell(r2, s);
-          // From the largest scale down: a scale without usable neighbours (too few, or coincident)
-          // repeats the next larger scale's values, CANUPO's rule. Neighbourhoods are nested, so when
-          // the largest scale is unusable every scale is: the point keeps NaN and says why.
-          double p[3], abc[3];
-          for (std::size_t r = scales; r-- > 0;) {
-            const std::size_t k = by_size[r];
-            const detail::Moments& m = s.balls[r];
-            const auto count = static_cast<std::uint32_t>(m.count);
-            out.count[i * scales + k] = count;
-            const bool usable = count >= min_points && eigen_proportions(comoment_matrix(m), p);
-            if (r == scales - 1) {
-              if (!usable) {
-                out.status[i] =
-                    count >= min_points ? PointStatus::kDegenerateNormal : PointStatus::kTooFewNormalPoints;
-                for (std::size_t q = 0; q < r; ++q)
-                  out.count[i * scales + by_size[q]] = static_cast<std::uint32_t>(s.balls[q].count);
-                break;
-              }
-              out.status[i] = PointStatus::kOk;
-            }
-            if (usable) barycentric_of(p, abc);
-            std::copy(p, p + 3, &out.proportions[(i * scales + k) * 3]);
-            std::copy(abc, abc + 3, &out.barycentric[(i * scales + k) * 3]);
+  detail::parallel_blocks<ShellScratch>(n, run, [&](std::size_t begin, std::size_t end, ShellScratch& s) {
+    for (std::size_t j = begin; j < end; ++j) {
+      const std::size_t i = order[j];
+      s.offsets.clear();
+      tree.ball_offsets(core_points[i], radii.back(), s.offsets, &s.descent);
+      ball_moments_by_shell(r2, s);
+      // From the largest scale down: a scale without usable neighbours (too few, or coincident)
+      // repeats the next larger scale's values, CANUPO's rule. Neighbourhoods are nested, so when
+      // the largest scale is unusable every scale is: the point keeps NaN and says why.
+      double p[3], abc[3];
+      for (std::size_t r = scales; r-- > 0;) {
+        const std::size_t k = by_size[r];
+        const detail::Moments& m = s.balls[r];
+        const auto count = static_cast<std::uint32_t>(m.count);
+        out.count[i * scales + k] = count;
+        const bool usable = count >= min_points && eigen_proportions(comoment_matrix(m), p);
+        if (r == scales - 1) {
+          if (!usable) {
+            out.status[i] = count >= min_points ? PointStatus::kDegenerateNormal : PointStatus::kTooFewNormalPoints;
+            for (std::size_t q = 0; q < r; ++q)
+              out.count[i * scales + by_size[q]] = static_cast<std::uint32_t>(s.balls[q].count);
+            break;
           }
+          out.status[i] = PointStatus::kOk;
         }
-      });
+        if (usable) barycentric_of(p, abc);
+        std::copy(p, p + 3, &out.proportions[(i * scales + k) * 3]);
+        std::copy(abc, abc + 3, &out.barycentric[(i * scales + k) * 3]);
+      }
+    }
+  });
   return out;
 }
 
