@@ -1,9 +1,10 @@
 // Multi-scale dimensionality (Brodu & Lague 2012): the neighbours of the largest scale gathered
-// once (their offsets from the core point, in the octree's key order), each assigned to the
-// shell between two consecutive scales; the moments of each shell in one pass of sums shifted
-// by the shell's first point, then the balls as the union of their shells (merge_into, innermost
-// first); the eigenvalues of each centred co-moment matrix (Eigen's closed form, its iterative
-// solver near double roots).
+// once (their offsets from the core point and squared distances, in the octree's key order, from
+// the slot runs of Octree::ball_runs), each assigned to the shell between two consecutive scales
+// (ShellIndex, a table lookup) and summed into it in one pass (sums shifted by the shell's first
+// point); then the balls as the union of their shells (merge_into, innermost first); the
+// eigenvalues of each centred co-moment matrix (Eigen's closed form, its iterative solver near
+// double roots).
 //
 // Why shells and not the octree's node moments (octree.hpp, as normals use): every point of the
 // cloud is a core point here, at 10 scales of up to several hundred neighbours, and folding the
@@ -19,6 +20,7 @@
 #include "moments.hpp"
 #include "octree.hpp"
 #include "parallel_for.hpp"
+#include "shell_index.hpp"
 #include "spatial_order.hpp"
 #include "validation.hpp"
 
@@ -72,42 +74,70 @@ void barycentric_of(const double* p, double* abc) {
   abc[2] = 3.0 * p[2];
 }
 
+/// One shell's running sums, together in memory: each neighbour updates one of them.
+struct ShellSums {
+  double pivot[3];  // its first point's offset
+  double sum[3];    // of w = offset - pivot
+  double c[6];      // of w w^T (xx, xy, xz, yy, yz, zz)
+  std::uint32_t count;
+};
+
 struct ShellScratch {
   detail::DescentCache descent;
-  std::vector<double> offsets;         // 3 per neighbour of the largest sphere: p - core
-  std::vector<double> pivot;           // 3 per shell: its first point's offset
-  std::vector<double> sum;             // 3 per shell
-  std::vector<double> comoment;        // 6 per shell (xx, xy, xz, yy, yz, zz)
-  std::vector<std::uint32_t> count;    // per shell
+  std::vector<std::array<std::uint32_t, 2>> runs;  // the largest sphere's candidates (Octree::ball_runs)
+  std::vector<double> near;            // 4 per neighbour of the largest sphere: p - core, its squared length
+  std::vector<ShellSums> shells;       // per scale rank
   std::vector<detail::Moments> balls;  // per scale rank: the moments of its ball
 };
 
-/// The moments of the balls of radius sqrt(r2[r]) (ascending) about `core` from the offsets of
-/// the largest ball's points: j is within ball r iff its squared distance (computed as
-/// detail::squared_distance does, from the same differences) is <= r2[r].
-void ball_moments_by_shell(const std::vector<double>& r2, ShellScratch& s) {
-  const std::size_t scales = r2.size(), m = s.offsets.size() / 3;
-  const double* v = s.offsets.data();
-  s.pivot.resize(3 * scales);
-  s.sum.assign(3 * scales, 0.0);
-  s.comoment.assign(6 * scales, 0.0);
-  s.count.assign(scales, 0);
+/// Writes to s.near the offset p - core and its squared length (as detail::squared_distance
+/// computes it) of each point p within `radius` of `core`, in key order; returns their number.
+/// s.near only grows: the slots it has are written, never zeroed first.
+std::size_t gather_ball(const detail::Octree& tree, const Vec3& core, double radius, ShellScratch& s) {
+  s.runs.clear();
+  tree.ball_runs(core, radius, s.runs, &s.descent);
+  std::size_t candidates = 0;
+  for (const auto& [begin, end] : s.runs) candidates += end - begin;
+  if (s.near.size() < 4 * candidates) s.near.resize(4 * candidates);
+  const double r2 = radius * radius;
+  double* out = s.near.data();
+  std::size_t kept = 0;
+  for (const auto& [begin, end] : s.runs) {
+    const double* p = tree.slot_xyz(begin);
+    // About half a crossing leaf's points are kept, at random: each is written and the end
+    // advanced by its test, without a branch.
+    for (std::uint32_t slot = begin; slot < end; ++slot, p += 3) {
+      const double dx = p[0] - core.x(), dy = p[1] - core.y(), dz = p[2] - core.z();
+      const double d2 = dx * dx + dy * dy + dz * dz;
+      double* o = out + 4 * kept;
+      o[0] = dx, o[1] = dy, o[2] = dz, o[3] = d2;
+      kept += d2 <= r2;
+    }
+  }
+  return kept;
+}
+
+/// The moments of the balls of radius sqrt(r2[r]) (ascending) about the core point from the
+/// first m entries of s.near (gather_ball at the largest radius): a neighbour is within ball r
+/// iff its squared distance is <= r2[r].
+void ball_moments_by_shell(const std::vector<double>& r2, const detail::ShellIndex& shell_of, std::size_t m,
+                           ShellScratch& s) {
+  const std::size_t scales = r2.size();
+  const double* v = s.near.data();
+  s.shells.assign(scales, ShellSums{});
   // One pass in key order: each neighbour's shell, and the shell's sums of w and w w^T, w the
   // offset from the shell's first point (its pivot). The shifted sums give the co-moment about
   // the shell's mean, C = S_ww - S_w S_w^T / n, with a rounding error ~eps n max|w|^2: a pivot
   // inside the shell keeps it of the order of the shell's own spread (a pivot far from a tight
   // cluster would not), far below the 1e-9 of the brute-force check.
   for (std::size_t j = 0; j < m; ++j) {
-    const double dx = v[3 * j], dy = v[3 * j + 1], dz = v[3 * j + 2];
-    const double d2 = dx * dx + dy * dy + dz * dz;
-    std::size_t r = 0;  // the smallest scale holding j: the radii it lies beyond (no branch)
-    for (std::size_t q = 0; q + 1 < scales; ++q) r += d2 > r2[q];
-    double* pivot = &s.pivot[3 * r];
-    if (s.count[r]++ == 0) pivot[0] = dx, pivot[1] = dy, pivot[2] = dz;
-    const double x = dx - pivot[0], y = dy - pivot[1], z = dz - pivot[2];
-    double* sum = &s.sum[3 * r];
-    sum[0] += x, sum[1] += y, sum[2] += z;
-    double* c = &s.comoment[6 * r];
+    const double dx = v[4 * j], dy = v[4 * j + 1], dz = v[4 * j + 2], d2 = v[4 * j + 3];
+    const std::size_t r = shell_of(d2);  // the smallest scale holding j
+    ShellSums& sh = s.shells[r];
+    if (sh.count++ == 0) sh.pivot[0] = dx, sh.pivot[1] = dy, sh.pivot[2] = dz;
+    const double x = dx - sh.pivot[0], y = dy - sh.pivot[1], z = dz - sh.pivot[2];
+    sh.sum[0] += x, sh.sum[1] += y, sh.sum[2] += z;
+    double* c = sh.c;
     c[0] += x * x, c[1] += x * y, c[2] += x * z, c[3] += y * y, c[4] += y * z, c[5] += z * z;
   }
   // The balls: the union of their shells, innermost first (Chan et al.'s exact merge).
@@ -115,13 +145,13 @@ void ball_moments_by_shell(const std::vector<double>& r2, ShellScratch& s) {
   detail::Moments acc;
   for (std::size_t r = 0; r < scales; ++r) {
     detail::Moments shell;
-    if (s.count[r] > 0) {
-      const double n = double(s.count[r]);
-      const double* sum = &s.sum[3 * r];
-      const double* c = &s.comoment[6 * r];
+    const ShellSums& sh = s.shells[r];
+    if (sh.count > 0) {
+      const double n = double(sh.count);
+      const double *sum = sh.sum, *c = sh.c;
       const double mx = sum[0] / n, my = sum[1] / n, mz = sum[2] / n;
       shell.count = n;
-      shell.mean = Vec3(s.pivot[3 * r] + mx, s.pivot[3 * r + 1] + my, s.pivot[3 * r + 2] + mz);
+      shell.mean = Vec3(sh.pivot[0] + mx, sh.pivot[1] + my, sh.pivot[2] + mz);
       shell.comoment = {c[0] - sum[0] * mx, c[1] - sum[0] * my, c[2] - sum[0] * mz,
                         c[3] - sum[1] * my, c[4] - sum[1] * mz, c[5] - sum[2] * mz};
     }
@@ -184,13 +214,13 @@ DimensionalityResult dimensionality(PointsView cloud, PointsView core_points, co
   out.barycentric.assign(n * scales * 3, nan);
   out.count.assign(n * scales, 0);
   out.status.assign(n, PointStatus::kTooFewNormalPoints);
+  const detail::ShellIndex shell_of(r2);
   const auto order = detail::morton_order(core_points);
   detail::parallel_blocks<ShellScratch>(n, run, [&](std::size_t begin, std::size_t end, ShellScratch& s) {
     for (std::size_t j = begin; j < end; ++j) {
       const std::size_t i = order[j];
-      s.offsets.clear();
-      tree.ball_offsets(core_points[i], radii.back(), s.offsets, &s.descent);
-      ball_moments_by_shell(r2, s);
+      const std::size_t m = gather_ball(tree, core_points[i], radii.back(), s);
+      ball_moments_by_shell(r2, shell_of, m, s);
       // From the largest scale down: a scale without usable neighbours (too few, or coincident)
       // repeats the next larger scale's values, CANUPO's rule. Neighbourhoods are nested, so when
       // the largest scale is unusable every scale is: the point keeps NaN and says why.

@@ -439,7 +439,8 @@ bool Octree::ball_holds(const Vec3& centre, double radius, std::uint32_t n, Desc
   return false;
 }
 
-void Octree::ball_offsets(const Vec3& centre, double radius, std::vector<double>& offsets, DescentCache* cache) const {
+void Octree::ball_runs(const Vec3& centre, double radius, std::vector<std::array<std::uint32_t, 2>>& runs,
+                       DescentCache* cache) const {
   const std::uint32_t start = covering_node(centre, radius, cache);
   if (start == kNoNode) return;
   const double r2 = radius * radius, prune_r2 = r2 * (1.0 + kRelativeMargin) + 1e-300;
@@ -454,14 +455,28 @@ void Octree::ball_offsets(const Vec3& centre, double radius, std::vector<double>
       for (std::uint32_t k = node.children; k-- > 0;) stack[top++] = node.first_child + k;  // key order
       continue;
     }
-    // A leaf crossing the sphere, or a node inside it (whose points all pass the test,
-    // farthest_distance2): about half a crossing leaf's points are kept, at random, so no branch
-    // per point: each point is written and the end advanced by its test.
+    // A leaf crossing the sphere, or a node inside it: nodes taken in key order often follow
+    // each other in the slots, and a run of them is one loop for the caller.
+    if (!runs.empty() && runs.back()[1] == node.begin)
+      runs.back()[1] = node.end;
+    else
+      runs.push_back({node.begin, node.end});
+  }
+}
+
+void Octree::ball_offsets(const Vec3& centre, double radius, std::vector<double>& offsets, DescentCache* cache) const {
+  thread_local std::vector<std::array<std::uint32_t, 2>> runs;
+  runs.clear();
+  ball_runs(centre, radius, runs, cache);
+  const double r2 = radius * radius;
+  for (const auto& [begin, end] : runs) {
+    // About half a crossing leaf's points are kept, at random, so no branch per point: each
+    // point is written and the end advanced by its test.
     const std::size_t old = offsets.size();
-    offsets.resize(old + 3 * std::size_t(node.end - node.begin));
+    offsets.resize(old + 3 * std::size_t(end - begin));
     double* out = offsets.data() + old;
     std::size_t kept = 0;
-    for (std::uint32_t slot = node.begin; slot < node.end; ++slot) {
+    for (std::uint32_t slot = begin; slot < end; ++slot) {
       const double* p = slot_xyz(slot);
       out[3 * kept] = p[0] - centre.x(), out[3 * kept + 1] = p[1] - centre.y(), out[3 * kept + 2] = p[2] - centre.z();
       kept += squared_distance(p, centre) <= r2;

@@ -106,6 +106,14 @@ class Octree {
   void ball_offsets(const Vec3& centre, double radius, std::vector<double>& offsets,
                     DescentCache* cache = nullptr) const;
 
+  /// Appends to `runs` the slot ranges [begin, end), in key order and merged where contiguous,
+  /// of the nodes that may hold points within `radius` of `centre`: every such point is in a run,
+  /// with others near the sphere, so the caller applies squared_distance() <= r^2 itself.
+  void ball_runs(const Vec3& centre, double radius, std::vector<std::array<std::uint32_t, 2>>& runs,
+                 DescentCache* cache = nullptr) const;
+  /// The coordinates of a slot; a run's slots are contiguous (x, y, z, x, ...).
+  const double* slot_xyz(std::uint32_t slot) const { return xyz_.data() + 3 * std::size_t(slot); }
+
   /// Moments, about any origin, of the points within each radius of `radii_ascending` of
   /// `centre` (squared_distance <= r^2), written to out[k]. Requires with_moments.
   void ball_moments(const Vec3& centre, std::span<const double> radii_ascending, OctreeScratch& scratch,
@@ -144,7 +152,6 @@ class Octree {
   template <class Level>
   Moments radix_fold(const std::uint32_t* slots, std::uint32_t n, Level&& level_between, const Vec3& origin,
                      FoldStack& stack) const;
-  const double* slot_xyz(std::uint32_t slot) const { return xyz_.data() + 3 * std::size_t(slot); }
 
   PointsView points_;
   OctreeGrid grid_;
