@@ -87,6 +87,10 @@ SIZES = {"rough1M": (1_000_000, 100_000, 10.0), "rough10M": (10_000_000, 2_000_0
          "moderate1M": (1_000_000, 100_000, 100.0), "sparse1M": (1_000_000, 100_000, 1000.0),
          "sweep": (1_000_000, 50_000, 100.0)}
 SMALL_INPUT, SMALL_REPEAT = 500_000, 5  # --repeat auto
+# The LOD statistic of eq. (1) with z, as py4dgeo computes it at every n: the same work and results
+# to compare. m3c2's default (auto: Welch's t where a cylinder holds fewer than 30 points,
+# docs/validation.md) differs from py4dgeo by design where cylinders are small (W8: 1-4 points).
+PEER_LOD = "z"
 LAS_SCALE = 1e-5  # W5's files: coordinates quantised to 0.01 mm (the noise is 1 mm)
 COLUMNS = ("distance", "lod", "significant", "n1", "n2", "sigma1", "sigma2", "nx", "ny", "nz", "normal_scale",
            "roughness", "status")  # the output table's columns compared between runs (x, y, z left out)
@@ -164,7 +168,7 @@ def run_m3c2(folder: Path, D, d, L, normals: str, threads: int, tag: str, wall_o
     from m3c2kit import _core
 
     ref, cmp, core = (np.load(folder / f"{k}.npy") for k in ("ref", "cmp", "core"))
-    params = dict(normal_scale=D, projection_scale=d, max_depth=L, min_points=1, threads=threads)
+    params = dict(normal_scale=D, projection_scale=d, max_depth=L, min_points=1, lod=PEER_LOD, threads=threads)
     if normals == "vertical":
         params.update(normal_source="vertical")
         del params["normal_scale"]
@@ -207,7 +211,7 @@ def run_m3c2_tiled(folder: Path, D, d, L, normals: str, threads: int, tag: str, 
     from m3c2kit.io import read_cloud
     from m3c2kit.tiling import run_tiled
 
-    params = dict(normal_scale=D, projection_scale=d, max_depth=L, min_points=1, threads=threads)
+    params = dict(normal_scale=D, projection_scale=d, max_depth=L, min_points=1, lod=PEER_LOD, threads=threads)
     if normals == "vertical":
         params.update(normal_source="vertical")
         del params["normal_scale"]
@@ -340,8 +344,8 @@ def run_whole(tool: str, folder: Path, D, d, L, threads: int, tag: str) -> dict:
     if tool == "m3c2":
         cmd = [sys.executable, "-c", M3C2_WHOLE, "compare", str(folder / "ref.laz"), str(folder / "cmp.laz"),
                "--core", str(folder / "core.npy"), "-o", str(out), "--normal-scale", str(D[0]),
-               "--projection-scale", str(d), "--max-depth", str(L), "--min-points", "1", "--threads", str(threads),
-               "--quiet"]
+               "--projection-scale", str(d), "--max-depth", str(L), "--min-points", "1", "--lod", PEER_LOD,
+               "--threads", str(threads), "--quiet"]
     else:
         cmd = [sys.executable, "-c", PY4DGEO_WHOLE, str(folder / "ref.laz"), str(folder / "cmp.laz"),
                str(folder / "core.npy"), str(out), str(D[0]), str(d), str(L), str(threads)]
