@@ -242,7 +242,7 @@ std::vector<double> roughness_by_scale(PointsView cloud, PointsView core_points,
             if (detail::roughness_needs_centred_pass(fit.eigenvalues) && fit.normal.allFinite()) {
               if (!gathered) {
                 s.offsets.clear();
-                tree.ball_offsets(core_points[i], radii.back(), s.offsets, &s.octree.descent);
+                tree.ball_offsets(core_points[i], radii.back(), s.offsets, s.octree);
                 gathered = true;
               }
               // This scale's points: the test of squared_distance() on the same differences.

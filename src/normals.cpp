@@ -115,7 +115,7 @@ NormalEstimate NormalEstimator::estimate(const Vec3& core, NormalScratch& scratc
   }
   if (best.status == PointStatus::kOk && best_centred) {
     scratch.offsets.clear();
-    tree_.ball_offsets(core, 0.5 * best.diameter, scratch.offsets, &scratch.octree.descent);
+    tree_.ball_offsets(core, 0.5 * best.diameter, scratch.offsets, scratch.octree);
     best.roughness = centred_roughness(scratch.offsets, best.normal, variance_);
   }
   return best;

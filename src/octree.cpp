@@ -464,10 +464,11 @@ void Octree::ball_runs(const Vec3& centre, double radius, std::vector<std::array
   }
 }
 
-void Octree::ball_offsets(const Vec3& centre, double radius, std::vector<double>& offsets, DescentCache* cache) const {
-  thread_local std::vector<std::array<std::uint32_t, 2>> runs;
+void Octree::ball_offsets(const Vec3& centre, double radius, std::vector<double>& offsets,
+                          OctreeScratch& scratch) const {
+  auto& runs = scratch.runs;
   runs.clear();
-  ball_runs(centre, radius, runs, cache);
+  ball_runs(centre, radius, runs, &scratch.descent);
   const double r2 = radius * radius;
   for (const auto& [begin, end] : runs) {
     // About half a crossing leaf's points are kept, at random, so no branch per point: each

@@ -79,6 +79,7 @@ struct OctreeScratch {
   std::vector<double> d2;
   std::vector<CellKey> keys;
   std::vector<std::uint32_t> slots;
+  std::vector<std::array<std::uint32_t, 2>> runs;  // Octree::ball_runs, for ball_offsets
   FoldStack fold;
 };
 
@@ -103,8 +104,7 @@ class Octree {
   /// Appends to `offsets` p - centre (3 values) of every point p within `radius` of `centre`
   /// (squared_distance <= r^2, the test of ball_moments), in key order: the same points in the
   /// same order in any tile. The second, centred pass of a roughness (normals.cpp).
-  void ball_offsets(const Vec3& centre, double radius, std::vector<double>& offsets,
-                    DescentCache* cache = nullptr) const;
+  void ball_offsets(const Vec3& centre, double radius, std::vector<double>& offsets, OctreeScratch& scratch) const;
 
   /// Appends to `runs` the slot ranges [begin, end), in key order and merged where contiguous,
   /// of the nodes that may hold points within `radius` of `centre`: every such point is in a run,

@@ -23,8 +23,7 @@ std::size_t counted(const std::vector<double>& r2, double d2) {
 void expect_counts(const std::vector<double>& r2, std::mt19937_64& rng) {
   const m3c2::detail::ShellIndex shell_of(r2);
   std::vector<double> probes{0.0, r2.back()};
-  for (const double v : r2)
-    probes.insert(probes.end(), {v, std::nextafter(v, 0.0), std::nextafter(v, INFINITY)});
+  for (const double v : r2) probes.insert(probes.end(), {v, std::nextafter(v, 0.0), std::nextafter(v, INFINITY)});
   std::uniform_real_distribution<double> u(0.0, r2.back());
   for (int k = 0; k < 2000; ++k) probes.push_back(u(rng));
   for (const double d2 : probes) {
