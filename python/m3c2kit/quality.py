@@ -3,9 +3,13 @@ result and, where needed, one more engine run; the wording a scientist can act o
 
 - :func:`cylinder_diagnosis`: of the core points with an empty cylinder in one cloud, which have
   no point of that cloud along their normal however far the cylinder reaches (the clouds do not
-  overlap there: no --max-depth can help) and which have points beyond --max-depth (a larger
-  depth would find them, and how large). Decided by the engine itself: the same core points,
-  normals and cylinder diameter, with a cylinder as long as the clouds' extent.
+  overlap there: no --max-depth can help), which have points beyond --max-depth (a larger depth
+  would find them, and how large), and which have the cloud's surface within the depth but
+  between the points of a sparse cloud (a larger --projection-scale would find them). Decided by
+  the engine itself: the same core points, normals and cylinder diameter, with a cylinder as long
+  as the clouds' extent (where it meets the cloud: the offset of its points' mean along the
+  normal); where that finds nothing in a cloud sparse for d (:data:`SPARSE_EXPECTED`), one
+  :data:`WIDE_FACTOR` times as wide tells the spacing from the edge of its coverage.
 - :func:`normal_failure_message`: more than :data:`NORMAL_FAILURE_SHARE` of the core points
   without a normal, with the likely cause (D is a diameter: a radius given for it halves it).
 - :func:`share_text`: shares stated over the core points they describe ("of the N core points
@@ -22,12 +26,23 @@ import numpy as np
 from .result import STATUS_NAMES
 
 __all__ = ["CylinderDiagnosis", "cylinder_diagnosis", "cylinder_messages", "normal_failure_message",
-           "share_text", "NORMAL_FAILURE_SHARE", "EMPTY_SHARE"]
+           "share_text", "NORMAL_FAILURE_SHARE", "EMPTY_SHARE", "WIDE_FACTOR", "SPARSE_EXPECTED", "ADVISED_POINTS"]
 
 #: Share of core points without a normal above which the run warns.
 NORMAL_FAILURE_SHARE = 0.5
 #: Share of core points with a normal whose cylinder is empty in one cloud above which the run warns.
 EMPTY_SHARE = 0.10
+#: The diagnosis's cylinder is this many times as wide as d (16 times the area): it finds a
+#: sparse cloud's points where the cylinder of d falls between them.
+WIDE_FACTOR = 4.0
+#: Mean points per cylinder of d below which a cloud is sparse for it (e^-3: 5 % of the cylinders
+#: of a Poisson cloud are empty by chance there): its empty cylinders are the spacing's where the
+#: cloud lies within the depth, not a missing overlap. Above it, an empty line is the edge of
+#: the cloud's coverage.
+SPARSE_EXPECTED = 3.0
+#: Points in the median cylinder that the advised --projection-scale aims at (section 3.3: the
+#: LOD needs a few points in each cylinder; --min-points is 5 by default, as CloudCompare's).
+ADVISED_POINTS = 10
 
 _EMPTY = {1: STATUS_NAMES.index("empty_cylinder_reference"), 2: STATUS_NAMES.index("empty_cylinder_compared")}
 _NO_NORMAL = (STATUS_NAMES.index("too_few_normal_points"), STATUS_NAMES.index("degenerate_normal"))
@@ -42,9 +57,11 @@ def share_text(count: int, total: int, of: str) -> str:
 @dataclass
 class CylinderDiagnosis:
     """For one cloud (1 reference, 2 compared): core points with a normal whose cylinder was empty
-    in that cloud, split into ``no_overlap`` (no point along the normal at any depth) and
-    ``beyond_depth`` (points found beyond --max-depth), with the depth that reaches 95 % of the
-    latter (``needed_depth``)."""
+    in that cloud, split into ``no_overlap`` (no point along the normal at any depth),
+    ``beyond_depth`` (the cloud met beyond --max-depth), with the depth that reaches 95 % of them
+    (``needed_depth``), and ``too_thin`` (the cloud met within --max-depth, but the cylinder of d
+    fell between its points), with the projection scale (diameter) whose median cylinder holds
+    about :data:`ADVISED_POINTS` of them (``needed_scale``)."""
 
     cloud: int
     with_normal: int
@@ -52,6 +69,8 @@ class CylinderDiagnosis:
     no_overlap: np.ndarray
     beyond_depth: np.ndarray
     needed_depth: float | None
+    too_thin: np.ndarray
+    needed_scale: float | None
 
 
 def _extent(*clouds: np.ndarray) -> float:
@@ -73,19 +92,40 @@ def cylinder_diagnosis(reference: np.ndarray, compared: np.ndarray, result, *, p
         if not idx.size:
             continue
         reach = max(_extent(reference, compared), 2.0 * float(max_depth))
-        far = compare(reference, compared, result.core[idx], normal_source="core", core_normals=result.normal[idx],
-                      projection_scale=projection_scale, max_depth=reach, min_points=1, threads=threads)
-        counts = np.asarray(far.n1 if cloud == 1 else far.n2)
+
+        def along(keep: np.ndarray, diameter: float):
+            """Points of that cloud, offset and spread of their mean along the normal, in a
+            cylinder of `diameter` as long as the extent, at the core points idx[keep]."""
+            far = compare(reference, compared, result.core[idx[keep]], normal_source="core",
+                          core_normals=result.normal[idx[keep]], projection_scale=diameter, max_depth=reach,
+                          min_points=1, threads=threads)
+            return (np.asarray(far.n1 if cloud == 1 else far.n2), np.asarray(far.i1 if cloud == 1 else far.i2),
+                    np.asarray(far.sigma1 if cloud == 1 else far.sigma2))
+
+        counts, offset, spread = along(np.ones(idx.size, bool), float(projection_scale))
         found = counts > 0
         needed = None
         if found.any():
             # Where the cylinder meets that cloud: the offset of its points' mean along the normal.
-            offset = np.abs(np.asarray(far.i1 if cloud == 1 else far.i2)[found])
-            spread = np.asarray(far.sigma1 if cloud == 1 else far.sigma2)[found]
-            reach_needed = offset + 2.0 * np.nan_to_num(spread)
+            reach_needed = np.abs(offset[found]) + 2.0 * np.nan_to_num(spread[found])
             needed = float(np.percentile(reach_needed[np.isfinite(reach_needed)], 95)) if np.isfinite(
                 reach_needed).any() else None
-        out.append(CylinderDiagnosis(cloud, with_normal, int(idx.size), idx[~found], idx[found], needed))
+        # Not found along the whole line: no overlap (the edge of the cloud's coverage), unless the
+        # cloud is so sparse that a cylinder of d holds few points on average (its mean count over
+        # the core points with a normal) and a wider one meets the cloud within the depth there.
+        thin = np.zeros(idx.size, bool)
+        scale = None
+        n_run = np.asarray(result.n1 if cloud == 1 else result.n2)[~np.isin(status, _NO_NORMAL)]
+        if (~found).any() and np.nanmean(n_run) < SPARSE_EXPECTED:
+            wide = WIDE_FACTOR * float(projection_scale)
+            n_wide, off_wide, _ = along(~found, wide)
+            sparse = (n_wide > 0) & (np.abs(off_wide) <= float(max_depth))
+            thin[np.flatnonzero(~found)[sparse]] = True
+            if sparse.any():
+                density = float(np.median(n_wide[sparse])) / (np.pi * wide**2 / 4.0)
+                scale = 2.0 * float(np.sqrt(ADVISED_POINTS / (np.pi * density)))
+        out.append(CylinderDiagnosis(cloud, with_normal, int(idx.size), idx[~found & ~thin], idx[found], needed,
+                                     idx[thin], scale))
     return out
 
 
@@ -111,6 +151,13 @@ def cylinder_messages(diagnoses: list[CylinderDiagnosis], max_depth: float) -> l
                 f"point in their cylinder at any depth: the {name} cloud does not cover them (the surveys do not "
                 f"overlap there). Their distance is NaN (status empty_cylinder_{name}); a larger --max-depth "
                 f"cannot help: restrict the core points to the overlap.")
+        if d.too_thin.size and d.needed_scale is not None:
+            lines.append(
+                f"{share_text(int(d.too_thin.size), d.with_normal, 'core points with a normal')} have no {name} "
+                f"point in their cylinder although the {name} surface lies within --max-depth {max_depth:g} (a "
+                f"cylinder {WIDE_FACTOR:g} times as wide meets it there): the cylinder falls between the points, "
+                f"the projection scale is small for the point spacing; --projection-scale "
+                f"{_nice_up(d.needed_scale):g} holds about {ADVISED_POINTS} points in the median cylinder.")
         if d.beyond_depth.size and d.needed_depth is not None:
             lines.append(
                 f"{share_text(int(d.beyond_depth.size), d.with_normal, 'core points with a normal')} have {name} "

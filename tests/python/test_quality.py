@@ -61,6 +61,29 @@ def test_depth_too_short_advises_the_depth_that_reaches():
     assert len(messages) == 1 and "--max-depth 6.1 reaches 95 %" in messages[0] and "overlap" not in messages[0]
 
 
+def test_sparse_cloud_is_a_thin_cylinder_not_a_missing_overlap():
+    # Two overlapping flat surveys at about 1 point/m2, 0.3 m apart; d = 1 m holds 0.8 points on
+    # average, so about 45 % of the cylinders are empty (Poisson) although both clouds cover
+    # every core point: the advice is a larger projection scale, never "no overlap" or a depth.
+    rng = np.random.default_rng(8)
+    n = 6000
+    ref = np.column_stack([rng.uniform(0, 80, (n, 2)), 0.01 * rng.standard_normal(n)])
+    cmp_ = np.column_stack([rng.uniform(0, 80, (n, 2)), 0.3 + 0.01 * rng.standard_normal(n)])
+    core = ref[(ref[:, 0] > 10) & (ref[:, 0] < 70) & (ref[:, 1] > 10) & (ref[:, 1] < 70)][::4]
+    r = m3c2kit.compare(ref, cmp_, core, normal_scale=6, projection_scale=1, max_depth=2)
+    diag = Q.cylinder_diagnosis(ref, cmp_, r, projection_scale=1, max_depth=2)
+    d = {x.cloud: x for x in diag}[2]
+    assert d.empty / d.with_normal > 0.3
+    assert d.no_overlap.size == 0 and d.beyond_depth.size == 0 and d.too_thin.size == d.empty
+    messages = Q.cylinder_messages(diag, 2)
+    assert len(messages) == 1 and "between the points" in messages[0] and "overlap" not in messages[0], messages
+    advised = float(messages[0].split("--projection-scale ")[1].split()[0])
+    assert 3.0 <= advised <= 4.5  # 2 sqrt(10 / (pi * 0.94 points/m2)) = 3.7 m
+    # The advice works: the median cylinder holds about ADVISED_POINTS, empty cylinders are rare.
+    again = m3c2kit.compare(ref, cmp_, core, normal_scale=6, projection_scale=advised, max_depth=2)
+    assert 8 <= np.median(again.n2) <= 14 and np.mean(again.n2 == 0) < 0.01
+
+
 def test_normal_failures_name_the_diameter(toronto):
     ref, cmp_ = toronto
     r = m3c2kit.compare(ref, cmp_, core_spacing=8, normal_scale=1, projection_scale=5, max_depth=10)
