@@ -247,29 +247,19 @@ Octree::Octree(PointsView points, OctreeGrid grid, bool with_moments, const char
   std::iota(order.begin(), order.end(), 0u);
   if (varying <= 21) {
     radix_sort(low, order, 3 * varying);
-    build(low, order, with_moments);
+    build(std::move(low), order, with_moments);
     return;
   }
   low = {};
   std::vector<Key> keys(n);
   for (std::size_t i = 0; i < n; ++i) keys[i] = morton_key(cell_of(points_.data() + 3 * i));
   sort_keys(keys.data(), order.data(), n);
-  build(keys, order, with_moments);
+  build(std::move(keys), order, with_moments);
 }
 
 template <class K>
-void Octree::build(const std::vector<K>& keys, std::vector<std::uint32_t>& order, bool with_moments) {
+void Octree::build(std::vector<K>&& keys, std::vector<std::uint32_t>& order, bool with_moments) {
   const std::size_t n = keys.size();
-  index_ = std::move(order);
-  xyz_.resize(3 * n);
-  // A gather in key order: random reads when the input is not spatially ordered, so each is
-  // requested well ahead of its use.
-  constexpr std::size_t kAhead = 32;
-  for (std::size_t s = 0; s < n; ++s) {
-    if (s + kAhead < n) prefetch(points_.data() + 3 * std::size_t(index_[s + kAhead]));
-    for (int a = 0; a < 3; ++a) xyz_[3 * s + a] = points_.coord(index_[s], a);
-  }
-
   // Children of a node are stored together, in key order, so the tree is one flat array. A node
   // is split at the digit its keys first differ at (the radix tree), when it holds too many
   // points (kLeafSize) or spans several blocks (moments are per block).
@@ -301,19 +291,36 @@ void Octree::build(const std::vector<K>& keys, std::vector<std::uint32_t>& order
     }
     nodes_[k] = node;
   }
+  // The keys are done with: freed before the copy of the coordinates is made, so that a cloud's
+  // build never holds both (8 B per point less at its peak; docs/performance.md, memory).
+  std::vector<K>().swap(keys);
+  index_ = std::move(order);
+  xyz_.resize(3 * n);
+  // A gather in key order: random reads when the input is not spatially ordered, so each is
+  // requested well ahead of its use.
+  constexpr std::size_t kAhead = 32;
+  for (std::size_t s = 0; s < n; ++s) {
+    if (s + kAhead < n) prefetch(points_.data() + 3 * std::size_t(index_[s + kAhead]));
+    for (int a = 0; a < 3; ++a) xyz_[3 * s + a] = points_.coord(index_[s], a);
+  }
   bound_nodes();
   if (!with_moments) return;
-  // The keys in slot order give each leaf's cells and their branchings (as cell_of would).
+  // Each leaf's cells and their branchings from its points' cells (cell_of, as a query's leaf
+  // computes them): the digit at which two cells first differ is that of their Morton keys.
   moments_.resize(nodes_.size());
   FoldStack stack;
   std::vector<std::uint32_t> slots;
-  const auto level = [&](std::uint32_t a, std::uint32_t b) { return differing_level(keys[a], keys[b]); };
+  std::vector<CellKey> cells;
   for (std::size_t k = nodes_.size(); k-- > 0;) {
     const Node& node = nodes_[k];
     if (!node.in_block) continue;
     if (node.first_child == 0) {
       slots.resize(node.end - node.begin);
       std::iota(slots.begin(), slots.end(), node.begin);
+      cells.resize(node.end - node.begin);
+      for (std::uint32_t s = node.begin; s < node.end; ++s) cells[s - node.begin] = cell_of(slot_xyz(s));
+      const CellKey* cell = cells.data() - node.begin;
+      const auto level = [cell](std::uint32_t a, std::uint32_t b) { return differing_level(cell[a], cell[b]); };
       moments_[k] = radix_fold(slots.data(), node.end - node.begin, level, block_corner(slot_xyz(node.begin)), stack);
     } else {
       for (std::uint32_t c = node.first_child; c < node.first_child + node.children; ++c)

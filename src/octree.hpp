@@ -124,9 +124,10 @@ class Octree {
   struct BallQuery;
 
   /// The tree over the points in key order: order[s] is the point of slot s, keys[s] its Morton
-  /// key. Nodes, their bounding boxes and, `with_moments`, their moments.
+  /// key. Nodes, their bounding boxes and, `with_moments`, their moments. The keys are freed
+  /// once the nodes are split, before the coordinates are copied (the build's peak).
   template <class K>
-  void build(const std::vector<K>& keys, std::vector<std::uint32_t>& order, bool with_moments);
+  void build(std::vector<K>&& keys, std::vector<std::uint32_t>& order, bool with_moments);
   void bound_nodes();
   /// The deepest node holding every point of the box [lo, hi], or kNoNode when none of its
   /// points lies in the box: a query starts there instead of at the root (octree.cpp).
