@@ -3,6 +3,7 @@
 #include "assert.hpp"
 #include "morton.hpp"
 #include "portable.hpp"
+#include "rows_in_place.hpp"
 
 #include <m3c2/errors.hpp>
 
@@ -222,8 +223,8 @@ Vec3 Octree::block_corner(const double* p) const {
   return corner;
 }
 
-Octree::Octree(PointsView points, OctreeGrid grid, bool with_moments, const char* name)
-    : points_(points), grid_(grid), inverse_cell_(1.0 / grid.cell) {
+Octree::Octree(PointsView points, OctreeGrid grid, bool with_moments, const char* name, bool order_in_place)
+    : points_(points), grid_(grid), inverse_cell_(1.0 / grid.cell), order_in_place_(order_in_place) {
   if (points.size() >= std::numeric_limits<std::uint32_t>::max())
     throw InvalidArgument("a cloud has " + std::to_string(points.size()) +
                           " points; one spatial index holds at most 4294967294: process the clouds in tiles "
@@ -294,15 +295,8 @@ void Octree::build(std::vector<K>&& keys, std::vector<std::uint32_t>& order, boo
   // The keys are done with: freed before the copy of the coordinates is made, so that a cloud's
   // build never holds both (8 B per point less at its peak; docs/performance.md, memory).
   std::vector<K>().swap(keys);
-  index_ = std::move(order);
-  xyz_.resize(3 * n);
-  // A gather in key order: random reads when the input is not spatially ordered, so each is
-  // requested well ahead of its use.
-  constexpr std::size_t kAhead = 32;
-  for (std::size_t s = 0; s < n; ++s) {
-    if (s + kAhead < n) prefetch(points_.data() + 3 * std::size_t(index_[s + kAhead]));
-    for (int a = 0; a < 3; ++a) xyz_[3 * s + a] = points_.coord(index_[s], a);
-  }
+  index_.original = std::move(order);
+  order_coordinates();
   bound_nodes();
   if (!with_moments) return;
   // Each leaf's cells and their branchings from its points' cells (cell_of, as a query's leaf
@@ -327,6 +321,50 @@ void Octree::build(std::vector<K>&& keys, std::vector<std::uint32_t>& order, boo
         merge_into(moments_[k], moments_[c]);
     }
   }
+}
+
+void Octree::order_coordinates() {
+  const std::vector<std::uint32_t>& index = index_.original;
+  const std::size_t n = index.size();
+  if (order_in_place_) {
+    // Row i goes to the slot s with index[s] = i: the inverse permutation, in the keys' memory.
+    std::vector<std::uint32_t> dest(n);
+    for (std::size_t s = 0; s < n; ++s) dest[index[s]] = std::uint32_t(s);
+    auto* own = const_cast<double*>(points_.data());  // the caller's own array (the constructor's contract)
+    move_rows_in_place(own, dest.data(), 0, n);
+    index_.reordered = own;
+    xyz_ = own;
+    return;
+  }
+  copy_.resize(3 * n);
+  // A gather in key order: random reads when the input is not spatially ordered, so each is
+  // requested well ahead of its use.
+  constexpr std::size_t kAhead = 32;
+  for (std::size_t s = 0; s < n; ++s) {
+    if (s + kAhead < n) prefetch(points_.data() + 3 * std::size_t(index[s + kAhead]));
+    for (int a = 0; a < 3; ++a) copy_[3 * s + a] = points_.coord(index[s], a);
+  }
+  xyz_ = copy_.data();
+}
+
+SlotIndex::SlotIndex(SlotIndex&& other) noexcept
+    : original(std::move(other.original)), reordered(std::exchange(other.reordered, nullptr)) {}
+
+SlotIndex& SlotIndex::operator=(SlotIndex&& other) noexcept {
+  if (this != &other) {
+    restore();
+    original = std::move(other.original);
+    reordered = std::exchange(other.reordered, nullptr);
+  }
+  return *this;
+}
+
+SlotIndex::~SlotIndex() { restore(); }
+
+void SlotIndex::restore() noexcept {
+  // Slot s's row goes back to row original[s] (which ends as the identity: the index is done).
+  if (reordered) move_rows_in_place(reordered, original.data(), 0, original.size());
+  reordered = nullptr;
 }
 
 void Octree::bound_nodes() {
@@ -492,8 +530,8 @@ Moments Octree::radix_fold(const std::uint32_t* slots, std::uint32_t n, Level&& 
     // A cell of one point (most cells of a survey sparser than ~64 points per cell face) is
     // two_pass_moments() of it without the loops: mean 0 + (p - origin) (the sum's first add,
     // kept for the sign of zero), co-moment zero, the same bits.
-    const Moments cell = cell_end - i == 1 ? one_point_moments(xyz_.data() + 3 * std::size_t(slots[i]), origin)
-                                           : two_pass_moments(xyz_.data(), slots + i, cell_end - i, origin);
+    const Moments cell = cell_end - i == 1 ? one_point_moments(xyz_ + 3 * std::size_t(slots[i]), origin)
+                                           : two_pass_moments(xyz_, slots + i, cell_end - i, origin);
     if (i > 0) {
       const int level = level_between(slots[i - 1], slots[i]);
       while (!stack.empty() && stack.back().first < level) {
@@ -608,7 +646,7 @@ struct Octree::BallQuery {
       // One grid cell: its radix fold is the cell's two-pass moments, no keys needed.
       for (std::size_t k = partial_begin; k < partial_end; ++k) {
         const std::uint32_t kept = gather_kept(node.begin, m, r2[k]);
-        out[k] = two_pass_moments(tree.xyz_.data(), s.slots.data(), kept, origin);
+        out[k] = two_pass_moments(tree.xyz_, s.slots.data(), kept, origin);
       }
       return;
     }
@@ -694,7 +732,7 @@ void Octree::cylinder(const Cylinder& cyl, std::vector<double>& t_out, DescentCa
         const double wx = vx - t * n.x(), wy = vy - t * n.y(), wz = vz - t * n.z();
         if (wx * wx + wy * wy + wz * wz <= r2) {
           t_out.push_back(t);
-          if (index_out) index_out->push_back(index_[slot]);
+          if (index_out) index_out->push_back(index_.original[slot]);
         }
       }
     } else {
