@@ -1,17 +1,19 @@
 """In-memory peak of an M3C2 run, phase by phase (docs/performance.md, "Memory, byte by byte").
 
-    python bench/memory_bench.py [--points 2e6] [--core 4e5] [--threads 2] [--mode api|cli] [--work DIR]
+    python bench/memory_bench.py [--points 2e6] [--core 4e5] [--threads 2] [--mode api|cli] [--reorder-inputs]
+        [--work DIR]
 
 W5mem's inputs at another size (validation/common.py's rough_pair, seed 5, W5's density: 10M
 points on 31.6 m x 31.6 m; D = 0.5, d = 0.2, L = 0.5, normals from the reference), generated
 once as ref.npy / cmp.npy / core.npy in --work, then run once in a fresh process:
 
 * --mode api: the arrays loaded with np.load and passed to m3c2kit.compare (what W5mem runs,
-  without the benchmark's phase re-runs). A thread samples the process's resident memory every
+  without the benchmark's phase re-runs; with --reorder-inputs, which the arrays it loaded allow,
+  the engine orders them in place instead of copying them). A thread samples the process's resident memory every
   2 ms, so that the peak is placed in a phase: before the first progress callback (the index
   builds and the result arrays' set-up), during the core points, or after (the Python Result).
 * --mode cli: `m3c2 compare ref.npy cmp.npy --core core.npy -o out.ply` (the command line reads
-  the files itself), its peak from the child's rusage.
+  the files itself and orders its own arrays in place), its peak from the child's rusage.
 
 Prints one JSON line: the peak (VmHWM) in MiB and in bytes per input point, and for --mode api
 the resident memory at each step (after the imports, after loading the inputs, at the end of
@@ -63,7 +65,7 @@ def hwm() -> int:
         return next(int(line.split()[1]) * 1024 for line in f if line.startswith("VmHWM:"))
 
 
-def child_api(work: Path, threads: int) -> dict:
+def child_api(work: Path, threads: int, reorder_inputs: bool) -> dict:
     import m3c2kit
 
     after_import = rss()
@@ -87,7 +89,8 @@ def child_api(work: Path, threads: int) -> dict:
     sampler = threading.Thread(target=sample, daemon=True)
     sampler.start()
     t0 = time.perf_counter()
-    result = m3c2kit.compare(ref, cmp, core, threads=threads, progress=progress, **PARAMS)
+    result = m3c2kit.compare(ref, cmp, core, threads=threads, progress=progress, reorder_inputs=reorder_inputs,
+                             **PARAMS)
     t_engine_end = time.perf_counter()
     stop.set()
     sampler.join()
@@ -98,7 +101,7 @@ def child_api(work: Path, threads: int) -> dict:
         return max((r for t, r in samples if a <= t < b), default=0)
 
     n = len(ref) + len(cmp)
-    return dict(points=n, core=len(core), threads=threads, peak_mib=round(peak / MIB, 1),
+    return dict(points=n, core=len(core), threads=threads, reorder_inputs=reorder_inputs, peak_mib=round(peak / MIB, 1),
                 peak_bytes_per_point=round(peak / n, 1),
                 after_import_mib=round(after_import / MIB, 1), after_load_mib=round(after_load / MIB, 1),
                 build_peak_mib=round(highest(t0, built) / MIB, 1),
@@ -133,11 +136,12 @@ def main() -> None:
     ap.add_argument("--core", type=float, default=4e5, help="core points")
     ap.add_argument("--threads", type=int, default=2)
     ap.add_argument("--mode", choices=("api", "cli"), default="api")
+    ap.add_argument("--reorder-inputs", action="store_true", help="--mode api: m3c2kit.compare(reorder_inputs=True)")
     ap.add_argument("--work", type=Path, help="folder of the inputs (kept; default: a temporary one)")
     ap.add_argument("--child", action="store_true", help=argparse.SUPPRESS)
     args = ap.parse_args()
     if args.child:
-        print(json.dumps(child_api(args.work, args.threads)))
+        print(json.dumps(child_api(args.work, args.threads, args.reorder_inputs)))
         return
     with tempfile.TemporaryDirectory() as tmp:
         work = args.work or Path(tmp)
@@ -148,7 +152,8 @@ def main() -> None:
             return
         # A fresh process: its peak is the run's alone, not the generator's.
         proc = subprocess.run([sys.executable, __file__, "--child", "--work", str(work), "--threads",
-                               str(args.threads)], capture_output=True, text=True)
+                               str(args.threads)] + (["--reorder-inputs"] if args.reorder_inputs else []),
+                              capture_output=True, text=True)
         if proc.returncode != 0:
             sys.exit(proc.stderr)
         print(proc.stdout.strip().splitlines()[-1])
