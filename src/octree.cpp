@@ -101,67 +101,50 @@ int differing_level(const CellKey& a, const CellKey& b) {
   return x ? 63 - std::countl_zero(x) : -1;
 }
 
-/// Sorts `keys` and `order` by key (stable: ties keep their order), LSD radix on the low `bits`
-/// bits: equal digits of at most 11 bits, every histogram from one pass over the keys, and a
-/// pass skipped where all keys have the same digit.
-template <class K>
-void radix_sort(std::vector<K>& keys, std::vector<std::uint32_t>& order, int bits) {
-  const int passes = (bits + 10) / 11;
-  if (passes == 0) return;
-  const int digit_bits = (bits + passes - 1) / passes;
-  const std::size_t buckets = std::size_t(1) << digit_bits, mask = buckets - 1;
-  std::vector<std::size_t> count(std::size_t(passes) * buckets, 0);
-  for (const K k : keys)
-    for (int p = 0; p < passes; ++p) ++count[p * buckets + (std::size_t(k >> (p * digit_bits)) & mask)];
-  std::vector<K> key_buffer(keys.size());
-  std::vector<std::uint32_t> order_buffer(order.size());
-  for (int p = 0; p < passes; ++p) {
-    std::size_t* c = &count[p * buckets];
-    if (*std::max_element(c, c + buckets) == keys.size()) continue;
-    std::size_t sum = 0;
-    for (std::size_t b = 0; b < buckets; ++b) sum += std::exchange(c[b], sum);  // bucket starts
-    const int shift = p * digit_bits;
-    for (std::size_t i = 0; i < keys.size(); ++i) {
-      const std::size_t slot = c[std::size_t(keys[i] >> shift) & mask]++;
-      key_buffer[slot] = keys[i];
-      order_buffer[slot] = order[i];
-    }
-    keys.swap(key_buffer);
-    order.swap(order_buffer);
-  }
+/// Whether key a sorts before key b.
+bool key_less(std::uint64_t a, std::uint64_t b) { return a < b; }
+bool key_less(Key a, Key b) {
+  return high64(a) != high64(b) ? high64(a) < high64(b) : std::uint64_t(a) < std::uint64_t(b);
 }
 
-/// Sorts keys[0, n) and order alike by key, ties by order, on the low `bits` bits (the others
-/// equal): from an ascending order, the stable order radix_sort gives, without its buffers
-/// (12 B per point less at the build's peak, docs/performance.md). An in-place MSD radix sort
-/// (American flag) on 11-bit digits from the top: each key swapped into its digit's bucket,
-/// each bucket sorted on the next digit; small ranges by insertion, and a range of one key
-/// (every digit used) by order alone.
-void sort_in_place(std::uint64_t* keys, std::uint32_t* order, std::size_t n, int bits) {
+/// Sorts keys[0, n) and order alike by key, ties by order: from an ascending order, the order a
+/// stable sort gives, without buffers (docs/performance.md, memory: a stable LSD radix sort of
+/// 126-bit keys with its second key and order arrays was the build's peak). An in-place MSD
+/// radix sort (American flag) on 11-bit digits from the highest bit that varies within the
+/// range (a cloud straddling a coordinate plane through the grid's origin varies in every bit
+/// above its cells, each side of it in a few only): each key swapped into its digit's bucket,
+/// then each bucket sorted alike; small ranges by insertion, a range of one key by order alone.
+template <class K>
+void sort_in_place(K* keys, std::uint32_t* order, std::size_t n) {
   if (n < 2) return;
+  const auto before = [&](std::size_t i, std::size_t j) {
+    return key_less(keys[i], keys[j]) || (keys[i] == keys[j] && order[i] < order[j]);
+  };
   if (n <= 32) {
     for (std::size_t i = 1; i < n; ++i)
-      for (std::size_t j = i; j > 0 && (keys[j] < keys[j - 1] || (keys[j] == keys[j - 1] && order[j] < order[j - 1]));
-           --j)
+      for (std::size_t j = i; j > 0 && before(j, j - 1); --j)
         std::swap(keys[j], keys[j - 1]), std::swap(order[j], order[j - 1]);
     return;
   }
-  if (bits <= 0) {  // equal keys
+  K diff = 0;
+  for (std::size_t i = 1; i < n; ++i) diff |= keys[i] ^ keys[0];
+  if (diff == K(0)) {  // one key
     std::sort(order, order + n);
     return;
   }
   constexpr int kDigitBits = 11;
-  const int shift = std::max(0, bits - kDigitBits);
+  const int bits = highest_bit(diff) + 1, shift = std::max(0, bits - kDigitBits);
   const std::uint64_t mask = (std::uint64_t(1) << (bits - shift)) - 1;
+  const auto digit = [&](std::size_t i) { return std::size_t(std::uint64_t(keys[i] >> shift) & mask); };
   std::array<std::size_t, (1u << kDigitBits) + 1> start{};
-  for (std::size_t i = 0; i < n; ++i) ++start[1 + ((keys[i] >> shift) & mask)];
+  for (std::size_t i = 0; i < n; ++i) ++start[1 + digit(i)];
   const std::size_t buckets = std::size_t(mask) + 1;
   for (std::size_t b = 0; b < buckets; ++b) start[b + 1] += start[b];
   std::array<std::size_t, 1u << kDigitBits> head;
   std::copy(start.begin(), start.begin() + buckets, head.begin());
   for (std::size_t b = 0; b < buckets; ++b)
     while (head[b] < start[b + 1]) {
-      const std::size_t i = head[b], d = std::size_t((keys[i] >> shift) & mask);
+      const std::size_t i = head[b], d = digit(i);
       if (d == b) {
         ++head[b];
       } else {
@@ -169,46 +152,7 @@ void sort_in_place(std::uint64_t* keys, std::uint32_t* order, std::size_t n, int
         std::swap(keys[i], keys[j]), std::swap(order[i], order[j]);
       }
     }
-  for (std::size_t b = 0; b < buckets; ++b)
-    sort_in_place(keys + start[b], order + start[b], start[b + 1] - start[b], shift);
-}
-
-/// Sorts keys[0, n) and order alike by key, stably. The bits that vary within the range decide:
-/// when they fit 64 bits, an LSD radix sort on them alone; otherwise a stable split by the
-/// highest varying digit, then the same for each part. (A cloud straddling a coordinate plane
-/// through the grid's origin varies in every bit above its cells, each side in a few only.)
-void sort_keys(Key* keys, std::uint32_t* order, std::size_t n) {
-  if (n < 2) return;
-  Key diff = 0;
-  for (std::size_t i = 1; i < n; ++i) diff |= keys[i] ^ keys[0];
-  if (diff == 0) return;
-  const int level = highest_bit(diff) / 3;
-  if (level <= 20) {
-    const int bits = 3 * (level + 1);
-    const std::uint64_t mask = (std::uint64_t(1) << bits) - 1;
-    std::vector<std::uint64_t> low(n);
-    std::vector<std::uint32_t> low_order(order, order + n);
-    for (std::size_t i = 0; i < n; ++i) low[i] = std::uint64_t(keys[i]) & mask;
-    radix_sort(low, low_order, bits);
-    const Key common = keys[0] & ~Key(mask);
-    for (std::size_t i = 0; i < n; ++i) keys[i] = common | low[i], order[i] = low_order[i];
-    return;
-  }
-  std::array<std::size_t, 9> start{};
-  for (std::size_t i = 0; i < n; ++i) ++start[1 + (std::size_t(keys[i] >> (3 * level)) & 7u)];
-  for (int d = 0; d < 8; ++d) start[d + 1] += start[d];
-  {
-    std::vector<Key> split_keys(n);
-    std::vector<std::uint32_t> split_order(n);
-    std::array<std::size_t, 9> next = start;
-    for (std::size_t i = 0; i < n; ++i) {
-      const std::size_t slot = next[std::size_t(keys[i] >> (3 * level)) & 7u]++;
-      split_keys[slot] = keys[i], split_order[slot] = order[i];
-    }
-    std::copy(split_keys.begin(), split_keys.end(), keys);
-    std::copy(split_order.begin(), split_order.end(), order);
-  }
-  for (int d = 0; d < 8; ++d) sort_keys(keys + start[d], order + start[d], start[d + 1] - start[d]);
+  for (std::size_t b = 0; b < buckets; ++b) sort_in_place(keys + start[b], order + start[b], start[b + 1] - start[b]);
 }
 
 }  // namespace
@@ -289,14 +233,14 @@ Octree::Octree(PointsView points, OctreeGrid grid, bool with_moments, const char
   std::vector<std::uint32_t> order(n);
   std::iota(order.begin(), order.end(), 0u);
   if (varying <= 21) {
-    sort_in_place(low.data(), order.data(), n, 3 * varying);
+    sort_in_place(low.data(), order.data(), n);
     build(std::move(low), order, with_moments);
     return;
   }
   low = {};
   std::vector<Key> keys(n);
   for (std::size_t i = 0; i < n; ++i) keys[i] = morton_key(cell_of(points_.data() + 3 * i));
-  sort_keys(keys.data(), order.data(), n);
+  sort_in_place(keys.data(), order.data(), n);
   build(std::move(keys), order, with_moments);
 }
 
@@ -306,7 +250,10 @@ void Octree::build(std::vector<K>&& keys, std::vector<std::uint32_t>& order, boo
   // Children of a node are stored together, in key order, so the tree is one flat array. A node
   // is split at the digit its keys first differ at (the radix tree), when it holds too many
   // points (kLeafSize) or spans several blocks (moments are per block).
-  nodes_.reserve(2 * (n / kLeafSize + 1));
+  // Reserved for 0.25 nodes per point, above what dense clouds take (W5: 0.158; the pages not
+  // reached stay unmapped): growing the array by doubling held the old and the new one at once,
+  // on both clouds, which was the in-place build's peak (docs/performance.md, memory).
+  nodes_.reserve(n / 4 + 64);
   nodes_.push_back({{}, {}, 0, std::uint32_t(n)});
   for (std::size_t k = 0; k < nodes_.size(); ++k) {
     Node node = nodes_[k];
