@@ -38,17 +38,52 @@ using detail::Scratch;
 /// which spin for a while after each parallel loop (W1: 11.6 against 7.9 ms in repeated runs).
 /// `alongside` (the caller's own set-up) runs after the index of the thread expected to finish
 /// first (an index with moments costs about 1.5 times one without, the order about half an index).
+/// Which clouds' indexes order their arrays in place (RunOptions::order_clouds_in_place) and
+/// whether the core points are then the reordered reference itself, run in its slot order.
+struct InPlace {
+  bool reference = false, compared = false;
+  bool core_in_slots = false;
+};
+
+bool overlap(PointsView a, PointsView b) {
+  if (a.empty() || b.empty()) return false;
+  const auto lo = [](PointsView v) { return reinterpret_cast<std::uintptr_t>(v.data()); };
+  const auto hi = [&](PointsView v) { return lo(v) + 3 * sizeof(double) * v.size(); };
+  return lo(a) < hi(b) && lo(b) < hi(a);
+}
+
+/// A cloud is ordered in place only where nothing reads it by input order during the run: not
+/// with normal subsampling (greedy in input order) nor an uncertainty model (per-point inputs,
+/// EP's moved copy), nor when it shares memory with the other cloud or with core points other
+/// than the whole reference (the default core points, which are then run in slot order).
+InPlace in_place_clouds(PointsView reference, PointsView compared, PointsView core_points, const Params& params,
+                        const RunOptions& run) {
+  InPlace p;
+  if (!run.order_clouds_in_place || params.normal_subsample_spacing > 0.0 || params.uncertainty != Uncertainty::kEq1 ||
+      overlap(reference, compared))
+    return p;
+  const bool core_is_reference = core_points.data() == reference.data() && core_points.size() == reference.size();
+  p.reference = core_is_reference || !overlap(core_points, reference);
+  p.compared = !overlap(core_points, compared);
+  p.core_in_slots = p.reference && core_is_reference;
+  return p;
+}
+
 std::pair<Octree, Octree> build_indexes(PointsView reference, PointsView compared, PointsView core_points,
                                         const Params& params, OctreeGrid grid, const RunOptions& run,
-                                        std::vector<std::uint32_t>& core_order,
+                                        const InPlace& in_place, std::vector<std::uint32_t>& core_order,
                                         const std::function<void()>& alongside) {
   const bool ref_moments = moments_needed(params, true), cmp_moments = moments_needed(params, false);
+  // Core points in the reference's slot order need no order of their own (and are being moved).
+  const auto order_core = [&] {
+    if (!in_place.core_in_slots) core_order = detail::morton_order(core_points);
+  };
   detail::OpenMpTeam team(std::min(2, detail::requested_threads(run)));
   if (team.size() < 2) {
-    core_order = detail::morton_order(core_points);
+    order_core();
     if (alongside) alongside();
-    return {index_of(reference, "reference cloud", grid, ref_moments),
-            index_of(compared, "compared cloud", grid, cmp_moments)};
+    Octree first = index_of(reference, "reference cloud", grid, ref_moments, in_place.reference);
+    return {std::move(first), index_of(compared, "compared cloud", grid, cmp_moments, in_place.compared)};
   }
   std::optional<Octree> first, second;
   std::exception_ptr failure[2];
@@ -63,10 +98,10 @@ std::pair<Octree, Octree> build_indexes(PointsView reference, PointsView compare
     if (part == 0) team.started();
     const bool alone = detail::team_size() < 2;
     try {
-      if (part == 0) first.emplace(index_of(reference, "reference cloud", grid, ref_moments));
+      if (part == 0) first.emplace(index_of(reference, "reference cloud", grid, ref_moments, in_place.reference));
       if (part == 1 || alone) {
-        second.emplace(index_of(compared, "compared cloud", grid, cmp_moments));
-        core_order = detail::morton_order(core_points);
+        second.emplace(index_of(compared, "compared cloud", grid, cmp_moments, in_place.compared));
+        order_core();
       }
       if ((part == lighter || alone) && alongside) alongside();
     } catch (...) {
@@ -82,13 +117,13 @@ class Pipeline {
  public:
   /// `alongside`: the caller's set-up, run while the indexes are built (build_indexes).
   Pipeline(PointsView reference, PointsView compared, PointsView core_points, const Params& params,
-           const std::vector<double>& core_normals, const RunOptions& run, const std::function<void()>& alongside,
-           const detail::UncertaintyModel* uncertainty = nullptr)
+           const std::vector<double>& core_normals, const RunOptions& run, const InPlace& in_place,
+           const std::function<void()>& alongside, const detail::UncertaintyModel* uncertainty = nullptr)
       : params_(params),
         uncertainty_(uncertainty),
         core_normals_(core_normals),
         grid_(grid_for(params.normal_diameters, params.projection_diameter)),
-        trees_(build_indexes(reference, compared, core_points, params, grid_, run, core_order_, alongside)),
+        trees_(build_indexes(reference, compared, core_points, params, grid_, run, in_place, core_order_, alongside)),
         reference_tree_(trees_.first),
         compared_tree_(trees_.second),
         z_(detail::z_critical(params.confidence)) {
@@ -99,8 +134,10 @@ class Pipeline {
       compared_normals_.emplace(compared, compared_tree_, params, grid_);
   }
 
-  /// The order in which to process the core points (Morton order).
+  /// The order in which to process the core points (Morton order); empty when they are the
+  /// reference ordered in place, processed in its slot order (reference_tree()).
   const std::vector<std::uint32_t>& core_order() const { return core_order_; }
+  const Octree& reference_tree() const { return reference_tree_; }
 
   void run(const Vec3& core, std::size_t i, Result& r, Scratch& s, detail::Pulse& pulse) const {
     const OrientedNormal n =
@@ -164,14 +201,22 @@ Result compute(PointsView reference, PointsView compared, PointsView core_points
       result.covariance2.assign(9 * core_points.size(), std::numeric_limits<double>::quiet_NaN());
     }
   };
+  const InPlace in_place = in_place_clouds(reference, compared, core_points, params, run);
   const Pipeline pipeline(reference, model ? model->compared_indexed() : compared, core_points, params, core_normals,
-                          run, set_up, model ? &*model : nullptr);
+                          run, in_place, set_up, model ? &*model : nullptr);
   const auto& order = pipeline.core_order();
-  // With two threads the team has just built the indexes: it is awake (build_indexes).
+  const Octree& slots = pipeline.reference_tree();
+  // With two threads the team has just built the indexes: it is awake (build_indexes). Core
+  // points that are the reference ordered in place: row k is the point original_index(k).
   detail::parallel_blocks<Scratch>(
       core_points.size(), run,
       [&](std::size_t begin, std::size_t end, Scratch& s, detail::Pulse& pulse) {
-        for (std::size_t k = begin; k < end; ++k) pipeline.run(core_points[order[k]], order[k], result, s, pulse);
+        for (std::size_t k = begin; k < end; ++k) {
+          if (in_place.core_in_slots)
+            pipeline.run(core_points[k], slots.original_index(k), result, s, pulse);
+          else
+            pipeline.run(core_points[order[k]], order[k], result, s, pulse);
+        }
       },
       64, detail::requested_threads(run) >= 2);
   return result;

@@ -47,9 +47,11 @@ inline bool moments_needed(const Params& params, bool reference) {
 /// The index of a cloud named `name` ("reference cloud"). Its one pass over the coordinates
 /// refuses those beyond the grid's range (NaN and Inf among them); only then is the cloud
 /// searched for non-finite ones, to name them first: "NAME has N non-finite coordinates".
-inline Octree index_of(PointsView cloud, const char* name, OctreeGrid grid, bool with_moments) {
+/// `order_in_place`: the index orders the cloud's own array (Octree).
+inline Octree index_of(PointsView cloud, const char* name, OctreeGrid grid, bool with_moments,
+                       bool order_in_place = false) {
   try {
-    return Octree(cloud, grid, with_moments, ("the " + std::string(name)).c_str());
+    return Octree(cloud, grid, with_moments, ("the " + std::string(name)).c_str(), order_in_place);
   } catch (const InvalidArgument&) {
     require_finite_points(name, cloud);
     throw;

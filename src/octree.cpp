@@ -3,6 +3,7 @@
 #include "assert.hpp"
 #include "morton.hpp"
 #include "portable.hpp"
+#include "rows_in_place.hpp"
 
 #include <m3c2/errors.hpp>
 
@@ -100,72 +101,58 @@ int differing_level(const CellKey& a, const CellKey& b) {
   return x ? 63 - std::countl_zero(x) : -1;
 }
 
-/// Sorts `keys` and `order` by key (stable: ties keep their order), LSD radix on the low `bits`
-/// bits: equal digits of at most 11 bits, every histogram from one pass over the keys, and a
-/// pass skipped where all keys have the same digit.
-template <class K>
-void radix_sort(std::vector<K>& keys, std::vector<std::uint32_t>& order, int bits) {
-  const int passes = (bits + 10) / 11;
-  if (passes == 0) return;
-  const int digit_bits = (bits + passes - 1) / passes;
-  const std::size_t buckets = std::size_t(1) << digit_bits, mask = buckets - 1;
-  std::vector<std::size_t> count(std::size_t(passes) * buckets, 0);
-  for (const K k : keys)
-    for (int p = 0; p < passes; ++p) ++count[p * buckets + (std::size_t(k >> (p * digit_bits)) & mask)];
-  std::vector<K> key_buffer(keys.size());
-  std::vector<std::uint32_t> order_buffer(order.size());
-  for (int p = 0; p < passes; ++p) {
-    std::size_t* c = &count[p * buckets];
-    if (*std::max_element(c, c + buckets) == keys.size()) continue;
-    std::size_t sum = 0;
-    for (std::size_t b = 0; b < buckets; ++b) sum += std::exchange(c[b], sum);  // bucket starts
-    const int shift = p * digit_bits;
-    for (std::size_t i = 0; i < keys.size(); ++i) {
-      const std::size_t slot = c[std::size_t(keys[i] >> shift) & mask]++;
-      key_buffer[slot] = keys[i];
-      order_buffer[slot] = order[i];
-    }
-    keys.swap(key_buffer);
-    order.swap(order_buffer);
-  }
+/// Whether key a sorts before key b.
+bool key_less(std::uint64_t a, std::uint64_t b) { return a < b; }
+bool key_less(Key a, Key b) {
+  return high64(a) != high64(b) ? high64(a) < high64(b) : std::uint64_t(a) < std::uint64_t(b);
 }
 
-/// Sorts keys[0, n) and order alike by key, stably. The bits that vary within the range decide:
-/// when they fit 64 bits, an LSD radix sort on them alone; otherwise a stable split by the
-/// highest varying digit, then the same for each part. (A cloud straddling a coordinate plane
-/// through the grid's origin varies in every bit above its cells, each side in a few only.)
-void sort_keys(Key* keys, std::uint32_t* order, std::size_t n) {
+/// Sorts keys[0, n) and order alike by key, ties by order: from an ascending order, the order a
+/// stable sort gives, without buffers (docs/performance.md, memory: a stable LSD radix sort of
+/// 126-bit keys with its second key and order arrays was the build's peak). An in-place MSD
+/// radix sort (American flag) on 11-bit digits from the highest bit that varies within the
+/// range (a cloud straddling a coordinate plane through the grid's origin varies in every bit
+/// above its cells, each side of it in a few only): each key swapped into its digit's bucket,
+/// then each bucket sorted alike; small ranges by insertion, a range of one key by order alone.
+template <class K>
+void sort_in_place(K* keys, std::uint32_t* order, std::size_t n) {
   if (n < 2) return;
-  Key diff = 0;
-  for (std::size_t i = 1; i < n; ++i) diff |= keys[i] ^ keys[0];
-  if (diff == 0) return;
-  const int level = highest_bit(diff) / 3;
-  if (level <= 20) {
-    const int bits = 3 * (level + 1);
-    const std::uint64_t mask = (std::uint64_t(1) << bits) - 1;
-    std::vector<std::uint64_t> low(n);
-    std::vector<std::uint32_t> low_order(order, order + n);
-    for (std::size_t i = 0; i < n; ++i) low[i] = std::uint64_t(keys[i]) & mask;
-    radix_sort(low, low_order, bits);
-    const Key common = keys[0] & ~Key(mask);
-    for (std::size_t i = 0; i < n; ++i) keys[i] = common | low[i], order[i] = low_order[i];
+  const auto before = [&](std::size_t i, std::size_t j) {
+    return key_less(keys[i], keys[j]) || (keys[i] == keys[j] && order[i] < order[j]);
+  };
+  if (n <= 32) {
+    for (std::size_t i = 1; i < n; ++i)
+      for (std::size_t j = i; j > 0 && before(j, j - 1); --j)
+        std::swap(keys[j], keys[j - 1]), std::swap(order[j], order[j - 1]);
     return;
   }
-  std::array<std::size_t, 9> start{};
-  for (std::size_t i = 0; i < n; ++i) ++start[1 + (std::size_t(keys[i] >> (3 * level)) & 7u)];
-  for (int d = 0; d < 8; ++d) start[d + 1] += start[d];
-  {
-    std::vector<Key> split_keys(n);
-    std::vector<std::uint32_t> split_order(n);
-    std::array<std::size_t, 9> next = start;
-    for (std::size_t i = 0; i < n; ++i) {
-      const std::size_t slot = next[std::size_t(keys[i] >> (3 * level)) & 7u]++;
-      split_keys[slot] = keys[i], split_order[slot] = order[i];
-    }
-    std::copy(split_keys.begin(), split_keys.end(), keys);
-    std::copy(split_order.begin(), split_order.end(), order);
+  K diff = 0;
+  for (std::size_t i = 1; i < n; ++i) diff |= keys[i] ^ keys[0];
+  if (diff == K(0)) {  // one key
+    std::sort(order, order + n);
+    return;
   }
-  for (int d = 0; d < 8; ++d) sort_keys(keys + start[d], order + start[d], start[d + 1] - start[d]);
+  constexpr int kDigitBits = 11;
+  const int bits = highest_bit(diff) + 1, shift = std::max(0, bits - kDigitBits);
+  const std::uint64_t mask = (std::uint64_t(1) << (bits - shift)) - 1;
+  const auto digit = [&](std::size_t i) { return std::size_t(std::uint64_t(keys[i] >> shift) & mask); };
+  std::array<std::size_t, (1u << kDigitBits) + 1> start{};
+  for (std::size_t i = 0; i < n; ++i) ++start[1 + digit(i)];
+  const std::size_t buckets = std::size_t(mask) + 1;
+  for (std::size_t b = 0; b < buckets; ++b) start[b + 1] += start[b];
+  std::array<std::size_t, 1u << kDigitBits> head;
+  std::copy(start.begin(), start.begin() + buckets, head.begin());
+  for (std::size_t b = 0; b < buckets; ++b)
+    while (head[b] < start[b + 1]) {
+      const std::size_t i = head[b], d = digit(i);
+      if (d == b) {
+        ++head[b];
+      } else {
+        const std::size_t j = head[d]++;  // the key now at i is looked at again
+        std::swap(keys[i], keys[j]), std::swap(order[i], order[j]);
+      }
+    }
+  for (std::size_t b = 0; b < buckets; ++b) sort_in_place(keys + start[b], order + start[b], start[b + 1] - start[b]);
 }
 
 }  // namespace
@@ -222,8 +209,8 @@ Vec3 Octree::block_corner(const double* p) const {
   return corner;
 }
 
-Octree::Octree(PointsView points, OctreeGrid grid, bool with_moments, const char* name)
-    : points_(points), grid_(grid), inverse_cell_(1.0 / grid.cell) {
+Octree::Octree(PointsView points, OctreeGrid grid, bool with_moments, const char* name, bool order_in_place)
+    : points_(points), grid_(grid), inverse_cell_(1.0 / grid.cell), order_in_place_(order_in_place) {
   if (points.size() >= std::numeric_limits<std::uint32_t>::max())
     throw InvalidArgument("a cloud has " + std::to_string(points.size()) +
                           " points; one spatial index holds at most 4294967294: process the clouds in tiles "
@@ -246,34 +233,27 @@ Octree::Octree(PointsView points, OctreeGrid grid, bool with_moments, const char
   std::vector<std::uint32_t> order(n);
   std::iota(order.begin(), order.end(), 0u);
   if (varying <= 21) {
-    radix_sort(low, order, 3 * varying);
-    build(low, order, with_moments);
+    sort_in_place(low.data(), order.data(), n);
+    build(std::move(low), order, with_moments);
     return;
   }
   low = {};
   std::vector<Key> keys(n);
   for (std::size_t i = 0; i < n; ++i) keys[i] = morton_key(cell_of(points_.data() + 3 * i));
-  sort_keys(keys.data(), order.data(), n);
-  build(keys, order, with_moments);
+  sort_in_place(keys.data(), order.data(), n);
+  build(std::move(keys), order, with_moments);
 }
 
 template <class K>
-void Octree::build(const std::vector<K>& keys, std::vector<std::uint32_t>& order, bool with_moments) {
+void Octree::build(std::vector<K>&& keys, std::vector<std::uint32_t>& order, bool with_moments) {
   const std::size_t n = keys.size();
-  index_ = std::move(order);
-  xyz_.resize(3 * n);
-  // A gather in key order: random reads when the input is not spatially ordered, so each is
-  // requested well ahead of its use.
-  constexpr std::size_t kAhead = 32;
-  for (std::size_t s = 0; s < n; ++s) {
-    if (s + kAhead < n) prefetch(points_.data() + 3 * std::size_t(index_[s + kAhead]));
-    for (int a = 0; a < 3; ++a) xyz_[3 * s + a] = points_.coord(index_[s], a);
-  }
-
   // Children of a node are stored together, in key order, so the tree is one flat array. A node
   // is split at the digit its keys first differ at (the radix tree), when it holds too many
   // points (kLeafSize) or spans several blocks (moments are per block).
-  nodes_.reserve(2 * (n / kLeafSize + 1));
+  // Reserved for 0.25 nodes per point, above what dense clouds take (W5: 0.158; the pages not
+  // reached stay unmapped): growing the array by doubling held the old and the new one at once,
+  // on both clouds, which was the in-place build's peak (docs/performance.md, memory).
+  nodes_.reserve(n / 4 + 64);
   nodes_.push_back({{}, {}, 0, std::uint32_t(n)});
   for (std::size_t k = 0; k < nodes_.size(); ++k) {
     Node node = nodes_[k];
@@ -301,25 +281,79 @@ void Octree::build(const std::vector<K>& keys, std::vector<std::uint32_t>& order
     }
     nodes_[k] = node;
   }
+  // The keys are done with: freed before the copy of the coordinates is made, so that a cloud's
+  // build never holds both (8 B per point less at its peak; docs/performance.md, memory).
+  std::vector<K>().swap(keys);
+  index_.original = std::move(order);
+  order_coordinates();
   bound_nodes();
   if (!with_moments) return;
-  // The keys in slot order give each leaf's cells and their branchings (as cell_of would).
+  // Each leaf's cells and their branchings from its points' cells (cell_of, as a query's leaf
+  // computes them): the digit at which two cells first differ is that of their Morton keys.
   moments_.resize(nodes_.size());
   FoldStack stack;
   std::vector<std::uint32_t> slots;
-  const auto level = [&](std::uint32_t a, std::uint32_t b) { return differing_level(keys[a], keys[b]); };
+  std::vector<CellKey> cells;
   for (std::size_t k = nodes_.size(); k-- > 0;) {
     const Node& node = nodes_[k];
     if (!node.in_block) continue;
     if (node.first_child == 0) {
       slots.resize(node.end - node.begin);
       std::iota(slots.begin(), slots.end(), node.begin);
+      cells.resize(node.end - node.begin);
+      for (std::uint32_t s = node.begin; s < node.end; ++s) cells[s - node.begin] = cell_of(slot_xyz(s));
+      const CellKey* cell = cells.data() - node.begin;
+      const auto level = [cell](std::uint32_t a, std::uint32_t b) { return differing_level(cell[a], cell[b]); };
       moments_[k] = radix_fold(slots.data(), node.end - node.begin, level, block_corner(slot_xyz(node.begin)), stack);
     } else {
       for (std::uint32_t c = node.first_child; c < node.first_child + node.children; ++c)
         merge_into(moments_[k], moments_[c]);
     }
   }
+}
+
+void Octree::order_coordinates() {
+  const std::vector<std::uint32_t>& index = index_.original;
+  const std::size_t n = index.size();
+  if (order_in_place_) {
+    // Row i goes to the slot s with index[s] = i: the inverse permutation, in the keys' memory.
+    std::vector<std::uint32_t> dest(n);
+    for (std::size_t s = 0; s < n; ++s) dest[index[s]] = std::uint32_t(s);
+    auto* own = const_cast<double*>(points_.data());  // the caller's own array (the constructor's contract)
+    move_rows_in_place(own, dest.data(), 0, n);
+    index_.reordered = own;
+    xyz_ = own;
+    return;
+  }
+  copy_.resize(3 * n);
+  // A gather in key order: random reads when the input is not spatially ordered, so each is
+  // requested well ahead of its use.
+  constexpr std::size_t kAhead = 32;
+  for (std::size_t s = 0; s < n; ++s) {
+    if (s + kAhead < n) prefetch(points_.data() + 3 * std::size_t(index[s + kAhead]));
+    for (int a = 0; a < 3; ++a) copy_[3 * s + a] = points_.coord(index[s], a);
+  }
+  xyz_ = copy_.data();
+}
+
+SlotIndex::SlotIndex(SlotIndex&& other) noexcept
+    : original(std::move(other.original)), reordered(std::exchange(other.reordered, nullptr)) {}
+
+SlotIndex& SlotIndex::operator=(SlotIndex&& other) noexcept {
+  if (this != &other) {
+    restore();
+    original = std::move(other.original);
+    reordered = std::exchange(other.reordered, nullptr);
+  }
+  return *this;
+}
+
+SlotIndex::~SlotIndex() { restore(); }
+
+void SlotIndex::restore() noexcept {
+  // Slot s's row goes back to row original[s] (which ends as the identity: the index is done).
+  if (reordered) move_rows_in_place(reordered, original.data(), 0, original.size());
+  reordered = nullptr;
 }
 
 void Octree::bound_nodes() {
@@ -501,8 +535,8 @@ Moments Octree::radix_fold(const std::uint32_t* slots, std::uint32_t n, Level&& 
     // A cell of one point (most cells of a survey sparser than ~64 points per cell face) is
     // two_pass_moments() of it without the loops: mean 0 + (p - origin) (the sum's first add,
     // kept for the sign of zero), co-moment zero, the same bits.
-    const Moments cell = cell_end - i == 1 ? one_point_moments(xyz_.data() + 3 * std::size_t(slots[i]), origin)
-                                           : two_pass_moments(xyz_.data(), slots + i, cell_end - i, origin);
+    const Moments cell = cell_end - i == 1 ? one_point_moments(xyz_ + 3 * std::size_t(slots[i]), origin)
+                                           : two_pass_moments(xyz_, slots + i, cell_end - i, origin);
     if (i > 0) {
       const int level = level_between(slots[i - 1], slots[i]);
       while (!stack.empty() && stack.back().first < level) {
@@ -617,7 +651,7 @@ struct Octree::BallQuery {
       // One grid cell: its radix fold is the cell's two-pass moments, no keys needed.
       for (std::size_t k = partial_begin; k < partial_end; ++k) {
         const std::uint32_t kept = gather_kept(node.begin, m, r2[k]);
-        out[k] = two_pass_moments(tree.xyz_.data(), s.slots.data(), kept, origin);
+        out[k] = two_pass_moments(tree.xyz_, s.slots.data(), kept, origin);
       }
       return;
     }
@@ -703,7 +737,7 @@ void Octree::cylinder(const Cylinder& cyl, std::vector<double>& t_out, DescentCa
         const double wx = vx - t * n.x(), wy = vy - t * n.y(), wz = vz - t * n.z();
         if (wx * wx + wy * wy + wz * wz <= r2) {
           t_out.push_back(t);
-          if (index_out) index_out->push_back(index_[slot]);
+          if (index_out) index_out->push_back(index_.original[slot]);
         }
       }
     } else {

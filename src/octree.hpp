@@ -83,13 +83,37 @@ struct OctreeScratch {
   FoldStack fold;
 };
 
+/// The original index of each slot of an index and, when the index ordered its cloud's own
+/// array in place (Octree's `order_in_place`), that array: put back in its original order when
+/// this is destroyed, which a failed build does too.
+class SlotIndex {
+ public:
+  SlotIndex() = default;
+  SlotIndex(SlotIndex&& other) noexcept;
+  SlotIndex& operator=(SlotIndex&& other) noexcept;
+  ~SlotIndex();
+
+  std::vector<std::uint32_t> original;  // original index of each slot
+  double* reordered = nullptr;          // the cloud's array, in slot order while this lives
+
+ private:
+  void restore() noexcept;
+};
+
 class Octree {
  public:
   /// Indexes `points` (kept by reference); `with_moments` adds the node moments of normals.
   /// Throws InvalidArgument naming `name` when a coordinate is beyond the grid's range.
-  Octree(PointsView points, OctreeGrid grid, bool with_moments, const char* name = "a cloud");
+  /// `order_in_place`: the index orders the array of `points` itself in key order instead of
+  /// copying it (24 B per point less) and puts it back when destroyed; while it lives, row s of
+  /// that array is the point of original index original_index(s). Only for an array the caller
+  /// owns and nothing else reads meanwhile. The results are the same bits either way.
+  Octree(PointsView points, OctreeGrid grid, bool with_moments, const char* name = "a cloud",
+         bool order_in_place = false);
 
   PointsView points() const { return points_; }
+  std::size_t size() const { return index_.original.size(); }
+  std::uint32_t original_index(std::size_t slot) const { return index_.original[slot]; }
 
   /// Replaces `t_out` with the axial offsets t of the points inside `cylinder` (the inclusive
   /// test of cylinder.hpp), in key order: the same order in any tile.
@@ -112,7 +136,7 @@ class Octree {
   void ball_runs(const Vec3& centre, double radius, std::vector<std::array<std::uint32_t, 2>>& runs,
                  DescentCache* cache = nullptr) const;
   /// The coordinates of a slot; a run's slots are contiguous (x, y, z, x, ...).
-  const double* slot_xyz(std::uint32_t slot) const { return xyz_.data() + 3 * std::size_t(slot); }
+  const double* slot_xyz(std::uint32_t slot) const { return xyz_ + 3 * std::size_t(slot); }
 
   /// Moments, about any origin, of the points within each radius of `radii_ascending` of
   /// `centre` (squared_distance <= r^2), written to out[k]. Requires with_moments.
@@ -132,9 +156,13 @@ class Octree {
   struct BallQuery;
 
   /// The tree over the points in key order: order[s] is the point of slot s, keys[s] its Morton
-  /// key. Nodes, their bounding boxes and, `with_moments`, their moments.
+  /// key. Nodes, their bounding boxes and, `with_moments`, their moments. The keys are freed
+  /// once the nodes are split, before the coordinates are copied (the build's peak).
   template <class K>
-  void build(const std::vector<K>& keys, std::vector<std::uint32_t>& order, bool with_moments);
+  void build(std::vector<K>&& keys, std::vector<std::uint32_t>& order, bool with_moments);
+  /// The coordinates in key order (slot s: the point index_.original[s]): copied, or the cloud's
+  /// own array ordered in place.
+  void order_coordinates();
   void bound_nodes();
   /// The deepest node holding every point of the box [lo, hi], or kNoNode when none of its
   /// points lies in the box: a query starts there instead of at the root (octree.cpp).
@@ -156,8 +184,10 @@ class Octree {
   PointsView points_;
   OctreeGrid grid_;
   double inverse_cell_;
-  std::vector<double> xyz_;           // 3 per slot, in key order
-  std::vector<std::uint32_t> index_;  // original index of each slot
+  bool order_in_place_;
+  std::vector<double> copy_;     // the coordinates in key order, unless ordered in place
+  const double* xyz_ = nullptr;  // 3 per slot, in key order: copy_ or the cloud's own array
+  SlotIndex index_;
   std::vector<Node> nodes_;
   std::vector<Moments> moments_;  // per node, about its block's corner (in-block nodes only)
 };

@@ -18,6 +18,13 @@ struct RunOptions {
   /// create more (RLIMIT_NPROC, a cgroup's pids.max): src/threads.hpp.
   int threads = 0;
   ProgressCallback progress;
+  /// compute() may order the reference's and the compared cloud's arrays in place (their rows
+  /// in its index's key order) instead of copying them, 24 B per point less, and puts every row
+  /// back before it returns or throws: for arrays the caller owns, writeable, that nothing else
+  /// reads during the call. The results are the same bits. A cloud read by input order during
+  /// the run (normal subsampling, the uncertainty models' inputs) or sharing memory with the
+  /// other cloud or with core points other than the reference itself is copied anyway.
+  bool order_clouds_in_place = false;
 };
 
 }  // namespace m3c2

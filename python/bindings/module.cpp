@@ -289,7 +289,7 @@ NB_MODULE(_core, m) {
          std::optional<Points> precision2, std::optional<Ids> scan_position1, std::optional<Ids> scan_position2,
          std::optional<Table> scan_positions1, std::optional<Table> scan_positions2, std::optional<Flat> transform,
          std::optional<Flat> alignment_covariance, std::optional<Flat> reduction_point, bool transform_applied,
-         bool covariances) {
+         bool covariances, bool order_in_place) {
         std::vector<double> normals;
         if (core_normals) normals.assign(core_normals->data(), core_normals->data() + 3 * core_normals->shape(0));
         // Per-point uncertainty inputs (include/m3c2/uncertainty.hpp), viewed, not copied.
@@ -305,14 +305,19 @@ NB_MODULE(_core, m) {
         u.transform_applied = transform_applied;
         u.covariances = covariances;
         return result_dict(run_engine(std::move(progress), threads, [&](const m3c2::RunOptions& run) {
-          return m3c2::compute(view(reference), view(compared), view(core), params, run, normals, u);
+          // order_in_place: the caller vouches that both arrays are its own and writeable
+          // (m3c2kit.run.in_memory decides; RunOptions::order_clouds_in_place).
+          m3c2::RunOptions with_order = run;
+          with_order.order_clouds_in_place = order_in_place;
+          return m3c2::compute(view(reference), view(compared), view(core), params, with_order, normals, u);
         }));
       },
       "reference"_a, "compared"_a, "core_points"_a, "params"_a, "core_normals"_a = nb::none(), "threads"_a = 0,
       "progress"_a = nb::none(), "precision1"_a = nb::none(), "precision2"_a = nb::none(),
       "scan_position1"_a = nb::none(), "scan_position2"_a = nb::none(), "scan_positions1"_a = nb::none(),
       "scan_positions2"_a = nb::none(), "transform"_a = nb::none(), "alignment_covariance"_a = nb::none(),
-      "reduction_point"_a = nb::none(), "transform_applied"_a = false, "covariances"_a = false);
+      "reduction_point"_a = nb::none(), "transform_applied"_a = false, "covariances"_a = false,
+      "order_in_place"_a = false);
 
   m.def(
       "compute_normals",

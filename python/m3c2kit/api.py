@@ -31,7 +31,8 @@ _COMPARE_INPUTS = ("core_points", "core", "core_normals", "progress", "read_poin
 
 
 def compare(reference, compared, core_points=None, *, core=None, core_normals=None,
-            progress: Callable[[int, int], object] | None = None, read_points=None, **params) -> Result:
+            progress: Callable[[int, int], object] | None = None, read_points=None, reorder_inputs: bool = False,
+            **params) -> Result:
     """M3C2 distance, level of detection and significance at each core point, with the run's
     data-quality warnings (m3c2kit.diagnostics) emitted as M3C2Warning.
 
@@ -42,9 +43,17 @@ def compare(reference, compared, core_points=None, *, core=None, core_normals=No
     (m3c2kit.settings.table, docs/cli.md), with the command line's names; an unknown one is a
     UsageError naming the closest valid one. The run is m3c2kit.run's plan executed in memory
     (m3c2kit.run.run_tiled executes the same plan in tiles, with the same bits).
+
+    reorder_inputs: True lets the engine order the two clouds' coordinate arrays in place during
+    the call instead of copying them (24 bytes per point less at the peak; about 0.1 s per
+    million points more); every row is back in its place when the call returns or raises. Only
+    for arrays nothing else reads during the call; read-only arrays, and runs that read a cloud
+    in input order (normal subsampling, uncertainty pm / ep), are copied as without it. The
+    results are the same bits. The command line passes it for the clouds it read.
     """
     result, values, given = _compare(reference, compared, core_points, core=core, core_normals=core_normals,
-                                     progress=progress, read_points=read_points, **params)
+                                     progress=progress, read_points=read_points, reorder_inputs=reorder_inputs,
+                                     **params)
     diagnostics.warn(result, values, *(as_points(n, c) for n, c in zip(("reference", "compared"), given)))
     return result
 

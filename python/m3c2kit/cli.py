@@ -308,8 +308,10 @@ def run_compare(args) -> int:
     # The engine indexes both clouds, fits the normals and measures the distances in one call,
     # reporting core points done: one bar for the three.
     with phases.phase("indexing, normals, distances") as step:
+        # The clouds' arrays are the command line's own (read above): ordered in place, not copied.
         result = api.compare(reference, compared, core_cloud, core_normals=core_normals, threads=threads,
-                             progress=step, read_points=lambda p: _read(p, args).xyz, **settings)
+                             progress=step, read_points=lambda p: _read(p, args).xyz, reorder_inputs=True,
+                             **settings)
     outputs = CompareOutputs(table=args.output, report=args.report, report_png=args.report_png,
                              projected=args.projected, position=position, field_names=field_names,
                              float64=float64, all_fields=all_fields, core_spacing=settings.get("core_spacing"),

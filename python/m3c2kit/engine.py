@@ -91,13 +91,18 @@ def default_fields() -> dict:
 
 def compute(reference: np.ndarray, compared: np.ndarray, core: np.ndarray, params: _core.Params,
             core_normals: np.ndarray | None = None, *, threads: int = 0,
-            progress: Callable[[int, int], object] | None = None, **uncertainty_inputs) -> dict:
+            progress: Callable[[int, int], object] | None = None, order_in_place: bool = False,
+            **uncertainty_inputs) -> dict:
     """M3C2 at each core point: a dict of RESULT_FIELDS arrays (and OPTIONAL_RESULT_FIELDS ones).
-    `uncertainty_inputs`: the per-point inputs of params.uncertainty (m3c2kit.uncertainty_inputs)."""
+    `uncertainty_inputs`: the per-point inputs of params.uncertainty (m3c2kit.uncertainty_inputs).
+    `order_in_place`: the engine may order the two clouds' arrays in place instead of copying
+    them, every row back before it returns (RunOptions::order_clouds_in_place); taken only where
+    both are writeable."""
     progress = _with_fault_checkpoint(progress)
+    order_in_place = bool(order_in_place) and all(np.asarray(a).flags.writeable for a in (reference, compared))
     with translated():
         return _core.compute(reference, compared, core, params, core_normals, threads=threads, progress=progress,
-                             **uncertainty_inputs)
+                             order_in_place=order_in_place, **uncertainty_inputs)
 
 
 def _with_fault_checkpoint(progress):

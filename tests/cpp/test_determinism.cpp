@@ -139,5 +139,76 @@ TEST(Progress, CancellingNormalsThrowsCancelled) {
   EXPECT_THROW(compute_normals(pr.reference.view(), pr.cores.view(), rough_params(), run), Cancelled);
 }
 
+// RunOptions::order_clouds_in_place: the indexes order the clouds' own arrays instead of copying
+// them; the results are the same bits, and every row is back in place when compute() returns.
+TEST(InPlace, SameBitsAsCopiedAndEveryRowBackFor1And2Threads) {
+  const Pair pr = rough_pair(21);
+  const Params p = rough_params();
+  for (int threads : {1, 2}) {
+    Pair own = pr;
+    RunOptions run = with_threads(threads);
+    run.order_clouds_in_place = true;
+    bool reordered = false;  // non-vacuity: during the run, the arrays are in key order
+    run.progress = [&](std::size_t, std::size_t) {
+      reordered = reordered || (own.reference.xyz != pr.reference.xyz && own.compared.xyz != pr.compared.xyz);
+      return true;
+    };
+    const Result copied = compute(pr.reference.view(), pr.compared.view(), pr.cores.view(), p, with_threads(threads));
+    const Result ordered = compute(own.reference.view(), own.compared.view(), own.cores.view(), p, run);
+    EXPECT_TRUE(reordered) << threads << " threads";
+    EXPECT_TRUE(SameBits(copied, ordered)) << threads << " threads";
+    EXPECT_TRUE(BitIdentical(own.reference.xyz, pr.reference.xyz)) << threads << " threads";
+    EXPECT_TRUE(BitIdentical(own.compared.xyz, pr.compared.xyz)) << threads << " threads";
+  }
+}
+
+TEST(InPlace, CorePointsThatAreTheReferenceItselfGiveTheSameBits) {
+  const Pair pr = rough_pair(22, 3000);
+  Params p = rough_params();
+  p.lod = Lod::kZ;
+  for (int threads : {1, 2}) {
+    Pair own = pr;
+    RunOptions run = with_threads(threads);
+    run.order_clouds_in_place = true;
+    const Result copied =
+        compute(pr.reference.view(), pr.compared.view(), pr.reference.view(), p, with_threads(threads));
+    bool reordered = false;
+    run.progress = [&](std::size_t, std::size_t) {
+      return reordered = reordered || own.reference.xyz != pr.reference.xyz, true;
+    };
+    const Result ordered = compute(own.reference.view(), own.compared.view(), own.reference.view(), p, run);
+    EXPECT_TRUE(reordered) << threads << " threads";
+    EXPECT_TRUE(SameBits(copied, ordered)) << threads << " threads";
+    EXPECT_TRUE(BitIdentical(own.reference.xyz, pr.reference.xyz)) << threads << " threads";
+  }
+}
+
+TEST(InPlace, CancelledRunPutsEveryRowBack) {
+  Pair own = rough_pair(23);
+  const Pair pr = own;
+  Params p = rough_params();
+  p.lod = Lod::kZ;
+  RunOptions run;
+  run.threads = 2;
+  run.order_clouds_in_place = true;
+  run.progress = [](std::size_t, std::size_t) { return false; };
+  EXPECT_THROW(compute(own.reference.view(), own.compared.view(), own.cores.view(), p, run), Cancelled);
+  EXPECT_TRUE(BitIdentical(own.reference.xyz, pr.reference.xyz));
+  EXPECT_TRUE(BitIdentical(own.compared.xyz, pr.compared.xyz));
+}
+
+TEST(InPlace, OneArrayForBothCloudsIsCopied) {
+  const Pair pr = rough_pair(24, 3000);
+  Params p = rough_params();
+  p.lod = Lod::kZ;
+  Pair own = pr;
+  RunOptions run = with_threads(2);
+  run.order_clouds_in_place = true;
+  const Result copied = compute(pr.reference.view(), pr.reference.view(), pr.cores.view(), p, with_threads(2));
+  const Result ordered = compute(own.reference.view(), own.reference.view(), own.cores.view(), p, run);
+  EXPECT_TRUE(SameBits(copied, ordered));
+  EXPECT_TRUE(BitIdentical(own.reference.xyz, pr.reference.xyz));
+}
+
 }  // namespace
 }  // namespace m3c2::test

@@ -215,5 +215,30 @@ TEST(Octree, GridIsAPowerOfTwoFromTheScalesAlone) {
   EXPECT_LT(std::ldexp(g.cell, g.block_level - 1), 1024 * 2.5);
 }
 
+// Octree's order_in_place: while the index lives, row s of the cloud's array is the point of
+// original index original_index(s); destroyed, it leaves the array as it found it.
+TEST(Octree, OrderedInPlaceHoldsTheSlotsRowsAndPutsThemBack) {
+  std::mt19937_64 rng(31);
+  std::uniform_real_distribution<double> u(-5.0, 5.0);
+  std::vector<double> original(3 * 5000);
+  for (double& x : original) x = u(rng);
+  std::vector<double> own = original;
+  const OctreeGrid grid = detail::octree_grid(0.2, 0.4);
+  {
+    const Octree copied(PointsView(original.data(), 5000), grid, true);
+    const Octree ordered(PointsView(own.data(), 5000), grid, true, "a cloud", true);
+    ASSERT_EQ(ordered.size(), 5000u);
+    bool moved = false;
+    for (std::size_t s = 0; s < 5000; ++s) {
+      const std::uint32_t i = ordered.original_index(s);
+      ASSERT_EQ(i, copied.original_index(s));
+      ASSERT_EQ(std::memcmp(&own[3 * s], &original[3 * i], 3 * sizeof(double)), 0) << "slot " << s;
+      moved |= i != s;
+    }
+    EXPECT_TRUE(moved);  // non-vacuity: the key order is not the input order
+  }
+  EXPECT_EQ(std::memcmp(own.data(), original.data(), own.size() * sizeof(double)), 0);
+}
+
 }  // namespace
 }  // namespace m3c2::test

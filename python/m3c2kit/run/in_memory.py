@@ -18,9 +18,11 @@ from .. import engine
 
 
 def compare(reference, compared, core_points=None, *, core_normals=None,
-            progress: Callable[[int, int], object] | None = None, read_points=None, **params):
+            progress: Callable[[int, int], object] | None = None, read_points=None, reorder_inputs: bool = False,
+            **params):
     """M3C2 in memory; returns (Result, resolved values, (reference, compared) as given): the caller
-    emits the data-quality warnings (diagnostics.warn, as m3c2kit.compare does), so that they name its caller's line."""
+    emits the data-quality warnings (diagnostics.warn, as m3c2kit.compare does), so that they name its caller's line.
+    `reorder_inputs`: the clouds' arrays are the caller's own (m3c2kit.compare)."""
     sensor = getattr(reference if core_points is None else core_points, "scan_positions", None)  # --orient sensor
     plan = make_plan(params, read_points, scan_positions=sensor)
     values = plan.values
@@ -52,7 +54,7 @@ def compare(reference, compared, core_points=None, *, core_normals=None,
     # Per-point inputs of --uncertainty pm / ep from the clouds' fields (docs/algorithm.md §6.5).
     per_point = uncertainty_inputs.inputs_for(values, reference, compared)
     raw = compute_arrays(ref, cmp_, core_xyz, plan.engine, normals, threads=values["threads"], progress=progress,
-                         per_point=per_point)
+                         per_point=per_point, order_in_place=reorder_inputs)
     result = Result.from_engine(core_xyz, raw, plan.record)
     return result, values, given
 

@@ -80,11 +80,13 @@ def worker_threads(threads: int) -> int:
 
 
 def compute_arrays(reference: np.ndarray, compared: np.ndarray, core: np.ndarray, params, normals=None, *,
-                   threads: int = 0, progress=None, per_point: dict | None = None, shared: dict | None = None) -> dict:
+                   threads: int = 0, progress=None, per_point: dict | None = None, shared: dict | None = None,
+                   order_in_place: bool = False) -> dict:
     """THE engine call of every run (in memory and each tile): M3C2 at `core` with the uncertainty
-    inputs (per-point arrays by engine keyword, and the shared ones)."""
+    inputs (per-point arrays by engine keyword, and the shared ones). `order_in_place`: the engine
+    may order the two clouds' arrays in place during the call (engine.compute)."""
     return engine.compute(reference, compared, core, params, normals, threads=threads, progress=progress,
-                          **(per_point or {}), **(shared or {}))
+                          order_in_place=order_in_place, **(per_point or {}), **(shared or {}))
 
 
 def compute_tile(task: TileTask, params, threads: int = 0) -> dict:
