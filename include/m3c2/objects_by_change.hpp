@@ -39,10 +39,10 @@ std::vector<std::uint32_t> change_points(const double* series, std::size_t epoch
 /// DTW distance (absolute differences, steps (1,0), (0,1), (1,1)) between a - norm_a and
 /// b - norm_b over the epochs where both are finite, divided by D_max = sum |a - dmax_origin|
 /// over the finite epochs of a, capped at 1 (Anders et al. 2021, eq. 3). NaN when no epoch is
-/// shared. O(n) memory. With `at_least` < 1 the computation may stop as soon as the result is
-/// known to be >= at_least (every warping path crosses each row of the cost matrix, so a row's
-/// minimum bounds the final cost) and then returns 1: exact for any comparison with a threshold
-/// <= at_least.
+/// shared. O(n) memory. The computation may stop as soon as the result is known to be >= at_least
+/// (a lower bound on the cost, src/dtw_bound.hpp, or a row's minimum plus the bound of the rows
+/// below it: every warping path crosses each row) and then returns 1: exact for any comparison
+/// with a threshold <= at_least, and the exact value with at_least = 1 (the result is capped).
 double normalised_dtw(const double* a, const double* b, std::size_t n, double norm_a, double norm_b, double dmax_origin,
                       double at_least = 1.0);
 

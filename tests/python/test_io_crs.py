@@ -74,6 +74,27 @@ def test_check_crs_rules():
         C.check_crs(_cloud(None, "degree", "a.las"), _cloud(None, "degree", "b.las"))
 
 
+def test_reference_extent_is_computed_once_and_only_when_needed(monkeypatch):
+    # `m3c2 series` checks one reference against every epoch: its extent (the sample points of a
+    # CRS conversion) is computed only when a conversion needs it, and once per reference.
+    calls = []
+    nanmin = np.nanmin
+    monkeypatch.setattr(np, "nanmin", lambda *a, **k: calls.append(1) or nanmin(*a, **k))
+    ref = Cloud(np.random.default_rng(0).random((50, 3)), crs=None, path="ref.las")
+    for _ in range(3):
+        C.check_crs(ref, _cloud(path="cmp.las"))  # no CRS on either: nothing to convert
+    assert calls == []
+
+    def unneeded():
+        raise AssertionError("the sample points were computed for two equal CRS texts")
+    assert C.same_crs(OGC_2994, OGC_2994, unneeded) is True
+    first = C._extent_corners(ref)
+    assert np.array_equal(C._extent_corners(ref), first) and len(calls) == 1
+    assert np.array_equal(first[0], ref.xyz[:, :2].min(axis=0)) and np.array_equal(first[3], ref.xyz[:, :2].max(axis=0))
+    other = Cloud(ref.xyz + 1.0, crs=None, path="other.las")
+    assert np.array_equal(C._extent_corners(other)[0], first[0] + 1.0) and len(calls) == 2
+
+
 def test_assign_crs(tmp_path):
     wkt = C.assign_crs("EPSG:32617")
     assert wkt.startswith("PROJCRS[") and C.same_crs(wkt, "EPSG:32617")

@@ -134,8 +134,9 @@ def same_crs(a: str | None, b: str | None, sample=None) -> bool | None:
     cannot be read (or pyproj is missing and the texts differ).
 
     The same: PROJ finds them equivalent (axis order ignored), or they share a datum and
-    converting `sample` points ((K, 2+) coordinates in `a`; default: a grid over either CRS's
-    area of use) from `a` to `b` moves none by more than :data:`SAME_CRS_TOLERANCE`."""
+    converting `sample` points ((K, 2+) coordinates in `a`, or a callable returning them, called
+    only if the conversion is needed; default: a grid over either CRS's area of use) from `a` to
+    `b` moves none by more than :data:`SAME_CRS_TOLERANCE`."""
     if not a or not b:
         return None
     if " ".join(a.split()) == " ".join(b.split()):
@@ -179,6 +180,8 @@ def _same_by_conversion(ca, cb, sample) -> bool:
     if _axis_unit(ha) != _axis_unit(hb):
         return False
     points = None
+    if callable(sample):
+        sample = sample()
     if sample is not None:
         points = np.asarray(sample, dtype=float).reshape(-1, np.shape(sample)[-1])[:, :2]
     else:
@@ -278,13 +281,29 @@ def _role(cloud, role: str) -> str:
     return f"{role} {path}" if path is not None else f"the {role} cloud"
 
 
+#: The last cloud's extent corners, by a weak reference to its coordinates: `m3c2 series` checks
+#: one reference against every epoch, and its extent was ~15 % of the time of adding an epoch.
+_LAST_CORNERS: list = [None, None]
+
+
 def _extent_corners(cloud):
+    """The corners of the cloud's horizontal extent; computed only when a CRS conversion needs
+    them (check_crs passes this as a callable) and once per cloud."""
+    import weakref
+
     import numpy as np
     xyz = getattr(cloud, "xyz", None)
     if xyz is None or len(xyz) == 0:
         return None
+    if _LAST_CORNERS[0] is not None and _LAST_CORNERS[0]() is xyz:
+        return _LAST_CORNERS[1]
     lo, hi = np.nanmin(xyz[:, :2], axis=0), np.nanmax(xyz[:, :2], axis=0)
-    return np.array([[lo[0], lo[1]], [hi[0], lo[1]], [lo[0], hi[1]], [hi[0], hi[1]]])
+    corners = np.array([[lo[0], lo[1]], [hi[0], lo[1]], [lo[0], hi[1]], [hi[0], hi[1]]])
+    try:
+        _LAST_CORNERS[:] = [weakref.ref(xyz), corners]
+    except TypeError:  # not an object a weak reference can point to: not cached
+        pass
+    return corners
 
 
 def check_crs(reference, compared, core=None, *, ignore: bool = False, allow_angular: bool = False) -> None:
@@ -313,7 +332,7 @@ def check_crs(reference, compared, core=None, *, ignore: bool = False, allow_ang
                 f"only one cloud has a CRS: {_role(has, has_role)} is in {crs_label(has.crs)}, "
                 f"{_role(lacks, lacks_role)} has none; give it one with --crs (e.g. --crs EPSG:<code>), "
                 f"or pass --ignore-crs if the coordinates are comparable")
-        same = same_crs(ref_crs, other_crs, _extent_corners(reference))
+        same = same_crs(ref_crs, other_crs, lambda: _extent_corners(reference))
         if same is None and ref_crs and other_crs and not _has_pyproj():
             raise CrsMismatch(f"{_role(reference, 'reference')} and {_role(other, role)} have CRS texts that differ, "
                               f"and telling whether they are the same CRS needs the crs extra (pyproj): pip install "
