@@ -24,10 +24,11 @@ namespace m3c2::detail {
 inline void dtw_row_bounds(const double* x, const double* y, std::size_t m, std::vector<double>& rest) {
   rest.assign(m + 1, 0.0);
   if (m == 0) return;
-  const auto [lo, hi] = std::minmax_element(y, y + m);
+  const auto range = std::minmax_element(y, y + m);
+  const double lo = *range.first, hi = *range.second;  // not a structured binding: clang 14 lambdas
   // lo - x and x - hi are the rounded subtractions of the cost matrix's |x_i - y_j| for the
   // extreme y_j, and rounding is monotone: never above min_j of the matrix's row i.
-  const auto outside = [&](double v) { return v < *lo ? *lo - v : v > *hi ? v - *hi : 0.0; };
+  const auto outside = [&](double v) { return v < lo ? lo - v : v > hi ? v - hi : 0.0; };
   rest[m - 1] = std::abs(x[m - 1] - y[m - 1]);
   if (m == 1) return;
   for (std::size_t i = m - 2; i >= 1; --i) rest[i] = rest[i + 1] + outside(x[i]);
