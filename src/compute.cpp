@@ -30,14 +30,6 @@ using detail::OctreeGrid;
 using detail::OrientedNormal;
 using detail::Scratch;
 
-/// Both clouds' indexes and the core points' processing order (morton_order), the compared
-/// index and the order on a second thread when the run has two: they are independent (the
-/// reference index, with its moments, takes about as long as the other two), and each is
-/// computed the same way whatever the thread. The second thread is one of the OpenMP team that
-/// then runs the core points: a thread of its own would compete with the team's idle threads,
-/// which spin for a while after each parallel loop (W1: 11.6 against 7.9 ms in repeated runs).
-/// `alongside` (the caller's own set-up) runs after the index of the thread expected to finish
-/// first (an index with moments costs about 1.5 times one without, the order about half an index).
 /// Which clouds' indexes order their arrays in place (RunOptions::order_clouds_in_place) and
 /// whether the core points are then the reordered reference itself, run in its slot order.
 struct InPlace {
@@ -45,6 +37,7 @@ struct InPlace {
   bool core_in_slots = false;
 };
 
+/// Whether two point arrays share any memory.
 bool overlap(PointsView a, PointsView b) {
   if (a.empty() || b.empty()) return false;
   const auto lo = [](PointsView v) { return reinterpret_cast<std::uintptr_t>(v.data()); };
@@ -69,6 +62,14 @@ InPlace in_place_clouds(PointsView reference, PointsView compared, PointsView co
   return p;
 }
 
+/// Both clouds' indexes and the core points' processing order (morton_order), the compared
+/// index and the order on a second thread when the run has two: they are independent (the
+/// reference index, with its moments, takes about as long as the other two), and each is
+/// computed the same way whatever the thread. The second thread is one of the OpenMP team that
+/// then runs the core points: a thread of its own would compete with the team's idle threads,
+/// which spin for a while after each parallel loop (W1: 11.6 against 7.9 ms in repeated runs).
+/// `alongside` (the caller's own set-up) runs after the index of the thread expected to finish
+/// first (an index with moments costs about 1.5 times one without, the order about half an index).
 std::pair<Octree, Octree> build_indexes(PointsView reference, PointsView compared, PointsView core_points,
                                         const Params& params, OctreeGrid grid, const RunOptions& run,
                                         const InPlace& in_place, std::vector<std::uint32_t>& core_order,
