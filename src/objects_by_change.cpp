@@ -11,6 +11,7 @@
 #include "threads.hpp"
 
 #include <algorithm>
+#include <atomic>
 #include <cmath>
 #include <limits>
 #include <map>
@@ -109,34 +110,77 @@ struct Grown {
   double threshold = 0.0;
 };
 
-/// The core points within the neighbourhood radius of each core point, ascending: one ball search
-/// per core point for the whole run (region growing searched the ball of each candidate at each
-/// threshold of each seed again: 12 % of 4D-OBC's time). Memory: 4 bytes per neighbour pair.
-struct Neighbours {
-  std::vector<std::uint64_t> offsets;
-  std::vector<std::uint32_t> cores;
-  const std::uint32_t* begin(std::uint32_t c) const { return cores.data() + offsets[c]; }
-  const std::uint32_t* end(std::uint32_t c) const { return cores.data() + offsets[c + 1]; }
-  std::size_t count(std::uint32_t c) const { return std::size_t(offsets[c + 1] - offsets[c]); }
-};
+/// The core points within the neighbourhood radius of each core point, ascending. Kept for the
+/// whole run when the table fits in ObjectsParams::neighbour_table_bytes (region growing searched
+/// the ball of each candidate at each threshold of each seed again: 12 % of 4D-OBC's time); the
+/// table grows with the radius squared (4 bytes per pair), so beyond the limit each ball is
+/// searched when it is needed, into the thread's buffer. Either way the same lists: the same objects.
+class Neighbours {
+ public:
+  struct List {
+    const std::uint32_t *first, *last;
+    const std::uint32_t* begin() const { return first; }
+    const std::uint32_t* end() const { return last; }
+    std::size_t size() const { return std::size_t(last - first); }
+  };
 
-Neighbours neighbours_of(const detail::KdTree& tree, double radius, const RunOptions& run) {
-  const PointsView core = tree.points();
-  const std::size_t n = core.size();
-  std::vector<std::vector<std::uint32_t>> lists(n);
-  detail::parallel_blocks<int>(n, run, [&](std::size_t begin, std::size_t end, int&) {
-    for (std::size_t c = begin; c < end; ++c) {
-      tree.ball(core[c], radius, lists[c]);
-      std::sort(lists[c].begin(), lists[c].end());
+  Neighbours(const detail::KdTree& tree, double radius, std::uint64_t table_bytes, const RunOptions& run)
+      : tree_(tree), radius_(radius) {
+    if (table_bytes == 0) return;
+    const std::size_t n = tree.points().size(), chunks = (n + kChunk - 1) / kChunk;
+    chunks_.resize(chunks);
+    std::atomic<std::uint64_t> pairs{0};
+    std::atomic<bool> over{false};
+    const std::uint64_t limit = table_bytes / sizeof(std::uint32_t);
+    detail::parallel_blocks<int>(
+        chunks, run,
+        [&](std::size_t begin, std::size_t end, int&) {
+          for (std::size_t k = begin; k < end && !over.load(std::memory_order_relaxed); ++k) {
+            Chunk& chunk = chunks_[k];
+            chunk.offsets.push_back(0);
+            for (std::size_t c = k * kChunk; c < std::min(n, (k + 1) * kChunk); ++c) {
+              const std::size_t before = chunk.cores.size();
+              tree_.ball(tree_.points()[c], radius_, chunk.cores);
+              std::sort(chunk.cores.begin() + std::ptrdiff_t(before), chunk.cores.end());
+              chunk.offsets.push_back(chunk.cores.size());
+              const std::uint64_t added = chunk.cores.size() - before;
+              if (pairs.fetch_add(added, std::memory_order_relaxed) + added > limit) {
+                over = true;
+                break;
+              }
+            }
+          }
+        },
+        1);
+    if (over) std::vector<Chunk>().swap(chunks_);
+  }
+
+  /// The neighbours of core point c; `buffer` (the thread's) holds them when there is no table.
+  List of(std::uint32_t c, std::vector<std::uint32_t>& buffer) const {
+    if (chunks_.empty()) {
+      buffer.clear();
+      tree_.ball(tree_.points()[c], radius_, buffer);
+      std::sort(buffer.begin(), buffer.end());
+      return {buffer.data(), buffer.data() + buffer.size()};
     }
-  });
-  Neighbours out;
-  out.offsets.resize(n + 1);
-  for (std::size_t c = 0; c < n; ++c) out.offsets[c + 1] = out.offsets[c] + lists[c].size();
-  out.cores.reserve(out.offsets[n]);
-  for (auto& l : lists) out.cores.insert(out.cores.end(), l.begin(), l.end()), std::vector<std::uint32_t>().swap(l);
-  return out;
-}
+    const Chunk& chunk = chunks_[c / kChunk];
+    const std::size_t i = c % kChunk;
+    return {chunk.cores.data() + chunk.offsets[i], chunk.cores.data() + chunk.offsets[i + 1]};
+  }
+
+  std::size_t rows() const { return tree_.points().size(); }
+
+ private:
+  // Chunks of core points, each filled by one thread: no copy of the table into one array.
+  static constexpr std::size_t kChunk = 4096;
+  struct Chunk {
+    std::vector<std::uint64_t> offsets;  // kChunk + 1 (fewer in the last chunk)
+    std::vector<std::uint32_t> cores;
+  };
+  const detail::KdTree& tree_;
+  double radius_;
+  std::vector<Chunk> chunks_;  // empty: each ball is searched when needed
+};
 
 /// Per-thread marks of the core points a growth has seen (a member or rejected): mark[c] ==
 /// generation, a new generation per growth instead of a hash set per growth.
@@ -151,6 +195,7 @@ struct Seen {
     mark[c] = generation;
     return seen;
   }
+  std::vector<std::uint32_t> ball;  // Neighbours::of's buffer
 };
 
 /// Region growing at one threshold (py4dgeo's fixed_threshold_region_growing): candidates in
@@ -162,7 +207,7 @@ Grown grow(const Seed& seed, double threshold, const Neighbours& adjacent, const
            Seen& seen) {
   Grown g;
   g.threshold = threshold;
-  seen.start(adjacent.offsets.size() - 1);
+  seen.start(adjacent.rows());
   std::multimap<double, std::uint32_t> candidates{{0.0, seed.core}};
   std::set<double, std::greater<double>> used{0.0};
   g.members.emplace_back(seed.core, 0.0);
@@ -171,8 +216,7 @@ Grown grow(const Seed& seed, double threshold, const Neighbours& adjacent, const
   while (!candidates.empty()) {
     const std::uint32_t candidate = candidates.begin()->second;
     candidates.erase(candidates.begin());
-    for (const std::uint32_t* it = adjacent.begin(candidate); it != adjacent.end(candidate); ++it) {
-      const std::uint32_t nb = *it;
+    for (const std::uint32_t nb : adjacent.of(candidate, seen.ball)) {
       if (seen.test_and_set(nb)) continue;
       const double d = dtw(nb);
       if (d < threshold) {
@@ -225,11 +269,13 @@ ObjectsResult objects_by_change(const double* distances, std::size_t rows, std::
   auto& seeds = result.seeds;
   RunOptions quiet = run;
   quiet.progress = nullptr;
-  const Neighbours adjacent = neighbours_of(tree, p.neighbourhood_radius, quiet);
-  detail::parallel_blocks<int>(seeds.size(), run, [&](std::size_t begin, std::size_t end, int&) {
+  const Neighbours adjacent(tree, p.neighbourhood_radius, p.neighbour_table_bytes, quiet);
+  using Buffer = std::vector<std::uint32_t>;
+  detail::parallel_blocks<Buffer>(seeds.size(), run, [&](std::size_t begin, std::size_t end, Buffer& buffer) {
     for (std::size_t k = begin; k < end; ++k) {
       Seed& s = seeds[k];
-      if (adjacent.count(s.core) < 2) {
+      const Neighbours::List around = adjacent.of(s.core, buffer);
+      if (around.size() < 2) {
         s.score = 9999999.0;
         continue;
       }
@@ -237,11 +283,11 @@ ObjectsResult objects_by_change(const double* distances, std::size_t rows, std::
       const double* a = row(s.core) + s.start;
       const double origin = p.whole_series ? 0.0 : a[0];
       double sum = 0.0;
-      for (const std::uint32_t* nb = adjacent.begin(s.core); nb != adjacent.end(s.core); ++nb) {
-        const double* b = row(*nb) + s.start;
+      for (const std::uint32_t nb : around) {
+        const double* b = row(nb) + s.start;
         sum += normalised_dtw(a, b, len, origin, p.whole_series ? 0.0 : b[0], origin);
       }
-      s.score = sum / double(adjacent.count(s.core) - 1);
+      s.score = sum / double(around.size() - 1);
     }
   });
   std::stable_sort(seeds.begin(), seeds.end(), [](const Seed& a, const Seed& b) { return a.score < b.score; });

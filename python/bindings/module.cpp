@@ -500,7 +500,8 @@ NB_MODULE(_core, m) {
       .def_rw("min_segments", &m3c2::ObjectsParams::min_segments)
       .def_rw("max_segments", &m3c2::ObjectsParams::max_segments)
       .def_rw("max_cv", &m3c2::ObjectsParams::max_cv)
-      .def_rw("whole_series", &m3c2::ObjectsParams::whole_series);
+      .def_rw("whole_series", &m3c2::ObjectsParams::whole_series)
+      .def_rw("neighbour_table_bytes", &m3c2::ObjectsParams::neighbour_table_bytes);
 
   m.def(
       "temporal_median",

@@ -286,6 +286,32 @@ def test_objects_beyond_the_memory_limit_run_on_a_mapped_file_with_the_same_resu
     assert f"change points at epochs {', '.join(map(str, cps)) or 'none'}" in printed
 
 
+def test_objects_without_the_neighbour_table_are_the_same(synthetic):
+    """4D-OBC keeps every core point's neighbours in a table only while it fits in
+    neighbour_table_bytes (it grows with the radius squared); beyond, each neighbourhood is
+    searched when needed. No table, and a table abandoned part-built, give the same objects."""
+    from m3c2kit.series import analysis
+    s, store = synthetic
+    values, _ = analysis.distances_for_analysis(store)
+    group = xr.open_zarr(store)
+    core = np.column_stack([group.x.values, group.y.values, group.z.values])
+
+    def run(table_bytes):
+        p = engine.objects_params()
+        if table_bytes is not None:
+            p.neighbour_table_bytes = table_bytes
+        return engine.objects_by_change(values, core, p, threads=2)
+
+    def key(out):
+        return {k: np.asarray(v).tobytes() for k, v in out.items()}
+
+    full = run(None)
+    assert len(full["object_seed"]) >= 2  # objects to compare
+    # 4 bytes a pair: 1000 pairs is a few core points' neighbourhoods, abandoned part-built.
+    for table_bytes in (0, 4000):
+        assert key(run(table_bytes)) == key(full)
+
+
 def test_add_keeps_derived_variables_the_series_length(small, tmp_path):
     folder, paths = small
     store = series_store(tmp_path, paths[:4], "d.zarr")
