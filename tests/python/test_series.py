@@ -286,6 +286,26 @@ def test_objects_beyond_the_memory_limit_run_on_a_mapped_file_with_the_same_resu
     assert f"change points at epochs {', '.join(map(str, cps)) or 'none'}" in printed
 
 
+def test_a_failed_objects_table_leaves_neither_table(synthetic, tmp_path, monkeypatch):
+    from m3c2kit.series import analysis
+    s, store = synthetic
+    table = tmp_path / "objects.csv"
+    calls = []
+
+    def fail_on_the_second(out, k):
+        calls.append(k)
+        if len(calls) == 2:
+            raise RuntimeError("stopped")
+        return original(out, k)
+
+    original = analysis.object_members
+    monkeypatch.setattr(analysis, "object_members", fail_on_the_second)
+    with pytest.raises(RuntimeError, match="stopped"):
+        main(["series", "objects", str(store), "-o", str(table), "--quiet"])
+    assert len(calls) == 2  # the first object's rows had been written
+    assert sorted(p.name for p in tmp_path.iterdir()) == []
+
+
 def test_objects_without_the_neighbour_table_are_the_same(synthetic):
     """4D-OBC keeps every core point's neighbours in a table only while it fits in
     neighbour_table_bytes (it grows with the radius squared); beyond, each neighbourhood is

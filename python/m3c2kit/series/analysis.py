@@ -9,6 +9,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import UsageError
+from ..io.atomic import staged_outputs
 from . import engine
 from . import store as st
 
@@ -135,7 +136,9 @@ def _time_text(times, index):
 def write_tables(output: Path, out: dict, core: np.ndarray, times: np.ndarray, first_epoch: int) -> None:
     output = Path(output)
     members_path = output.with_name(output.stem + "_members.csv")
-    with open(output, "w", newline="") as f, open(members_path, "w", newline="") as g:
+    # Both tables appear together, whole, or not at all (a failed or killed run leaves neither).
+    with staged_outputs([output, members_path]) as staged, \
+            open(staged[output], "w", newline="") as f, open(staged[members_path], "w", newline="") as g:
         w, m = csv.writer(f), csv.writer(g)
         w.writerow(["object", "seed_core", "start_epoch", "end_epoch", "start_time", "end_time", "threshold",
                     "seed_score", "core_points", "x_min", "y_min", "z_min", "x_max", "y_max", "z_max"])
