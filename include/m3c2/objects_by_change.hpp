@@ -61,8 +61,9 @@ struct ObjectsParams {
   /// false (the paper): DTW over the seed's epochs, each series minus its value at the seed's
   /// start. true (py4dgeo): over the whole series minus its first epoch, D_max of the raw seed.
   bool whole_series = false;
-  /// Memory for the table of every core point's neighbours (4 bytes a pair); a larger table is not
-  /// built, and each neighbourhood is searched when region growing needs it (same objects, slower).
+  /// Memory for the table of every core point's neighbours (4 bytes a pair); a build that would
+  /// pass it stops and drops the table, and each neighbourhood is searched when region growing
+  /// needs it (same objects, slower).
   std::uint64_t neighbour_table_bytes = std::uint64_t(1) << 30;
 };
 
