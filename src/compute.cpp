@@ -45,16 +45,13 @@ bool overlap(PointsView a, PointsView b) {
   return lo(a) < hi(b) && lo(b) < hi(a);
 }
 
-/// A cloud is ordered in place only where nothing reads it by input order during the run: not
-/// with normal subsampling (greedy in input order) nor an uncertainty model (per-point inputs,
-/// EP's moved copy), nor when it shares memory with the other cloud or with core points other
-/// than the whole reference (the default core points, which are then run in slot order).
+/// A cloud is ordered in place only where the parameters allow it (may_order_in_place) and it
+/// shares no memory with the other cloud, nor with core points other than the whole reference
+/// (the default core points, which are then run in slot order).
 InPlace in_place_clouds(PointsView reference, PointsView compared, PointsView core_points, const Params& params,
                         const RunOptions& run) {
   InPlace p;
-  if (!run.order_clouds_in_place || params.normal_subsample_spacing > 0.0 || params.uncertainty != Uncertainty::kEq1 ||
-      overlap(reference, compared))
-    return p;
+  if (!run.order_clouds_in_place || !detail::may_order_in_place(params) || overlap(reference, compared)) return p;
   const bool core_is_reference = core_points.data() == reference.data() && core_points.size() == reference.size();
   p.reference = core_is_reference || !overlap(core_points, reference);
   p.compared = !overlap(core_points, compared);

@@ -44,6 +44,14 @@ inline bool moments_needed(const Params& params, bool reference) {
                    : src == NormalSource::kCompared;
 }
 
+/// Whether these parameters let compute() order its clouds in place (RunOptions::
+/// order_clouds_in_place): nothing may read them by input order during the run, as normal
+/// subsampling (greedy in input order) and the uncertainty models (per-point inputs, EP's moved
+/// copy) do.
+inline bool may_order_in_place(const Params& params) {
+  return params.normal_subsample_spacing <= 0.0 && params.uncertainty == Uncertainty::kEq1;
+}
+
 /// The index of a cloud named `name` ("reference cloud"). Its one pass over the coordinates
 /// refuses those beyond the grid's range (NaN and Inf among them); only then is the cloud
 /// searched for non-finite ones, to name them first: "NAME has N non-finite coordinates".

@@ -250,10 +250,11 @@ void Octree::build(std::vector<K>&& keys, std::vector<std::uint32_t>& order, boo
   // Children of a node are stored together, in key order, so the tree is one flat array. A node
   // is split at the digit its keys first differ at (the radix tree), when it holds too many
   // points (kLeafSize) or spans several blocks (moments are per block).
-  // Reserved for 0.25 nodes per point, above what dense clouds take (W5: 0.158; the pages not
-  // reached stay unmapped): growing the array by doubling held the old and the new one at once,
-  // on both clouds, which was the in-place build's peak (docs/performance.md, memory).
-  nodes_.reserve(n / 4 + 64);
+  // Reserved for 0.5 nodes per point, above what clouds take (surfaces up to 0.22, volumes up to
+  // 0.35 at about a point per cell; W5: 0.158) since the pages not reached stay unmapped: growing
+  // the array by doubling held the old and the new one at once, on both clouds, which was the
+  // in-place build's peak (docs/performance.md, memory; m3c2::IndexMemory counts on it).
+  nodes_.reserve(n / 2 + 64);
   nodes_.push_back({{}, {}, 0, std::uint32_t(n)});
   for (std::size_t k = 0; k < nodes_.size(); ++k) {
     Node node = nodes_[k];

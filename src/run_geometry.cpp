@@ -4,6 +4,8 @@
 
 #include <m3c2/m3c2.hpp>
 
+#include "core_point.hpp"
+
 #include <algorithm>
 #include <cmath>
 
@@ -24,5 +26,17 @@ double tile_halo(const Params& params) {
 }
 
 IndexMemory index_memory() { return {}; }
+
+double memory_estimate(std::size_t n_reference, std::size_t n_compared, std::size_t n_core, const Params& params,
+                       bool order_clouds_in_place) {
+  const IndexMemory mem = index_memory();
+  const double copy = order_clouds_in_place && detail::may_order_in_place(params) ? 0.0 : mem.copy_bytes_per_point;
+  const auto cloud = [&](std::size_t n, bool reference) {
+    const double moments = detail::moments_needed(params, reference) ? mem.moments_bytes_per_point : 0.0;
+    return double(n) * (mem.bytes_per_point + copy + moments);
+  };
+  return (cloud(n_reference, true) + cloud(n_compared, false)) * mem.overhead +
+         mem.bytes_per_core_point * double(n_core);
+}
 
 }  // namespace m3c2

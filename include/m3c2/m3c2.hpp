@@ -43,13 +43,30 @@ double tile_halo(const Params& params);
 /// (extent / cell): beyond it their cell indices would stop being exact, and they throw.
 inline constexpr double kMaxCellsPerAxis = 1099511627776.0;  // 2^40
 
-/// What compute() allocates beyond its inputs, for a caller's memory check.
+/// What compute() allocates beyond its inputs, for a caller's memory check: an upper estimate
+/// (docs/performance.md, "Memory, byte by byte"; tests/python/test_memory_estimate.py measures it).
 struct IndexMemory {
-  double bytes_per_point = 24 + 4;    ///< per point of each cloud: float64 copy and uint32 index
-  double overhead = 1.05;             ///< tree nodes, a few percent of the points
-  double bytes_per_core_point = 120;  ///< the Result's vectors and the per-thread scratch
+  /// Each cloud: its uint32 original index (4); its nodes, counted at 3/8 of a node per point
+  /// (64 B each: 24; surfaces take up to 0.22 a point, volumes up to 0.35, at about a point per
+  /// finest cell, and the array is reserved for 0.5 so that it never holds two copies below that);
+  /// and the build's sort keys (16, 128-bit where the cloud spans the grid's origin), which are
+  /// freed before the nodes are bounded but, below glibc's largest mmap threshold (32 MiB of
+  /// keys), stay in the process's heap.
+  double bytes_per_point = 4 + 24 + 16;
+  /// Each cloud copied, not ordered in place: its float64 coordinates in key order.
+  double copy_bytes_per_point = 24;
+  /// Each cloud whose normals are computed: its node moments (80 B per node, 3/8 of a node per point).
+  double moments_bytes_per_point = 30;
+  double overhead = 1.05;             ///< the allocator's slack
+  double bytes_per_core_point = 120;  ///< the Result's vectors (98 B) and the per-thread scratch
 };
 IndexMemory index_memory();
+
+/// Bytes compute() allocates beyond its inputs for clouds of these sizes (IndexMemory): moments
+/// on the clouds whose normals `params` computes, and no copies where the clouds are ordered in
+/// place (`order_clouds_in_place` and the parameters allow it).
+double memory_estimate(std::size_t n_reference, std::size_t n_compared, std::size_t n_core, const Params& params,
+                       bool order_clouds_in_place = false);
 
 /// Normals of `cloud` at `core_points` with params.normal_diameters (one scale or multi-scale),
 /// oriented by params.orientation, with roughness sigma(D) (sections 3.1.2, 3.2, 6.3).

@@ -277,10 +277,14 @@ NB_MODULE(_core, m) {
   m.def("index_memory", [] {
     const m3c2::IndexMemory mem = m3c2::index_memory();
     nb::dict d;
-    d["bytes_per_point"] = mem.bytes_per_point, d["overhead"] = mem.overhead;
-    d["bytes_per_core_point"] = mem.bytes_per_core_point;
+    d["bytes_per_point"] = mem.bytes_per_point, d["copy_bytes_per_point"] = mem.copy_bytes_per_point;
+    d["moments_bytes_per_point"] = mem.moments_bytes_per_point;
+    d["overhead"] = mem.overhead, d["bytes_per_core_point"] = mem.bytes_per_core_point;
     return d;
   });
+  m.def("memory_estimate", &m3c2::memory_estimate, "n_reference"_a, "n_compared"_a, "n_core"_a, "params"_a,
+        "order_clouds_in_place"_a = false,
+        "Bytes compute() allocates beyond its inputs for clouds of these sizes (an upper estimate).");
 
   m.def(
       "compute",

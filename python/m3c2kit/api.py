@@ -15,16 +15,14 @@ from .errors import UsageError
 from .run import in_memory
 from .run.checks import as_points, check_coordinate_range, check_spacing, threads_count
 from .run.cores import core_points_for
-from .run.memory import (INDEX_BYTES_PER_POINT, INDEX_OVERHEAD, RESULT_BYTES_PER_CORE_POINT, InsufficientMemory,
-                         check_memory, estimate_memory)
+from .run.memory import InsufficientMemory, check_memory, estimate_memory
 from .run.plan import run_record
 from .settings import build_params, engine_params, resolve  # build_params: the engine's Params for keywords
 from .settings.parsers import positive
 
 __all__ = ["compare", "compare_quietly", "normals", "subsample", "as_points", "threads_count", "check_spacing",
            "check_coordinate_range", "core_points_for", "run_record", "build_params", "InsufficientMemory",
-           "estimate_memory", "check_memory", "INDEX_BYTES_PER_POINT", "INDEX_OVERHEAD",
-           "RESULT_BYTES_PER_CORE_POINT"]
+           "estimate_memory", "check_memory"]
 
 #: Keywords of compare() besides the parameter table's (m3c2kit.settings.table).
 _COMPARE_INPUTS = ("core_points", "core", "core_normals", "progress", "read_points")

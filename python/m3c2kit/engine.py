@@ -40,7 +40,9 @@ STATUS_NAMES: tuple[str, ...] = tuple(_core.status_names())
 MAX_CELLS_PER_AXIS: float = float(_core.MAX_CELLS_PER_AXIS)
 #: Bootstrap resamples per core point the engine accepts (m3c2::kMaxBootstrapSamples, params.hpp).
 MAX_BOOTSTRAP_SAMPLES: int = int(_core.MAX_BOOTSTRAP_SAMPLES)
-#: What compute() allocates beyond its inputs: bytes_per_point (each cloud), overhead, bytes_per_core_point.
+#: What compute() allocates beyond its inputs (m3c2::IndexMemory): bytes_per_point (each cloud),
+#: copy_bytes_per_point (each cloud copied, not ordered in place),
+#: moments_bytes_per_point (each cloud whose normals are computed), overhead, bytes_per_core_point.
 INDEX_MEMORY: dict = dict(_core.index_memory())
 
 
@@ -167,6 +169,13 @@ def max_abs_coordinate(params: _core.Params) -> float:
 def neighbourhood_reach(params: _core.Params) -> float:
     """Largest distance from a core point to a point that can change its result."""
     return float(_core.neighbourhood_reach(params))
+
+
+def memory_estimate(n_reference: int, n_compared: int, n_core: int, params: _core.Params,
+                    order_in_place: bool = False) -> int:
+    """Bytes compute() allocates beyond its inputs for clouds of these sizes (INDEX_MEMORY; an
+    upper estimate), with `order_in_place` as compute() is given it."""
+    return int(_core.memory_estimate(int(n_reference), int(n_compared), int(n_core), params, bool(order_in_place)))
 
 
 def tile_halo(params: _core.Params) -> float:

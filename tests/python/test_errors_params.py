@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 import m3c2kit
-from m3c2kit import api, cli
+from m3c2kit import api, cli, engine
 from m3c2kit.cli import main
 from m3c2kit.diagnostics import cylinder_warnings as result_warnings
 from m3c2kit.errors import CloudReadError
@@ -294,10 +294,25 @@ def test_same_crs_rules():
 # ----------------------------------------------------------------------------------- memory
 
 def test_estimate_memory_formula():
+    from m3c2kit.settings import build_params
+    mem = engine.INDEX_MEMORY
+    copied, moments = mem["bytes_per_point"] + mem["copy_bytes_per_point"], mem["moments_bytes_per_point"]
     assert api.estimate_memory(0, 0, 0) == 0
-    assert api.estimate_memory(1000, 2000, 0) == int(28 * 1.05 * 3000)
-    assert api.estimate_memory(0, 0, 1000) == 120 * 1000
-    assert api.estimate_memory(10**9, 10**9, 10**8) == int(28 * 1.05 * 2 * 10**9) + 120 * 10**8
+    # The default normals are the reference's: its node moments, none on the compared cloud.
+    assert api.estimate_memory(1000, 2000, 0) == int((1000 * (copied + moments) + 2000 * copied) * mem["overhead"])
+    assert api.estimate_memory(0, 0, 1000) == mem["bytes_per_core_point"] * 1000
+    big = api.estimate_memory(10**9, 10**9, 10**8)
+    assert big == int((10**9 * (2 * copied + moments)) * mem["overhead"] + mem["bytes_per_core_point"] * 10**8)
+    # Normals on both clouds: moments on both; given core normals: none.
+    both = build_params(normal_scale=1, projection_scale=1, max_depth=1, normal_source="mean")
+    assert api.estimate_memory(1000, 1000, 0, both) == int(2000 * (copied + moments) * mem["overhead"])
+    given = build_params(normal_scale=1, projection_scale=1, max_depth=1, normal_source="core")
+    assert api.estimate_memory(1000, 1000, 0, given) == int(2000 * copied * mem["overhead"])
+    # Ordered in place: no copies, unless an uncertainty model forbids it.
+    in_place = mem["bytes_per_point"]
+    assert api.estimate_memory(1000, 1000, 0, given, reorder_inputs=True) == int(2000 * in_place * mem["overhead"])
+    ep = build_params(normal_scale=1, projection_scale=1, max_depth=1, normal_source="core", uncertainty="ep")
+    assert api.estimate_memory(1000, 1000, 0, ep, reorder_inputs=True) == int(2000 * copied * mem["overhead"])
 
 
 def test_check_memory_with_injected_available_memory():
@@ -306,8 +321,8 @@ def test_check_memory_with_injected_available_memory():
     with pytest.raises(api.InsufficientMemory) as err:
         api.check_memory(10**6, 10**6, 10**5, available=needed - 1)
     message = str(err.value)
-    assert message.startswith("not enough memory: this run needs about 67.5 MiB (spatial index of 1000000 + "
-                              "1000000 points, results for 100000 core points) but only 67.5 MiB is available")
+    assert message.startswith("not enough memory: this run needs about 177.7 MiB (spatial index of 1000000 + "
+                              "1000000 points, results for 100000 core points) but only 177.7 MiB is available")
     assert "--tile-size" in message and "fewer core points" in message
 
 
@@ -318,11 +333,11 @@ def test_compare_checks_memory_before_computing(monkeypatch):
 
 
 def test_cli_exits_1_when_the_run_needs_more_memory(pair, capsys, monkeypatch):
-    # The files (~10 KiB each) fit; the run (index + 400 core points ~ 71 KiB) does not.
+    # The files (~10 KiB each) fit; the run (the indexes, ordered in place, + 400 core points ~ 95 KiB) does not.
     monkeypatch.setenv(guard.MEMORY_ENV, "30000")
     code, _, err = run(capsys, *compare_args(pair))
     assert code == 1
-    assert err.startswith("m3c2: error: not enough memory: this run needs about 69.8 KiB")
+    assert err.startswith("m3c2: error: not enough memory: this run needs about 95.3 KiB")
     assert "--tile-size" in err
     assert not (pair / "out.csv").exists()
 

@@ -26,6 +26,34 @@ def _no_compared_point_on_the_line(cmp_xyz, core, normal, radius) -> bool:
     return not np.any(perp2 <= radius**2)
 
 
+@pytest.mark.parametrize("cloud", [1, 2])
+def test_one_cloud_and_its_stand_ins_give_the_two_cloud_runs_cylinders(toronto, cloud):
+    # The diagnosis indexes only the cloud it reads, with a stand-in point on each cylinder's axis
+    # as the other cloud: its counts and offsets must be those of a run on both clouds, and it has
+    # an offset wherever it found points (the two-cloud run has none where the other cloud's
+    # cylinder is empty too).
+    ref, cmp_ = toronto
+    core = ref[::7] + np.array([0.0, 0.0, 30.0]) if cloud == 1 else ref[::7]  # lifted: empty in the reference
+    r = m3c2kit.compare(ref, cmp_, core, normal_scale=2, projection_scale=1, max_depth=5, normal_source="vertical")
+    idx = np.flatnonzero(r.status == Q._EMPTY[cloud])
+    assert idx.size > 100
+    reach = 200.0
+    for diameter in (1.0, 4.0):
+        kw = dict(normal_source="core", core_normals=r.normal[idx], projection_scale=diameter, max_depth=reach,
+                  min_points=1)
+        both = m3c2kit.api.compare_quietly(ref, cmp_, r.core[idx], **kw)
+        points = ref if cloud == 1 else cmp_
+        stand_ins = Q._stand_ins(r.core[idx], r.normal[idx], Q._box(points), reach, diameter)
+        alone = m3c2kit.api.compare_quietly(points, stand_ins, r.core[idx], **kw)
+        n, offset = (both.n1, both.i1) if cloud == 1 else (both.n2, both.i2)
+        assert np.array_equal(alone.n1, n) and (n > 0).sum() > 10
+        found, both_found = n > 0, np.isfinite(offset)
+        assert np.isfinite(alone.i1[found]).all() and both_found.sum() > 10
+        assert np.array_equal(alone.i1[both_found], offset[both_found])
+        assert np.array_equal(alone.sigma1[both_found], (both.sigma1 if cloud == 1 else both.sigma2)[both_found],
+                              equal_nan=True)  # NaN: one point, no spread
+
+
 def test_toronto_shoreline_is_no_overlap_at_every_depth(toronto):
     ref, cmp_ = toronto
     counts = []

@@ -177,7 +177,8 @@ def test_engine_geometry_comes_from_the_engine():
     assert engine.neighbourhood_reach(p) == pytest.approx(reach, rel=1e-15)
     assert reach < engine.tile_halo(p) <= reach * (1 + 2e-6) + 1e-6
     assert engine.MAX_CELLS_PER_AXIS == 2.0**40
-    assert engine.INDEX_MEMORY == {"bytes_per_point": 28.0, "overhead": 1.05, "bytes_per_core_point": 120.0}
+    assert engine.INDEX_MEMORY == {"bytes_per_point": 44.0, "copy_bytes_per_point": 24.0, "moments_bytes_per_point": 30.0,
+                                   "overhead": 1.05, "bytes_per_core_point": 120.0}
 
 
 def test_engine_errors_are_translated_once():

@@ -37,7 +37,7 @@ def compare(reference, compared, core_points=None, *, core_normals=None,
     if len(core_xyz) == 0:
         raise UsageError("core_points is empty: there is nothing to compute")
     plan.engine = engine_params(values, "compare", read_points, core_points=core_xyz, scan_positions=sensor)
-    check_memory(len(ref), len(cmp_), len(core_xyz))
+    check_memory(len(ref), len(cmp_), len(core_xyz), params=plan.engine, reorder_inputs=reorder_inputs)
     if values["normal_subsample"] is not None:
         check_spacing("--normal-subsample", values["normal_subsample"], ref, cmp_)
     limit = engine.max_abs_coordinate(plan.engine)

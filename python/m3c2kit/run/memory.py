@@ -174,24 +174,21 @@ class InsufficientMemory(M3C2Error):
     """A run would need more memory than is available (exit status 1)."""
 
 
-#: Memory model of an in-memory run (the input arrays are already in memory): the engine's spatial
-#: index takes about (24 + 4) bytes per point of each cloud (a float64 copy of the coordinates and
-#: a uint32 index) plus a few percent of tree nodes, and the results about 120 bytes per core point.
-INDEX_BYTES_PER_POINT = engine.INDEX_MEMORY["bytes_per_point"]
-INDEX_OVERHEAD = engine.INDEX_MEMORY["overhead"]
-RESULT_BYTES_PER_CORE_POINT = engine.INDEX_MEMORY["bytes_per_core_point"]
+def estimate_memory(n_reference: int, n_compared: int, n_core: int, params: engine.Params | None = None,
+                    reorder_inputs: bool = False) -> int:
+    """Bytes an in-memory compare run allocates beyond its inputs (an upper estimate,
+    engine.memory_estimate): `params`, the engine's parameters (default ones when None), say
+    which clouds' normals, and so node moments, are computed; `reorder_inputs`, whether the
+    engine may order the clouds in place instead of copying them (m3c2kit.compare)."""
+    return engine.memory_estimate(n_reference, n_compared, n_core, engine.Params() if params is None else params,
+                                  reorder_inputs)
 
 
-def estimate_memory(n_reference: int, n_compared: int, n_core: int) -> int:
-    """Bytes an in-memory compare run allocates beyond its inputs (see INDEX_BYTES_PER_POINT)."""
-    index = INDEX_BYTES_PER_POINT * INDEX_OVERHEAD * (int(n_reference) + int(n_compared))
-    return int(index + RESULT_BYTES_PER_CORE_POINT * int(n_core))
-
-
-def check_memory(n_reference: int, n_compared: int, n_core: int, available: int | None = None) -> int:
+def check_memory(n_reference: int, n_compared: int, n_core: int, available: int | None = None,
+                 params: engine.Params | None = None, reorder_inputs: bool = False) -> int:
     """Raises InsufficientMemory when estimate_memory(...) exceeds `available` bytes (default:
     m3c2kit.io.guard.available_memory(), which honours $M3C2_AVAILABLE_MEMORY); returns the estimate."""
-    needed = estimate_memory(n_reference, n_compared, n_core)
+    needed = estimate_memory(n_reference, n_compared, n_core, params, reorder_inputs)
     available = available_memory() if available is None else available
     if available is not None and needed > available:
         raise InsufficientMemory(
