@@ -37,7 +37,7 @@ struct OctreeGrid {
   double cell = 0.0;
   int block_level = 0;
 
-  /// The largest |coordinate| the grid indexes: 2^41 cells (keys of 42 bits per axis).
+  /// The largest |coordinate| the grid indexes: 2^40 cells (biased into keys of 42 bits per axis).
   double max_abs_coordinate() const;
 };
 
@@ -48,7 +48,7 @@ void require_within_grid(const char* what, PointsView points, OctreeGrid grid);
 /// 1024 max wide. Derived from the parameters only, so that every tile of a run shares it.
 OctreeGrid octree_grid(double smallest_scale, double largest_normal_diameter);
 
-/// A point's grid cell: floor(coordinate / cell) + 2^41 on each axis.
+/// A point's grid cell: floor(coordinate / cell) + the bias (octree.cpp) on each axis.
 using CellKey = std::array<std::int64_t, 3>;
 /// Open branchings of a radix fold: (digit, fold of the children so far).
 using FoldStack = std::vector<std::pair<int, Moments>>;

@@ -26,7 +26,7 @@ Result compute(PointsView reference, PointsView compared, PointsView core_points
                const UncertaintyInputs& uncertainty = {});
 
 /// The largest |coordinate| of a cloud compute() accepts with these parameters: its spatial index
-/// keys 2^41 cells of a grid that follows the smallest diameter (D / 16, or d / 16 without
+/// keys 2^40 cells of a grid that follows the smallest diameter (D / 16, or d / 16 without
 /// normal diameters; docs/algorithm.md). Beyond it compute() throws InvalidArgument.
 double max_abs_coordinate(const Params& params);
 
@@ -49,9 +49,9 @@ struct IndexMemory {
   /// Each cloud: its uint32 original index (4); its nodes, counted at 3/8 of a node per point
   /// (64 B each: 24; surfaces take up to 0.22 a point, volumes up to 0.35, at about a point per
   /// finest cell, and the array is reserved for 0.5 so that it never holds two copies below that);
-  /// and the build's sort keys (16, 128-bit where the cloud spans the grid's origin), which are
-  /// freed before the nodes are bounded but, below glibc's largest mmap threshold (32 MiB of
-  /// keys), stay in the process's heap.
+  /// and the build's sort keys (16: 128-bit for a cloud of more than about 2^20 cells a side),
+  /// which are freed before the nodes are bounded but, below glibc's largest mmap threshold
+  /// (32 MiB of keys), stay in the process's heap.
   double bytes_per_point = 4 + 24 + 16;
   /// Each cloud copied, not ordered in place: its float64 coordinates in key order.
   double copy_bytes_per_point = 24;

@@ -192,12 +192,12 @@ TEST(Octree, RejectsCoordinatesBeyondTheGridRange) {
 
 TEST(Octree, ComputeRefusesAFarOutlierNamingTheCloud) {
   Cloud ref = test_cloud(1, 500, Vec3::Zero()), cmp = ref;
-  cmp.add(0.0, 8e10, 0.0);  // beyond 2^41 cells of 2^-5 = 2^36 (D = 0.5)
+  cmp.add(0.0, 8e10, 0.0);  // beyond 2^40 cells of 2^-5 = 2^35 (D = 0.5)
   Params p;
   p.normal_diameters = {0.5};
   p.projection_diameter = 0.3;
   p.max_depth = 0.5;
-  EXPECT_EQ(max_abs_coordinate(p), std::ldexp(1.0, 36));
+  EXPECT_EQ(max_abs_coordinate(p), std::ldexp(1.0, 35));
   try {
     compute(ref.view(), cmp.view(), ref.view(), p);
     FAIL() << "no error";

@@ -248,12 +248,12 @@ def test_one_core_point(pair, capsys):
 
 def test_far_outlier_in_a_file_is_refused_naming_it(pair, capsys):
     # D = 0.5: the index's grid cell is 2**-6 (D / 32 rounded down to a power of two), so it keys
-    # |coordinates| below 2**41 cells = 2**36 (docs/errors.md).
+    # |coordinates| below 2**40 cells = 2**35 (docs/errors.md).
     far = np.vstack([grid(z=0.1), [[1e12, 0.0, 0.0]]])
     write_xyz(pair / "far.xyz", far)
     code, _, err = run(capsys, "compare", pair / "ref.xyz", pair / "far.xyz", "-o", pair / "out.csv", *BASE)
     assert code == 1
-    assert err == (f"m3c2: error: {pair / 'far.xyz'}: a coordinate (1e+12) lies beyond +-6.87195e+10, the range "
+    assert err == (f"m3c2: error: {pair / 'far.xyz'}: a coordinate (1e+12) lies beyond +-3.43597e+10, the range "
                    f"of the spatial index for these scales; remove far outliers or shift the coordinates to a "
                    f"local origin\n")
     assert leftovers(pair) == []
@@ -262,9 +262,9 @@ def test_far_outlier_in_a_file_is_refused_naming_it(pair, capsys):
 def test_far_outlier_in_an_array_is_a_usage_error():
     from m3c2kit import _core
     from m3c2kit.settings import build_params
-    assert _core.max_abs_coordinate(build_params(normal_scale=0.5, projection_scale=0.3, max_depth=0.5)) == 2.0**36
-    far = np.vstack([grid(), [[0.0, -2.0**36, 0.0]]])  # exactly at the limit: outside
-    with pytest.raises(UsageError, match=r"^the reference cloud: a coordinate \(6\.87195e\+10\) lies beyond"):
+    assert _core.max_abs_coordinate(build_params(normal_scale=0.5, projection_scale=0.3, max_depth=0.5)) == 2.0**35
+    far = np.vstack([grid(), [[0.0, -2.0**35, 0.0]]])  # exactly at the limit: outside
+    with pytest.raises(UsageError, match=r"^the reference cloud: a coordinate \(3\.43597e\+10\) lies beyond"):
         m3c2kit.compare(far, grid(z=0.1), grid(), normal_scale=0.5, projection_scale=0.3, max_depth=0.5)
     # Geocentric-sized coordinates are well inside.
     shifted = grid() + 6.4e6

@@ -37,7 +37,7 @@ def check_spacing(name: str, spacing: float, *clouds) -> float:
 
 
 def check_coordinate_range(name: str, source, points: np.ndarray, limit: float) -> None:
-    """The engine's spatial index keys coordinates below `limit` in magnitude (2**41 cells of a
+    """The engine's spatial index keys coordinates below `limit` in magnitude (2**40 cells of a
     grid that follows the smallest diameter, docs/errors.md): a far outlier, or coordinates far
     from any local origin, is refused naming the file when there is one (exit 1), else the array."""
     if len(points) == 0:
