@@ -46,7 +46,8 @@ def _empty_cylinder_warnings(result, values: Mapping, reference, compared) -> li
     if not with_normal or empty / with_normal <= quality.EMPTY_SHARE:
         return []
     diagnoses = quality.cylinder_diagnosis(reference, compared, result, projection_scale=values["projection_scale"],
-                                           max_depth=values["max_depth"], threads=values.get("threads", 0))
+                                           max_depth=values["max_depth"], threads=values.get("threads", 0),
+                                           at_most=quality.WARNING_SAMPLE)
     return quality.cylinder_messages(diagnoses, values["max_depth"])
 
 

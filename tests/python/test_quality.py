@@ -75,6 +75,30 @@ def test_toronto_shoreline_is_no_overlap_at_every_depth(toronto):
     assert counts[0] == counts[1] == counts[2] > 0
 
 
+def test_the_warnings_sample_estimates_the_full_diagnosis(toronto):
+    # Every reference point a core point (W1): 19,099 empty compared cylinders; the warnings
+    # diagnose WARNING_SAMPLE of them, evenly spaced, and say "about".
+    ref, cmp_ = toronto
+    r = m3c2kit.compare(ref, cmp_, ref, normal_scale=2, projection_scale=1, max_depth=5, min_points=1)
+    (full,) = [d for d in Q.cylinder_diagnosis(ref, cmp_, r, projection_scale=1, max_depth=5) if d.cloud == 2]
+    (part,) = [d for d in Q.cylinder_diagnosis(ref, cmp_, r, projection_scale=1, max_depth=5,
+                                               at_most=Q.WARNING_SAMPLE) if d.cloud == 2]
+    assert full.empty == part.empty > 5 * Q.WARNING_SAMPLE and part.diagnosed == Q.WARNING_SAMPLE
+    assert not full.sampled and part.sampled
+    for kind in ("no_overlap", "beyond_depth", "too_thin"):
+        whole, sample = getattr(full, kind), getattr(part, kind)
+        assert np.isin(sample, whole).all()  # the same verdict on each diagnosed core point
+        assert full.estimate(whole) == whole.size
+        # The estimate within 4 binomial standard errors of the full count.
+        p = whole.size / full.empty
+        sd = full.empty * np.sqrt(p * (1 - p) / Q.WARNING_SAMPLE)
+        assert abs(part.estimate(sample) - whole.size) <= 4 * sd + 1, kind
+    assert part.needed_scale == pytest.approx(full.needed_scale, rel=0.2)
+    full_text, part_text = Q.cylinder_messages([full], 5), Q.cylinder_messages([part], 5)
+    assert len(full_text) == len(part_text) == 3
+    assert all(not m.startswith("about") for m in full_text) and all(m.startswith("about ") for m in part_text)
+
+
 def test_depth_too_short_advises_the_depth_that_reaches():
     rng = np.random.default_rng(5)
     xy = rng.uniform(0, 20, (4000, 2))
