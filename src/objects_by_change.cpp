@@ -9,6 +9,7 @@
 #include "kdtree.hpp"
 #include "parallel_for.hpp"
 #include "threads.hpp"
+#include "upper_quantile.hpp"
 
 #include <algorithm>
 #include <atomic>
@@ -16,10 +17,8 @@
 #include <limits>
 #include <map>
 #include <optional>
-#include <queue>
 #include <string>
 #include <unordered_map>
-#include <unordered_set>
 
 namespace m3c2 {
 namespace {
@@ -199,37 +198,6 @@ struct Seen {
   std::vector<std::uint32_t> ball;  // Neighbours::of's buffer
 };
 
-/// The distinct DTW values of a growth so far and the largest but k of them, k = floor(0.05 n)
-/// for n values: py4dgeo's 95th percentile of the distinct values. Two heaps split at that rank
-/// (the k + 1 largest, the others), so that each value costs O(log n); walking an ordered set to
-/// the rank cost O(n) per neighbour, quadratic in an object's size (a quarter of 4D-OBC's time
-/// at 100k core points). The same values, so the same objects.
-class UpperQuantile {
- public:
-  explicit UpperQuantile(double first) { insert(first); }
-
-  void insert(double v) {
-    if (!distinct_.insert(v).second) return;  // 0.0 and -0.0 are one value, as in an ordered set
-    if (!top_.empty() && v > top_.top()) {
-      top_.push(v);
-      rest_.push(top_.top());
-      top_.pop();
-    } else {
-      rest_.push(v);
-    }
-    const std::size_t want = static_cast<std::size_t>(0.05 * double(distinct_.size())) + 1;
-    while (top_.size() < want) top_.push(rest_.top()), rest_.pop();  // the rank only grows
-  }
-
-  /// The (k + 1)-th largest distinct value.
-  double value() const { return top_.top(); }
-
- private:
-  std::unordered_set<double> distinct_;
-  std::priority_queue<double, std::vector<double>, std::greater<>> top_;  // the k + 1 largest
-  std::priority_queue<double> rest_;
-};
-
 /// Region growing at one threshold (py4dgeo's fixed_threshold_region_growing): candidates in
 /// ascending DTW; a neighbour under the threshold joins, and grows the object further only if
 /// its DTW is under the 95th percentile of the distinct DTW values so far (once the object has
@@ -241,7 +209,7 @@ Grown grow(const Seed& seed, double threshold, const Neighbours& adjacent, const
   g.threshold = threshold;
   seen.start(adjacent.rows());
   std::multimap<double, std::uint32_t> candidates{{0.0, seed.core}};
-  UpperQuantile used(0.0);
+  detail::UpperQuantile used(0.0);
   g.members.emplace_back(seed.core, 0.0);
   seen.test_and_set(seed.core);
   double residual = threshold;
