@@ -59,12 +59,15 @@ InPlace in_place_clouds(PointsView reference, PointsView compared, PointsView co
   return p;
 }
 
-/// Both clouds' indexes and the core points' processing order (morton_order), the compared
-/// index and the order on a second thread when the run has two: they are independent (the
-/// reference index, with its moments, takes about as long as the other two), and each is
-/// computed the same way whatever the thread. The second thread is one of the OpenMP team that
-/// then runs the core points: a thread of its own would compete with the team's idle threads,
-/// which spin for a while after each parallel loop (W1: 11.6 against 7.9 ms in repeated runs).
+/// Both clouds' indexes and the core points' processing order (morton_order). With two threads
+/// and two indexes of similar cost, each index is built on a thread of its own (the compared
+/// one with the order): they are independent, and each is computed the same way whatever the
+/// thread. The second thread is one of the OpenMP team that then runs the core points: a thread
+/// of its own would compete with the team's idle threads, which spin for a while after each
+/// parallel loop (W1: 11.6 against 7.9 ms in repeated runs). Otherwise (one cloud far larger,
+/// as the one-cloud runs of the data-quality diagnosis, or more than two threads) the indexes
+/// are built one after the other, each on all the threads (Octree's parallel build, whose
+/// serial parts make it slower on two threads than two builds side by side).
 /// `alongside` (the caller's own set-up) runs after the index of the thread expected to finish
 /// first (an index with moments costs about 1.5 times one without, the order about half an index).
 std::pair<Octree, Octree> build_indexes(PointsView reference, PointsView compared, PointsView core_points,
@@ -76,17 +79,21 @@ std::pair<Octree, Octree> build_indexes(PointsView reference, PointsView compare
   const auto order_core = [&] {
     if (!in_place.core_in_slots) core_order = detail::morton_order(core_points);
   };
-  detail::OpenMpTeam team(std::min(2, detail::requested_threads(run)));
+  const int threads = detail::requested_threads(run);
+  const double work0 = double(reference.size()) * (ref_moments ? 3 : 2),
+               work1 = double(compared.size()) * (cmp_moments ? 3 : 2) + double(core_points.size());
+  // Side by side while the lighter part takes at least half the heavier's time.
+  constexpr double kSideBySide = 0.5;
+  const bool side_by_side = threads == 2 && std::min(work0, work1) >= kSideBySide * std::max(work0, work1);
+  detail::OpenMpTeam team(side_by_side ? 2 : 1);
   if (team.size() < 2) {
     order_core();
     if (alongside) alongside();
-    Octree first = index_of(reference, "reference cloud", grid, ref_moments, in_place.reference);
-    return {std::move(first), index_of(compared, "compared cloud", grid, cmp_moments, in_place.compared)};
+    Octree first = index_of(reference, "reference cloud", grid, ref_moments, in_place.reference, threads);
+    return {std::move(first), index_of(compared, "compared cloud", grid, cmp_moments, in_place.compared, threads)};
   }
   std::optional<Octree> first, second;
   std::exception_ptr failure[2];
-  const double work0 = double(reference.size()) * (ref_moments ? 3 : 2),
-               work1 = double(compared.size()) * (cmp_moments ? 3 : 2) + double(core_points.size());
   const int lighter = work1 < work0 ? 1 : 0;
 #if defined(_OPENMP)
 #pragma omp parallel num_threads(2)

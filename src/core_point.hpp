@@ -55,11 +55,11 @@ inline bool may_order_in_place(const Params& params) {
 /// The index of a cloud named `name` ("reference cloud"). Its one pass over the coordinates
 /// refuses those beyond the grid's range (NaN and Inf among them); only then is the cloud
 /// searched for non-finite ones, to name them first: "NAME has N non-finite coordinates".
-/// `order_in_place`: the index orders the cloud's own array (Octree).
+/// `order_in_place`: the index orders the cloud's own array; `threads`: the build's (Octree).
 inline Octree index_of(PointsView cloud, const char* name, OctreeGrid grid, bool with_moments,
-                       bool order_in_place = false) {
+                       bool order_in_place = false, int threads = 1) {
   try {
-    return Octree(cloud, grid, with_moments, ("the " + std::string(name)).c_str(), order_in_place);
+    return Octree(cloud, grid, with_moments, ("the " + std::string(name)).c_str(), order_in_place, threads);
   } catch (const InvalidArgument&) {
     require_finite_points(name, cloud);
     throw;

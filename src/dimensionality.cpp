@@ -22,6 +22,7 @@
 #include "parallel_for.hpp"
 #include "shell_index.hpp"
 #include "spatial_order.hpp"
+#include "thread_limits.hpp"
 #include "validation.hpp"
 
 #include <Eigen/Eigenvalues>
@@ -199,7 +200,7 @@ DimensionalityResult dimensionality(PointsView cloud, PointsView core_points, co
   const detail::OctreeGrid grid = detail::octree_grid(radii.back() * 2.0 * 16.0 / kCellDivisor, 0.0);
   const detail::Octree tree = [&] {
     try {
-      return detail::Octree(cloud, grid, false, "the cloud");
+      return detail::Octree(cloud, grid, false, "the cloud", false, detail::requested_threads(run));
     } catch (const InvalidArgument&) {
       detail::require_finite_points("cloud", cloud);
       throw;

@@ -2,7 +2,9 @@
 
 #include "assert.hpp"
 #include "morton.hpp"
+#include "parallel_for.hpp"
 #include "portable.hpp"
+#include "radix_sort.hpp"
 #include "rows_in_place.hpp"
 
 #include <m3c2/errors.hpp>
@@ -51,6 +53,13 @@ static_assert(3 * 21 <= 64, "low_morton_key: 21 bits per axis in 64");
 constexpr int kTraversalStack = 8 * kMaxPathNodes;
 static_assert(kTraversalStack >= 7 * (kMaxPathNodes - 2) + 8, "traversal stack below its depth bound");
 constexpr double kBlockDiameters = 1024.0;
+// The nodes' boxes and moments (bound_nodes, sum_moments): each leaf's from its points, on the
+// build's threads in blocks of this many nodes (a leaf's value does not depend on which thread
+// computes it), then each inner node's from its children's, on the calling thread, from the
+// last node to the root (children follow their parent in the array): every merge in one order.
+constexpr std::size_t kNodeBlock = 1024;
+// The keys and the copy of the coordinates: blocks of this many points.
+constexpr std::size_t kPointBlock = std::size_t(1) << 15;
 // Box tests that prune use this relative margin (as kdtree.cpp) so that rounding can never drop
 // a point the exact per-point test keeps; the "inside" test needs none (see farthest_distance2).
 constexpr double kRelativeMargin = 1e-9;
@@ -93,12 +102,6 @@ std::uint64_t low_morton_key(const CellKey& u) {
          spread_bits(std::uint64_t(u[2])) << 2;
 }
 
-int highest_bit(std::uint64_t x) { return 63 - std::countl_zero(x); }
-int highest_bit(Key x) {
-  const std::uint64_t hi = high64(x);
-  return hi ? 127 - std::countl_zero(hi) : highest_bit(std::uint64_t(x));
-}
-
 /// The digit (level) at which two Morton keys first differ, -1 when equal.
 template <class K>
 int differing_level(K a, K b) {
@@ -109,60 +112,6 @@ int differing_level(K a, K b) {
 int differing_level(const CellKey& a, const CellKey& b) {
   const std::uint64_t x = std::uint64_t((a[0] ^ b[0]) | (a[1] ^ b[1]) | (a[2] ^ b[2]));
   return x ? 63 - std::countl_zero(x) : -1;
-}
-
-/// Whether key a sorts before key b.
-bool key_less(std::uint64_t a, std::uint64_t b) { return a < b; }
-bool key_less(Key a, Key b) {
-  return high64(a) != high64(b) ? high64(a) < high64(b) : std::uint64_t(a) < std::uint64_t(b);
-}
-
-/// Sorts keys[0, n) and order alike by key, ties by order: from an ascending order, the order a
-/// stable sort gives, without buffers (docs/performance.md, memory: a stable LSD radix sort of
-/// 126-bit keys with its second key and order arrays was the build's peak). An in-place MSD
-/// radix sort (American flag) on 11-bit digits from the highest bit that varies within the
-/// range (a cloud straddling a coordinate plane through the grid's origin varies in every bit
-/// above its cells, each side of it in a few only): each key swapped into its digit's bucket,
-/// then each bucket sorted alike; small ranges by insertion, a range of one key by order alone.
-template <class K>
-void sort_in_place(K* keys, std::uint32_t* order, std::size_t n) {
-  if (n < 2) return;
-  const auto before = [&](std::size_t i, std::size_t j) {
-    return key_less(keys[i], keys[j]) || (keys[i] == keys[j] && order[i] < order[j]);
-  };
-  if (n <= 32) {
-    for (std::size_t i = 1; i < n; ++i)
-      for (std::size_t j = i; j > 0 && before(j, j - 1); --j)
-        std::swap(keys[j], keys[j - 1]), std::swap(order[j], order[j - 1]);
-    return;
-  }
-  K diff = 0;
-  for (std::size_t i = 1; i < n; ++i) diff |= keys[i] ^ keys[0];
-  if (diff == K(0)) {  // one key
-    std::sort(order, order + n);
-    return;
-  }
-  constexpr int kDigitBits = 11;
-  const int bits = highest_bit(diff) + 1, shift = std::max(0, bits - kDigitBits);
-  const std::uint64_t mask = (std::uint64_t(1) << (bits - shift)) - 1;
-  const auto digit = [&](std::size_t i) { return std::size_t(std::uint64_t(keys[i] >> shift) & mask); };
-  std::array<std::size_t, (1u << kDigitBits) + 1> start{};
-  for (std::size_t i = 0; i < n; ++i) ++start[1 + digit(i)];
-  const std::size_t buckets = std::size_t(mask) + 1;
-  for (std::size_t b = 0; b < buckets; ++b) start[b + 1] += start[b];
-  std::array<std::size_t, 1u << kDigitBits> head;
-  std::copy(start.begin(), start.begin() + buckets, head.begin());
-  for (std::size_t b = 0; b < buckets; ++b)
-    while (head[b] < start[b + 1]) {
-      const std::size_t i = head[b], d = digit(i);
-      if (d == b) {
-        ++head[b];
-      } else {
-        const std::size_t j = head[d]++;  // the key now at i is looked at again
-        std::swap(keys[i], keys[j]), std::swap(order[i], order[j]);
-      }
-    }
-  for (std::size_t b = 0; b < buckets; ++b) sort_in_place(keys + start[b], order + start[b], start[b + 1] - start[b]);
 }
 
 }  // namespace
@@ -219,7 +168,8 @@ Vec3 Octree::block_corner(const double* p) const {
   return corner;
 }
 
-Octree::Octree(PointsView points, OctreeGrid grid, bool with_moments, const char* name, bool order_in_place)
+Octree::Octree(PointsView points, OctreeGrid grid, bool with_moments, const char* name, bool order_in_place,
+               int threads)
     : points_(points), grid_(grid), inverse_cell_(1.0 / grid.cell), order_in_place_(order_in_place) {
   if (points.size() >= std::numeric_limits<std::uint32_t>::max())
     throw InvalidArgument("a cloud has " + std::to_string(points.size()) +
@@ -227,35 +177,52 @@ Octree::Octree(PointsView points, OctreeGrid grid, bool with_moments, const char
                           "(parameter tile_size)");
   require_within_grid(name, points, grid);
   if (points.empty()) return;
+  RunOptions run;
+  run.threads = threads;
   const std::size_t n = points.size();
   std::vector<std::uint64_t> low(n);
-  CellKey lo, hi;
-  lo.fill(std::numeric_limits<std::int64_t>::max());
-  hi.fill(std::numeric_limits<std::int64_t>::min());
-  for (std::size_t i = 0; i < n; ++i) {
-    const auto u = cell_of(points_.data() + 3 * i);
-    low[i] = low_morton_key(u);
-    for (int a = 0; a < 3; ++a) lo[a] = std::min(lo[a], u[a]), hi[a] = std::max(hi[a], u[a]);
-  }
-  // Every key lies between the smallest and the largest cell, so only the bits below their
-  // highest differing bit vary: sort on those alone, in 64 bits where they fit.
-  const int varying = differing_level(lo, hi) + 1;
+  // Each block's smallest and largest cell, then the cloud's: the same for any thread count.
+  std::vector<std::array<CellKey, 2>> ranges((n + kPointBlock - 1) / kPointBlock);
+  parallel_blocks<int>(
+      n, run,
+      [&](std::size_t begin, std::size_t end, int&) {
+        CellKey lo, hi;
+        lo.fill(std::numeric_limits<std::int64_t>::max());
+        hi.fill(std::numeric_limits<std::int64_t>::min());
+        for (std::size_t i = begin; i < end; ++i) {
+          const auto u = cell_of(points_.data() + 3 * i);
+          low[i] = low_morton_key(u);
+          for (int a = 0; a < 3; ++a) lo[a] = std::min(lo[a], u[a]), hi[a] = std::max(hi[a], u[a]);
+        }
+        ranges[begin / kPointBlock] = {lo, hi};
+      },
+      kPointBlock);
+  CellKey lo = ranges[0][0], hi = ranges[0][1];
+  for (const auto& r : ranges)
+    for (int a = 0; a < 3; ++a) lo[a] = std::min(lo[a], r[0][a]), hi[a] = std::max(hi[a], r[1][a]);
   std::vector<std::uint32_t> order(n);
   std::iota(order.begin(), order.end(), 0u);
-  if (varying <= 21) {
-    sort_in_place(low.data(), order.data(), n);
-    build(std::move(low), order, with_moments);
+  // Every key lies between the smallest and the largest cell, so only the bits below their
+  // highest differing bit vary: sorted on those alone, in 64 bits where they fit.
+  if (differing_level(lo, hi) < 21) {
+    sort_in_place(low.data(), order.data(), n, run);
+    build(std::move(low), order, with_moments, run);
     return;
   }
   low = {};
   std::vector<Key> keys(n);
-  for (std::size_t i = 0; i < n; ++i) keys[i] = morton_key(cell_of(points_.data() + 3 * i));
-  sort_in_place(keys.data(), order.data(), n);
-  build(std::move(keys), order, with_moments);
+  parallel_blocks<int>(
+      n, run,
+      [&](std::size_t begin, std::size_t end, int&) {
+        for (std::size_t i = begin; i < end; ++i) keys[i] = morton_key(cell_of(points_.data() + 3 * i));
+      },
+      kPointBlock);
+  sort_in_place(keys.data(), order.data(), n, run);
+  build(std::move(keys), order, with_moments, run);
 }
 
 template <class K>
-void Octree::build(std::vector<K>&& keys, std::vector<std::uint32_t>& order, bool with_moments) {
+void Octree::build(std::vector<K>&& keys, std::vector<std::uint32_t>& order, bool with_moments, const RunOptions& run) {
   const std::size_t n = keys.size();
   // Children of a node are stored together, in key order, so the tree is one flat array. A node
   // is split at the digit its keys first differ at (the radix tree), when it holds too many
@@ -296,34 +263,46 @@ void Octree::build(std::vector<K>&& keys, std::vector<std::uint32_t>& order, boo
   // build never holds both (8 B per point less at its peak; docs/performance.md, memory).
   std::vector<K>().swap(keys);
   index_.original = std::move(order);
-  order_coordinates();
-  bound_nodes();
-  if (!with_moments) return;
+  order_coordinates(run);
+  bound_nodes(run);
+  if (with_moments) sum_moments(run);
+}
+
+void Octree::sum_moments(const RunOptions& run) {
   // Each leaf's cells and their branchings from its points' cells (cell_of, as a query's leaf
   // computes them): the digit at which two cells first differ is that of their Morton keys.
   moments_.resize(nodes_.size());
-  FoldStack stack;
-  std::vector<std::uint32_t> slots;
-  std::vector<CellKey> cells;
+  struct LeafScratch {
+    FoldStack stack;
+    std::vector<std::uint32_t> slots;
+    std::vector<CellKey> cells;
+  };
+  parallel_blocks<LeafScratch>(
+      nodes_.size(), run,
+      [&](std::size_t first, std::size_t last, LeafScratch& s) {
+        for (std::size_t k = first; k < last; ++k) {
+          const Node& node = nodes_[k];
+          if (!node.in_block || node.first_child != 0) continue;
+          s.slots.resize(node.end - node.begin);
+          std::iota(s.slots.begin(), s.slots.end(), node.begin);
+          s.cells.resize(node.end - node.begin);
+          for (std::uint32_t i = node.begin; i < node.end; ++i) s.cells[i - node.begin] = cell_of(slot_xyz(i));
+          const CellKey* cell = s.cells.data() - node.begin;
+          const auto level = [cell](std::uint32_t a, std::uint32_t b) { return differing_level(cell[a], cell[b]); };
+          moments_[k] =
+              radix_fold(s.slots.data(), node.end - node.begin, level, block_corner(slot_xyz(node.begin)), s.stack);
+        }
+      },
+      kNodeBlock);
   for (std::size_t k = nodes_.size(); k-- > 0;) {
     const Node& node = nodes_[k];
-    if (!node.in_block) continue;
-    if (node.first_child == 0) {
-      slots.resize(node.end - node.begin);
-      std::iota(slots.begin(), slots.end(), node.begin);
-      cells.resize(node.end - node.begin);
-      for (std::uint32_t s = node.begin; s < node.end; ++s) cells[s - node.begin] = cell_of(slot_xyz(s));
-      const CellKey* cell = cells.data() - node.begin;
-      const auto level = [cell](std::uint32_t a, std::uint32_t b) { return differing_level(cell[a], cell[b]); };
-      moments_[k] = radix_fold(slots.data(), node.end - node.begin, level, block_corner(slot_xyz(node.begin)), stack);
-    } else {
-      for (std::uint32_t c = node.first_child; c < node.first_child + node.children; ++c)
-        merge_into(moments_[k], moments_[c]);
-    }
+    if (!node.in_block || node.first_child == 0) continue;
+    for (std::uint32_t c = node.first_child; c < node.first_child + node.children; ++c)
+      merge_into(moments_[k], moments_[c]);
   }
 }
 
-void Octree::order_coordinates() {
+void Octree::order_coordinates(const RunOptions& run) {
   const std::vector<std::uint32_t>& index = index_.original;
   const std::size_t n = index.size();
   if (order_in_place_) {
@@ -340,10 +319,15 @@ void Octree::order_coordinates() {
   // A gather in key order: random reads when the input is not spatially ordered, so each is
   // requested well ahead of its use.
   constexpr std::size_t kAhead = 32;
-  for (std::size_t s = 0; s < n; ++s) {
-    if (s + kAhead < n) prefetch(points_.data() + 3 * std::size_t(index[s + kAhead]));
-    for (int a = 0; a < 3; ++a) copy_[3 * s + a] = points_.coord(index[s], a);
-  }
+  parallel_blocks<int>(
+      n, run,
+      [&](std::size_t begin, std::size_t end, int&) {
+        for (std::size_t s = begin; s < end; ++s) {
+          if (s + kAhead < end) prefetch(points_.data() + 3 * std::size_t(index[s + kAhead]));
+          for (int a = 0; a < 3; ++a) copy_[3 * s + a] = points_.coord(index[s], a);
+        }
+      },
+      kPointBlock);
   xyz_ = copy_.data();
 }
 
@@ -367,20 +351,31 @@ void SlotIndex::restore() noexcept {
   reordered = nullptr;
 }
 
-void Octree::bound_nodes() {
-  for (std::size_t k = nodes_.size(); k-- > 0;) {
-    Node& node = nodes_[k];
+void Octree::bound_nodes(const RunOptions& run) {
+  const auto empty_box = [](Node& node) {
     node.lo.fill(std::numeric_limits<double>::infinity());
     node.hi.fill(-std::numeric_limits<double>::infinity());
-    if (node.first_child == 0) {
-      for (std::uint32_t s = node.begin; s < node.end; ++s)
-        for (int a = 0; a < 3; ++a)
-          node.lo[a] = std::min(node.lo[a], slot_xyz(s)[a]), node.hi[a] = std::max(node.hi[a], slot_xyz(s)[a]);
-    } else {
-      for (std::uint32_t c = node.first_child; c < node.first_child + node.children; ++c)
-        for (int a = 0; a < 3; ++a)
-          node.lo[a] = std::min(node.lo[a], nodes_[c].lo[a]), node.hi[a] = std::max(node.hi[a], nodes_[c].hi[a]);
-    }
+  };
+  parallel_blocks<int>(
+      nodes_.size(), run,
+      [&](std::size_t first, std::size_t last, int&) {
+        for (std::size_t k = first; k < last; ++k) {
+          Node& node = nodes_[k];
+          if (node.first_child != 0) continue;
+          empty_box(node);
+          for (std::uint32_t s = node.begin; s < node.end; ++s)
+            for (int a = 0; a < 3; ++a)
+              node.lo[a] = std::min(node.lo[a], slot_xyz(s)[a]), node.hi[a] = std::max(node.hi[a], slot_xyz(s)[a]);
+        }
+      },
+      kNodeBlock);
+  for (std::size_t k = nodes_.size(); k-- > 0;) {
+    Node& node = nodes_[k];
+    if (node.first_child == 0) continue;
+    empty_box(node);
+    for (std::uint32_t c = node.first_child; c < node.first_child + node.children; ++c)
+      for (int a = 0; a < 3; ++a)
+        node.lo[a] = std::min(node.lo[a], nodes_[c].lo[a]), node.hi[a] = std::max(node.hi[a], nodes_[c].hi[a]);
   }
 }
 

@@ -23,6 +23,7 @@
 #include "moments.hpp"
 
 #include <m3c2/points_view.hpp>
+#include <m3c2/run_options.hpp>
 
 #include <array>
 #include <cstdint>
@@ -107,9 +108,11 @@ class Octree {
   /// `order_in_place`: the index orders the array of `points` itself in key order instead of
   /// copying it (24 B per point less) and puts it back when destroyed; while it lives, row s of
   /// that array is the point of original index original_index(s). Only for an array the caller
-  /// owns and nothing else reads meanwhile. The results are the same bits either way.
+  /// owns and nothing else reads meanwhile. `threads`: the build's parallel phases (the keys,
+  /// the sort's buckets, the copy, the leaves' boxes and moments) run on that many OpenMP
+  /// threads (0: all). The results are the same bits either way.
   Octree(PointsView points, OctreeGrid grid, bool with_moments, const char* name = "a cloud",
-         bool order_in_place = false);
+         bool order_in_place = false, int threads = 1);
 
   PointsView points() const { return points_; }
   std::size_t size() const { return index_.original.size(); }
@@ -159,11 +162,12 @@ class Octree {
   /// key. Nodes, their bounding boxes and, `with_moments`, their moments. The keys are freed
   /// once the nodes are split, before the coordinates are copied (the build's peak).
   template <class K>
-  void build(std::vector<K>&& keys, std::vector<std::uint32_t>& order, bool with_moments);
+  void build(std::vector<K>&& keys, std::vector<std::uint32_t>& order, bool with_moments, const RunOptions& run);
   /// The coordinates in key order (slot s: the point index_.original[s]): copied, or the cloud's
   /// own array ordered in place.
-  void order_coordinates();
-  void bound_nodes();
+  void order_coordinates(const RunOptions& run);
+  void bound_nodes(const RunOptions& run);
+  void sum_moments(const RunOptions& run);
   /// The deepest node holding every point of the box [lo, hi], or kNoNode when none of its
   /// points lies in the box: a query starts there instead of at the root (octree.cpp).
   /// `cache`, if any, holds the last descent in this tree, resumed where it applies.

@@ -47,7 +47,8 @@ Comparison::Comparison(PointsView reference, PointsView core_points, const Param
     for (int a = 0; a < 3; ++a) s.core[3 * i + a] = core_points.coord(i, a);
   if (params.normal_source == NormalSource::kCorePoints) s.core_normals = core_normals;
   s.grid = detail::grid_for(params.normal_diameters, params.projection_diameter);
-  s.reference.emplace(detail::index_of(reference, "reference cloud", s.grid, detail::moments_needed(params, true)));
+  s.reference.emplace(detail::index_of(reference, "reference cloud", s.grid, detail::moments_needed(params, true),
+                                       false, detail::requested_threads(run)));
   s.order = detail::morton_order(s.core_view());
   s.z = detail::z_critical(params.confidence);
 
@@ -77,7 +78,8 @@ Result Comparison::compare(PointsView compared, const RunOptions& run) const {
   const State& s = *state_;
   if (compared.empty()) throw InvalidArgument("the compared cloud is empty");
   const detail::Octree epoch =
-      detail::index_of(compared, "compared cloud", s.grid, detail::moments_needed(s.params, false));
+      detail::index_of(compared, "compared cloud", s.grid, detail::moments_needed(s.params, false), false,
+                       detail::requested_threads(run));
   Result result;
   result.resize(size());
   const PointsView core = s.core_view();

@@ -30,6 +30,7 @@ import numpy as np
 
 from . import engine
 from .errors import CloudWriteError, M3C2Error, UsageError
+from .io.arrays import bounds
 from .io.guard import available_memory, format_bytes
 from .limits import usable_length
 from .io.crs import looks_like_wkt
@@ -97,7 +98,8 @@ def check_raster_memory(xyz: np.ndarray, cell: float, available: int | None = No
     when the images would not fit the available memory (io.guard.available_memory)."""
     if len(xyz) == 0:
         return 0
-    extent = xyz[:, :2].max(axis=0) - xyz[:, :2].min(axis=0)
+    lo, hi = bounds(xyz[:, :2])
+    extent = hi - lo
     cols, rows = (np.floor(extent / cell) + 1).tolist()
     cells = cols * rows
     available = available_memory() if available is None else available

@@ -9,6 +9,7 @@ import pytest
 
 import m3c2kit
 from m3c2kit import quality as Q
+from m3c2kit.io.arrays import bounds
 
 TORONTO = Path(__file__).resolve().parents[2] / "data" / "toronto-ttp"
 
@@ -43,7 +44,7 @@ def test_one_cloud_and_its_stand_ins_give_the_two_cloud_runs_cylinders(toronto, 
                   min_points=1)
         both = m3c2kit.api.compare_quietly(ref, cmp_, r.core[idx], **kw)
         points = ref if cloud == 1 else cmp_
-        stand_ins = Q._stand_ins(r.core[idx], r.normal[idx], Q._box(points), reach, diameter)
+        stand_ins = Q._stand_ins(r.core[idx], r.normal[idx], bounds(points), reach, diameter)
         alone = m3c2kit.api.compare_quietly(points, stand_ins, r.core[idx], **kw)
         n, offset = (both.n1, both.i1) if cloud == 1 else (both.n2, both.i2)
         assert np.array_equal(alone.n1, n) and (n > 0).sum() > 10

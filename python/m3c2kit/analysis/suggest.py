@@ -24,6 +24,7 @@ import numpy as np
 
 from .. import api
 from ..errors import M3C2Error
+from ..io.arrays import bounds
 from .common import format_table, median_spacing, sample_indices
 from .roughness import roughness_by_scale
 
@@ -35,7 +36,8 @@ N_TARGET = 30
 
 
 def _extent(points: np.ndarray) -> float:
-    e = np.sort(points.max(axis=0) - points.min(axis=0))[::-1]
+    lo, hi = bounds(points)
+    e = np.sort(hi - lo)[::-1]
     return float(e[1]) if e[1] > 0 else float(e[0])
 
 
@@ -49,7 +51,8 @@ def _require_a_surface(role: str, source, points: np.ndarray) -> None:
     if len(points) < MIN_POINTS:
         raise M3C2Error(f"{_name(role, source)}: {len(points)} points; suggest needs at least {MIN_POINTS} "
                         f"(sigma(D) is fitted to 10 neighbours, section 5.1)")
-    extent = points.max(axis=0) - points.min(axis=0)
+    lo, hi = bounds(points)
+    extent = hi - lo
     if not np.isfinite(extent).all() or np.count_nonzero(extent) < 2:
         raise M3C2Error(f"{_name(role, source)}: the points span no surface (extent {extent.tolist()}); "
                         f"suggest needs a cloud spread over at least two axes")

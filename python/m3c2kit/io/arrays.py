@@ -11,7 +11,7 @@ import numpy as np
 
 from ..errors import UsageError
 
-__all__ = ["as_coordinates"]
+__all__ = ["as_coordinates", "bounds"]
 
 #: numpy dtype kinds that are real numbers: signed and unsigned integers, floating point.
 REAL_KINDS = "iuf"
@@ -34,3 +34,14 @@ def as_coordinates(name: str, values) -> np.ndarray:
     if arr.ndim != 2 or arr.shape[1] != 3:
         raise UsageError(f"{name} must be an (N, 3) array of coordinates, got shape {arr.shape}")
     return np.ascontiguousarray(arr, dtype=np.float64)
+
+
+def bounds(points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The smallest and largest value of each column of an (N, k) array (N > 0), NaN where a
+    column holds one: ``points.min(axis=0), points.max(axis=0)``, a column at a time. numpy
+    reduces the rows of a C-ordered (N, 3) array over a strided axis about 13 times slower
+    (1M points: 48 ms against 3.8 ms), which was a tenth of a sparse run (issue 19, W8)."""
+    points = np.asarray(points)
+    columns = range(points.shape[1])
+    return (np.array([points[:, k].min() for k in columns], dtype=points.dtype),
+            np.array([points[:, k].max() for k in columns], dtype=points.dtype))

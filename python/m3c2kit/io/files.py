@@ -8,6 +8,7 @@ import numpy as np
 
 from ..errors import CloudReadError, CloudWriteError, UsageError
 from ..fault_hook import checkpoint as fault_checkpoint
+from .arrays import bounds as column_bounds
 from .cloud import Cloud
 from .guard import available_memory, format_bytes, read_errors
 from .las_header import check_las_file
@@ -123,7 +124,8 @@ def info(path: str | os.PathLike) -> dict:
     points = cloud.xyz[finite]
     bounds = None
     if len(points):
-        bounds = {"min": points.min(axis=0).tolist(), "max": points.max(axis=0).tolist()}
+        lo, hi = column_bounds(points)
+        bounds = {"min": lo.tolist(), "max": hi.tolist()}
     return {
         "path": str(path),
         "format": cloud.format,

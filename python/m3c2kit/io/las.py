@@ -20,6 +20,7 @@ import numpy as np
 
 from ..errors import CloudReadError, CloudWriteError, QuantisationWarning
 from .quantised import Quantised
+from .arrays import bounds
 from .atomic import atomic_output
 from .cloud import Cloud
 from .crs import geokey_crs, geokey_units, looks_like_wkt, wkt_units
@@ -259,7 +260,7 @@ def _scale_offset(xyz: np.ndarray, like: Cloud | None):
         return tuple(like.scale), tuple(like.offset)
     if len(xyz) == 0 or not np.isfinite(xyz).all():
         return (_DEFAULT_SCALE,) * 3, (0.0, 0.0, 0.0)
-    return choose_scale_offset(xyz.min(axis=0), xyz.max(axis=0))
+    return choose_scale_offset(*bounds(xyz))
 
 
 def choose_scale_offset(lo, hi) -> tuple[tuple[float, float, float], tuple[float, float, float]]:
@@ -313,7 +314,7 @@ def warn_if_quantised(path, xyz: np.ndarray, ints: np.ndarray, scale, offset) ->
     values resolve (quantisation_tolerance): int32 cannot hold their span at a finer scale."""
     error = quantisation_error(xyz, ints, scale, offset)
     if error > quantisation_tolerance(float(np.max(np.abs(xyz))), is_float32(xyz)):
-        span = float(np.max(xyz.max(axis=0) - np.asarray(offset)))
+        span = float(np.max(bounds(xyz)[1] - np.asarray(offset)))
         warnings.warn(quantisation_message(path, error, scale, span), QuantisationWarning, stacklevel=3)
 
 

@@ -30,6 +30,7 @@ import numpy as np
 
 from ..errors import CloudReadError, CloudWriteError
 from ..fault_hook import checkpoint as fault_checkpoint
+from .arrays import bounds
 from .atomic import atomic_output
 from .cloud import Cloud
 from .files import read_cloud, write_cloud_table
@@ -404,7 +405,8 @@ class TableWriter:
             q[0] = max(q[0], las.quantisation_error(xyz, ints, self._scale, self._offset))
             q[1] = max(q[1], float(np.max(np.abs(xyz))))
             q[2] = q[2] and las.is_float32(xyz)
-            q[3], q[4] = np.minimum(q[3], xyz.min(axis=0)), np.maximum(q[4], xyz.max(axis=0))
+            lo, hi = bounds(xyz)
+            q[3], q[4] = np.minimum(q[3], lo), np.maximum(q[4], hi)
         with write_errors(self.path):
             points = laspy.ScaleAwarePointRecord.zeros(len(xyz), header=self._header)
             points.X, points.Y, points.Z = ints[:, 0], ints[:, 1], ints[:, 2]

@@ -9,7 +9,7 @@ import numpy as np
 
 from .. import engine
 from ..errors import CloudReadError, UsageError
-from ..io.arrays import as_coordinates
+from ..io.arrays import as_coordinates, bounds
 from ..settings.table import by_name
 
 def as_points(name: str, values) -> np.ndarray:
@@ -29,7 +29,8 @@ def check_spacing(name: str, spacing: float, *clouds) -> float:
     engine's subsampling grid allows (engine.MAX_CELLS_PER_AXIS spacings on an axis, docs/errors.md)."""
     for cloud in clouds:
         if len(cloud):
-            extent = float(np.max(cloud.max(axis=0) - cloud.min(axis=0)))
+            lo, hi = bounds(cloud)
+            extent = float(np.max(hi - lo))
             if not extent / spacing <= engine.MAX_CELLS_PER_AXIS:
                 raise UsageError(f"{name} {spacing!r} is too small for clouds spanning {extent:.6g} on an axis "
                                  f"(at most 2**40 spacings); remove far outliers or use a larger spacing")

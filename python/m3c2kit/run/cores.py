@@ -6,6 +6,7 @@ import numpy as np
 
 from .. import engine
 from ..errors import M3C2Error, UsageError
+from ..io.arrays import bounds
 from ..io.streaming import DEFAULT_CHUNK, PointSource, _in_box
 from ..settings.parsers import positive
 from .checks import as_points, check_spacing
@@ -40,7 +41,8 @@ def streaming_subsample(source: PointSource, spacing: float, chunk_size: int = D
             first = xyz[:1].copy()
             near = np.empty((0, 3))
         else:
-            mask = _in_box(kept, xyz.min(axis=0) - margin, xyz.max(axis=0) + margin)
+            lo, hi = bounds(xyz)
+            mask = _in_box(kept, lo - margin, hi + margin)
             mask[0] = False
             near = np.concatenate([first, kept[mask]])
         pts = np.ascontiguousarray(np.concatenate([near, xyz]))

@@ -11,6 +11,7 @@ import numpy as np
 
 from .. import engine
 from ..errors import M3C2Error, UsageError
+from ..io.arrays import bounds
 from ..io.guard import available_memory, format_bytes
 from ..io.streaming import DEFAULT_CHUNK, PointSource
 
@@ -163,7 +164,8 @@ def density(source: PointSource, chunk_size: int) -> tuple[int, float]:
         n, lo, hi = 0, np.full(3, np.inf), np.full(3, -np.inf)
         for xyz in source.chunks(chunk_size):
             n += len(xyz)
-            lo, hi = np.minimum(lo, xyz.min(axis=0)), np.maximum(hi, xyz.max(axis=0))
+            chunk_lo, chunk_hi = bounds(xyz)
+            lo, hi = np.minimum(lo, chunk_lo), np.maximum(hi, chunk_hi)
     area = max(float((hi[0] - lo[0]) * (hi[1] - lo[1])), 1e-12) if n else 1.0
     return n, n / area
 

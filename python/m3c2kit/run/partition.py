@@ -9,6 +9,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..io.arrays import bounds
 from ..io.streaming import PointSource
 from .spill import SpillFolder
 
@@ -76,8 +77,8 @@ def plan_tiles(spills: SpillFolder, cores: CoreStream, size: float, origin, rows
             for j in range(len(uniq)):
                 t = int(local[j])
                 pts = xyz[inverse == j]
-                lo_l[t] = np.minimum(lo_l[t], pts.min(axis=0))
-                hi_l[t] = np.maximum(hi_l[t], pts.max(axis=0))
+                pts_lo, pts_hi = bounds(pts)
+                lo_l[t], hi_l[t] = np.minimum(lo_l[t], pts_lo), np.maximum(hi_l[t], pts_hi)
                 count_l[t] += len(pts)
             spills.append(stem, tid, xyz)
             if nrm is not None:

@@ -35,6 +35,7 @@ import numpy as np
 
 from .. import diagnostics, engine, uncertainty_inputs
 from ..errors import M3C2Error, UsageError
+from ..io.arrays import bounds
 from ..io.atomic import private_folder
 from ..io.streaming import DEFAULT_CHUNK, PointSource
 from ..limits import check_tile_size, usable_length
@@ -234,8 +235,8 @@ def _run(plan: Plan, report: TiledReport, ref_src, cmp_src, spills: SpillFolder,
     # (any anchor gives the same results): a tile as large as the survey is then one tile.
     extent = None  # the core points' XY extent, where known
     if core_arr is not None and len(core_arr):
-        origin = core_arr[:, :2].min(axis=0)
-        extent = core_arr[:, :2].max(axis=0) - origin
+        origin, top = bounds(core_arr[:, :2])
+        extent = top - origin
     elif ref_src.kind in ("las", "copc"):
         import laspy
         with laspy.open(ref_src.path) as r:
@@ -255,7 +256,8 @@ def _run(plan: Plan, report: TiledReport, ref_src, cmp_src, spills: SpillFolder,
         if core_arr is None:
             rho_core = rho_ref
         else:
-            span = core_arr.max(axis=0) - core_arr.min(axis=0) if len(core_arr) else np.ones(3)
+            lo, hi = bounds(core_arr) if len(core_arr) else (np.zeros(3), np.ones(3))
+            span = hi - lo
             rho_core = len(core_arr) / max(float(span[0] * span[1]), 1e-12)
         tile_size = choose_tile_size(limit, h, rho_ref, rho_cmp, rho_core, base=mem.base)
         per_axis = np.maximum(np.ceil(extent / tile_size), 1) if extent is not None else np.ones(2)

@@ -9,6 +9,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import UsageError
+from ..io.arrays import bounds
 from ..io.atomic import staged_outputs
 from . import engine
 from . import store as st
@@ -145,7 +146,7 @@ def write_tables(output: Path, out: dict, core: np.ndarray, times: np.ndarray, f
         m.writerow(["object", "core", "dtw"])
         for k in range(len(out["object_seed"])):
             cores, dtw = object_members(out, k)
-            lo, hi = core[cores].min(axis=0), core[cores].max(axis=0)
+            lo, hi = bounds(core[cores])
             s, e = int(out["object_start"][k]) + first_epoch, int(out["object_end"][k]) + first_epoch
             w.writerow([k, int(out["object_seed"][k]), s, e, _time_text(times, s), _time_text(times, e),
                         repr(float(out["object_threshold"][k])), repr(float(out["object_score"][k])), len(cores),
