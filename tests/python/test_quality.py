@@ -55,6 +55,30 @@ def test_one_cloud_and_its_stand_ins_give_the_two_cloud_runs_cylinders(toronto, 
                               equal_nan=True)  # NaN: one point, no spread
 
 
+def test_both_clouds_diagnosed_at_once_as_one_after_the_other(toronto):
+    # With both clouds to diagnose and two threads, the two run at once, each on one thread:
+    # the same diagnoses as on one thread (core points lifted 30 m: empty in the reference; the
+    # shoreline: empty in the compared cloud).
+    ref, cmp_ = toronto
+    core = np.concatenate([ref[::7], ref[::11] + np.array([0.0, 0.0, 30.0])])
+    r = m3c2kit.compare(ref, cmp_, core, normal_scale=2, projection_scale=1, max_depth=5, normal_source="vertical")
+    runs = [Q.cylinder_diagnosis(ref, cmp_, r, projection_scale=1, max_depth=5, threads=t, at_most=500) for t in (1, 2)]
+    assert [d.cloud for d in runs[0]] == [1, 2]
+    for one, two in zip(*runs):
+        for field in ("cloud", "with_normal", "empty", "needed_depth", "needed_scale", "diagnosed"):
+            assert getattr(one, field) == getattr(two, field), field
+        for field in ("no_overlap", "beyond_depth", "too_thin"):
+            assert np.array_equal(getattr(one, field), getattr(two, field)), field
+    assert runs[0][0].beyond_depth.size > 0 and runs[0][1].no_overlap.size > 0  # lifted; the shoreline
+
+
+def test_bounds_are_numpys_column_minima_and_maxima():
+    rng = np.random.default_rng(3)
+    for xyz in (rng.normal(size=(1000, 3)), rng.normal(size=(5, 2)), np.array([[1.0, np.nan, 2.0], [0.0, 1.0, 3.0]])):
+        lo, hi = bounds(xyz)
+        assert np.array_equal(lo, xyz.min(axis=0), equal_nan=True) and np.array_equal(hi, xyz.max(axis=0), equal_nan=True)
+
+
 def test_toronto_shoreline_is_no_overlap_at_every_depth(toronto):
     ref, cmp_ = toronto
     counts = []
