@@ -67,7 +67,8 @@ InPlace in_place_clouds(PointsView reference, PointsView compared, PointsView co
 /// parallel loop (W1: 11.6 against 7.9 ms in repeated runs). Otherwise (one cloud far larger,
 /// as the one-cloud runs of the data-quality diagnosis, or more than two threads) the indexes
 /// are built one after the other, each on all the threads (Octree's parallel build, whose
-/// serial parts make it slower on two threads than two builds side by side).
+/// serial parts, the sort's first pass and the node split, leave a thread idle, which two
+/// builds side by side do not).
 /// `alongside` (the caller's own set-up) runs after the index of the thread expected to finish
 /// first (an index with moments costs about 1.5 times one without, the order about half an index).
 std::pair<Octree, Octree> build_indexes(PointsView reference, PointsView compared, PointsView core_points,
@@ -82,7 +83,8 @@ std::pair<Octree, Octree> build_indexes(PointsView reference, PointsView compare
   const int threads = detail::requested_threads(run);
   const double work0 = double(reference.size()) * (ref_moments ? 3 : 2),
                work1 = double(compared.size()) * (cmp_moments ? 3 : 2) + double(core_points.size());
-  // Side by side while the lighter part takes at least half the heavier's time.
+  // Side by side while the lighter part takes at least half the heavier's time (a judgement, not
+  // a measured optimum: the diagnosis's one-cloud runs are far below it, a survey pair far above).
   constexpr double kSideBySide = 0.5;
   const bool side_by_side = threads == 2 && std::min(work0, work1) >= kSideBySide * std::max(work0, work1);
   detail::OpenMpTeam team(side_by_side ? 2 : 1);

@@ -19,8 +19,6 @@ The emitting module (Python ``warnings``, stderr at the command line) calls thes
 """
 from __future__ import annotations
 
-import os
-from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 
 import numpy as np
@@ -113,51 +111,25 @@ def cylinder_diagnosis(reference: np.ndarray, compared: np.ndarray, result, *, p
                        max_depth: float, threads: int = 0, at_most: int | None = None) -> list[CylinderDiagnosis]:
     """One :class:`CylinderDiagnosis` per cloud with empty cylinders (see the module docstring);
     `at_most`: diagnose at most that many of each cloud's empty cylinders, evenly spaced in the
-    core points' order (the warnings: :data:`WARNING_SAMPLE`), else all. With both clouds to
-    diagnose and more than one thread, the two run at once, each on half the threads: each
-    indexes one whole cloud, mostly serial work (issue 19, W8: 0.19 of 0.29 s). Each engine run
-    gives the same bits on any number of threads, so the diagnoses do not depend on this."""
+    core points' order (the warnings: :data:`WARNING_SAMPLE`), else all."""
+    from .api import compare_quietly as compare  # the engine run, lazily; no warnings of its own
+
     status = np.asarray(result.status)
-    empty = {cloud: np.flatnonzero(status == code) for cloud, code in _EMPTY.items()}
-    empty = {cloud: idx for cloud, idx in empty.items() if idx.size}
-    if not empty:
-        return []
-    boxes = {1: bounds(reference), 2: bounds(compared)}
-    extent = np.linalg.norm(np.maximum(boxes[1][1], boxes[2][1]) - np.minimum(boxes[1][0], boxes[2][0]))
-    job = _CloudDiagnosis(result, status, boxes, reach=max(float(extent), 2.0 * float(max_depth)),
-                          projection_scale=float(projection_scale), max_depth=float(max_depth), at_most=at_most)
-    clouds = {1: reference, 2: compared}
-    from .run.checks import threads_count
-
-    total = threads_count(threads) or os.cpu_count() or 1
-    if len(empty) < 2 or total < 2:
-        return [job(cloud, clouds[cloud], idx, threads) for cloud, idx in empty.items()]
-    with ThreadPoolExecutor(max_workers=2) as pool:  # the engine releases the GIL
-        runs = [pool.submit(job, cloud, clouds[cloud], idx, max(1, total // 2)) for cloud, idx in empty.items()]
-        return [run.result() for run in runs]
-
-
-@dataclass
-class _CloudDiagnosis:
-    """The diagnosis of one cloud's empty cylinders, given the run's result and both clouds'
-    bounding boxes; `reach`: the half-length of the diagnosis's cylinders (the clouds' extent)."""
-
-    result: object
-    status: np.ndarray
-    boxes: dict
-    reach: float
-    projection_scale: float
-    max_depth: float
-    at_most: int | None
-
-    def __call__(self, cloud: int, points: np.ndarray, idx: np.ndarray, threads: int) -> CylinderDiagnosis:
-        from .api import compare_quietly as compare  # the engine run, lazily; no warnings of its own
-
-        result, status = self.result, self.status
-        with_normal = int(np.count_nonzero(~np.isin(status, _NO_NORMAL)))
+    with_normal = int(np.count_nonzero(~np.isin(status, _NO_NORMAL)))
+    out = []
+    boxes = reach = None
+    for cloud, code in _EMPTY.items():
+        idx = np.flatnonzero(status == code)
+        if not idx.size:
+            continue
         empty = int(idx.size)
-        if self.at_most is not None and empty > self.at_most:
-            idx = idx[np.unique(np.linspace(0, empty - 1, int(self.at_most)).round().astype(np.int64))]
+        if at_most is not None and empty > at_most:
+            idx = idx[np.unique(np.linspace(0, empty - 1, int(at_most)).round().astype(np.int64))]
+        if boxes is None:  # once for both clouds
+            boxes = {1: bounds(reference), 2: bounds(compared)}
+            extent = np.linalg.norm(np.maximum(boxes[1][1], boxes[2][1]) - np.minimum(boxes[1][0], boxes[2][0]))
+            reach = max(float(extent), 2.0 * float(max_depth))
+        points = reference if cloud == 1 else compared
 
         def along(keep: np.ndarray, diameter: float):
             """Points of that cloud, offset and spread of their mean along the normal, in a
@@ -166,14 +138,14 @@ class _CloudDiagnosis:
             the run's reference, and the compared cloud a stand-in point in each cylinder that can
             meet it, so that no status of the other cloud's hides the reference's values."""
             core, normals = result.core[idx[keep]], result.normal[idx[keep]]
-            stand_ins = _stand_ins(core, normals, self.boxes[cloud], self.reach, diameter)
+            stand_ins = _stand_ins(core, normals, boxes[cloud], reach, diameter)
             if not len(stand_ins):  # no cylinder meets the cloud
                 return np.zeros(len(core)), np.full(len(core), np.nan), np.full(len(core), np.nan)
             far = compare(points, stand_ins, core, normal_source="core", core_normals=normals,
-                          projection_scale=diameter, max_depth=self.reach, min_points=1, threads=threads)
+                          projection_scale=diameter, max_depth=reach, min_points=1, threads=threads)
             return np.asarray(far.n1), np.asarray(far.i1), np.asarray(far.sigma1)
 
-        counts, offset, spread = along(np.ones(idx.size, bool), self.projection_scale)
+        counts, offset, spread = along(np.ones(idx.size, bool), float(projection_scale))
         found = counts > 0
         needed = None
         if found.any():
@@ -188,15 +160,16 @@ class _CloudDiagnosis:
         scale = None
         n_run = np.asarray(result.n1 if cloud == 1 else result.n2)[~np.isin(status, _NO_NORMAL)]
         if (~found).any() and np.nanmean(n_run) < SPARSE_EXPECTED:
-            wide = WIDE_FACTOR * self.projection_scale
+            wide = WIDE_FACTOR * float(projection_scale)
             n_wide, off_wide, _ = along(~found, wide)
-            sparse = (n_wide > 0) & (np.abs(off_wide) <= self.max_depth)
+            sparse = (n_wide > 0) & (np.abs(off_wide) <= float(max_depth))
             thin[np.flatnonzero(~found)[sparse]] = True
             if sparse.any():
                 density = float(np.median(n_wide[sparse])) / (np.pi * wide**2 / 4.0)
                 scale = 2.0 * float(np.sqrt(ADVISED_POINTS / (np.pi * density)))
-        return CylinderDiagnosis(cloud, with_normal, empty, idx[~found & ~thin], idx[found], needed, idx[thin], scale,
-                                 diagnosed=int(idx.size))
+        out.append(CylinderDiagnosis(cloud, with_normal, empty, idx[~found & ~thin], idx[found], needed,
+                                     idx[thin], scale, diagnosed=int(idx.size)))
+    return out
 
 
 def _nice_up(value: float) -> float:

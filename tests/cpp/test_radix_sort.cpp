@@ -47,18 +47,24 @@ std::vector<std::uint64_t> keys64(std::uint64_t seed, std::size_t n, int bits, s
   return keys;
 }
 
+/// The order sort_in_place() gives `keys` (sorted alike, checked against the keys) on t threads.
+template <class K>
+std::vector<std::uint32_t> radix_order(const std::vector<K>& keys, int t) {
+  std::vector<K> k = keys;
+  std::vector<std::uint32_t> order(k.size());
+  std::iota(order.begin(), order.end(), 0u);
+  detail::sort_in_place(k.data(), order.data(), k.size(), threads(t));
+  for (std::size_t s = 0; s < k.size(); ++s)
+    if (!(k[s] == keys[order[s]])) ADD_FAILURE() << "slot " << s << ": the key did not move with its index";
+  return order;
+}
+
 TEST(RadixSort, PairsSortAsAStableSortOnAnyThreadCount) {
   for (const std::size_t distinct : {1, 40, 0}) {
     const std::vector<std::uint64_t> keys = keys64(3, kLarge, 50, distinct);
     const std::vector<std::uint32_t> want = stable_order(keys);
-    for (const int t : {1, 4}) {
-      std::vector<std::uint64_t> k = keys;
-      std::vector<std::uint32_t> order(k.size());
-      std::iota(order.begin(), order.end(), 0u);
-      detail::sort_in_place(k.data(), order.data(), k.size(), threads(t));
-      ASSERT_EQ(order, want) << distinct << " distinct keys, " << t << " threads";
-      for (std::size_t s = 0; s < k.size(); ++s) ASSERT_EQ(k[s], keys[want[s]]);
-    }
+    for (const int t : {1, 4})
+      ASSERT_EQ(radix_order(keys, t), want) << distinct << " distinct keys, " << t << " threads";
   }
 }
 
@@ -70,13 +76,7 @@ TEST(RadixSort, WideKeysSortAsAStableSort) {
     k = (detail::Uint128(high) << 64 | detail::Uint128(low)) << 20;
   }
   const std::vector<std::uint32_t> want = stable_order(keys);
-  for (const int t : {1, 3}) {
-    std::vector<detail::Uint128> k = keys;
-    std::vector<std::uint32_t> order(k.size());
-    std::iota(order.begin(), order.end(), 0u);
-    detail::sort_in_place(k.data(), order.data(), k.size(), threads(t));
-    ASSERT_EQ(order, want) << t << " threads";
-  }
+  for (const int t : {1, 3}) ASSERT_EQ(radix_order(keys, t), want) << t << " threads";
 }
 
 bool same_bits(const detail::Moments& a, const detail::Moments& b) {

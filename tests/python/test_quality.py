@@ -55,10 +55,10 @@ def test_one_cloud_and_its_stand_ins_give_the_two_cloud_runs_cylinders(toronto, 
                               equal_nan=True)  # NaN: one point, no spread
 
 
-def test_both_clouds_diagnosed_at_once_as_one_after_the_other(toronto):
-    # With both clouds to diagnose and two threads, the two run at once, each on one thread:
-    # the same diagnoses as on one thread (core points lifted 30 m: empty in the reference; the
-    # shoreline: empty in the compared cloud).
+def test_both_clouds_diagnosed_alike_on_one_thread_and_two(toronto):
+    # The diagnosis's engine runs index each cloud on the run's threads (the parallel build):
+    # the same diagnoses on one thread and on two (core points lifted 30 m: empty in the
+    # reference; the shoreline: empty in the compared cloud).
     ref, cmp_ = toronto
     core = np.concatenate([ref[::7], ref[::11] + np.array([0.0, 0.0, 30.0])])
     r = m3c2kit.compare(ref, cmp_, core, normal_scale=2, projection_scale=1, max_depth=5, normal_source="vertical")

@@ -40,7 +40,8 @@ def bounds(points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """The smallest and largest value of each column of an (N, k) array (N > 0), NaN where a
     column holds one: ``points.min(axis=0), points.max(axis=0)``, a column at a time. numpy
     reduces the rows of a C-ordered (N, 3) array over a strided axis about 13 times slower
-    (1M points: 48 ms against 3.8 ms), which was a tenth of a sparse run (issue 19, W8)."""
+    (1M points: 48 ms against 3.8 ms): the data-quality diagnosis's two boxes were 0.1 s of
+    W8's 0.65 s (issue 19)."""
     points = np.asarray(points)
     columns = range(points.shape[1])
     return (np.array([points[:, k].min() for k in columns], dtype=points.dtype),
