@@ -733,19 +733,27 @@ void Octree::cylinder(const Cylinder& cyl, std::vector<double>& t_out, DescentCa
     const double extent = 0.5 * Vec3(node.hi[0] - node.lo[0], node.hi[1] - node.lo[1], node.hi[2] - node.lo[2]).norm();
     const Vec3 v = m - c;
     const double s = std::clamp(v.dot(n), cyl.t_min, cyl.t_max);
-    if ((v - s * n).norm() > cyl.radius + extent + slack) continue;
+    const double reach = cyl.radius + extent + slack;
+    if ((v - s * n).squaredNorm() > reach * reach) continue;
     if (node.first_child == 0) {
+      // Every point is written and the end advanced only past those inside: a thin cylinder
+      // keeps about a third of a crossing leaf's points, and a branch per point mispredicted
+      // (30 % of the query's time on a 100k-point epoch with d = 1 m).
+      const std::uint32_t held = node.end - node.begin;
+      std::size_t kept = t_out.size();
+      t_out.resize(kept + held);
+      if (index_out) index_out->resize(kept + held);
       for (std::uint32_t slot = node.begin; slot < node.end; ++slot) {
         const double* p = slot_xyz(slot);
         const double vx = p[0] - c.x(), vy = p[1] - c.y(), vz = p[2] - c.z();
         const double t = vx * n.x() + vy * n.y() + vz * n.z();
-        if (t < cyl.t_min || t > cyl.t_max) continue;
         const double wx = vx - t * n.x(), wy = vy - t * n.y(), wz = vz - t * n.z();
-        if (wx * wx + wy * wy + wz * wz <= r2) {
-          t_out.push_back(t);
-          if (index_out) index_out->push_back(index_.original[slot]);
-        }
+        t_out[kept] = t;
+        if (index_out) (*index_out)[kept] = index_.original[slot];
+        kept += (t >= cyl.t_min) & (t <= cyl.t_max) & (wx * wx + wy * wy + wz * wz <= r2);
       }
+      t_out.resize(kept);
+      if (index_out) index_out->resize(kept);
     } else {
       M3C2_ASSERT(top + int(node.children) <= kTraversalStack, "the traversal stack's depth bound");
       for (std::uint32_t k = node.children; k-- > 0;) stack[top++] = node.first_child + k;  // key order
