@@ -151,38 +151,64 @@ inline OrientedNormal normal_at(const Vec3& core, std::size_t i, const Params& p
   return {};
 }
 
+/// One cloud's cylinder as measure() uses it: its count and, when it holds points, the centre
+/// and spread of its offsets (a function of the offsets alone, so that a time series computes
+/// the reference's once for all epochs).
+struct CylinderSummary {
+  std::uint32_t n = 0;
+  Spread spread;
+};
+
+inline CylinderSummary summarise(const std::vector<double>& t, const Params& params, Scratch& s) {
+  if (t.empty()) return {};
+  return {static_cast<std::uint32_t>(t.size()), central_spread(t, params, s.work, &s.median_weights)};
+}
+
+/// The count alone, where the other cloud's cylinder is empty and no spread is measured.
+inline CylinderSummary counted(const std::vector<double>& t) { return {static_cast<std::uint32_t>(t.size()), {}}; }
+
 /// Section 3.1.3 step 3 and 3.3: the distance, spreads, LOD and significance of core point i
-/// from its cylinders' offsets s.t1, s.t2 (z = z_critical(params.confidence)). With
+/// from its cylinders' summaries `a` (reference) and `b` (compared); z = z_critical(params.
+/// confidence). The bootstrap LOD also reads the offsets themselves, s.t1 and s.t2. With
 /// `lod_by_model` (per-point uncertainty, PM / EP) only the distance and spreads: the model
 /// gives the LOD. `pulse` lets a long bootstrap be cancelled inside the core point (pulse.hpp).
-inline void measure(const Params& params, double z, bool lod_by_model, Scratch& s, std::size_t i, Result& r,
-                    Pulse& pulse) {
-  const auto n1 = static_cast<std::uint32_t>(s.t1.size()), n2 = static_cast<std::uint32_t>(s.t2.size());
+inline void measure(const Params& params, double z, bool lod_by_model, const CylinderSummary& a,
+                    const CylinderSummary& b, Scratch& s, std::size_t i, Result& r, Pulse& pulse) {
+  const std::uint32_t n1 = a.n, n2 = b.n;
   r.n1[i] = n1;
   r.n2[i] = n2;
   if (n1 == 0 || n2 == 0) {
     r.status[i] = n1 == 0 ? PointStatus::kEmptyCylinder1 : PointStatus::kEmptyCylinder2;
     return;
   }
-  const Spread a = central_spread(s.t1, params, s.work, &s.median_weights);
-  const Spread b = central_spread(s.t2, params, s.work, &s.median_weights);
-  r.i1[i] = a.centre, r.i2[i] = b.centre, r.sigma1[i] = a.sigma, r.sigma2[i] = b.sigma;
-  r.distance[i] = b.centre - a.centre;
+  r.i1[i] = a.spread.centre, r.i2[i] = b.spread.centre, r.sigma1[i] = a.spread.sigma, r.sigma2[i] = b.spread.sigma;
+  r.distance[i] = b.spread.centre - a.spread.centre;
   if (lod_by_model) return;  // PM / EP: the model gives the LOD
   // Eq. (1) is not defined below two points per cloud whatever min_points says (5.2.1).
-  if (n1 < std::max(params.min_points, 2u) || n2 < std::max(params.min_points, 2u) || !std::isfinite(a.sigma) ||
-      !std::isfinite(b.sigma)) {
+  if (n1 < std::max(params.min_points, 2u) || n2 < std::max(params.min_points, 2u) || !std::isfinite(a.spread.sigma) ||
+      !std::isfinite(b.spread.sigma)) {
     r.status[i] = PointStatus::kTooFewPointsForLod;
     return;
   }
   if (params.lod == Lod::kBootstrap) {
     r.lod[i] = z * (bootstrap_sigma(s.t1, s.t2, params, i, s.work, pulse) + params.registration_error);
   } else {
-    const double critical = critical_value(params, z, a.se, n1, b.se, n2);
-    r.lod[i] = lod_parametric(critical, a.se, b.se, params.registration_error);
+    const double critical = critical_value(params, z, a.spread.se, n1, b.spread.se, n2);
+    r.lod[i] = lod_parametric(critical, a.spread.se, b.spread.se, params.registration_error);
   }
   r.significant[i] = std::abs(r.distance[i]) > r.lod[i];
   r.status[i] = PointStatus::kOk;
+}
+
+/// measure() from the cylinders' offsets s.t1 and s.t2.
+inline void measure(const Params& params, double z, bool lod_by_model, Scratch& s, std::size_t i, Result& r,
+                    Pulse& pulse) {
+  if (s.t1.empty() || s.t2.empty()) {  // no spread needed
+    measure(params, z, lod_by_model, counted(s.t1), counted(s.t2), s, i, r, pulse);
+    return;
+  }
+  const CylinderSummary a = summarise(s.t1, params, s), b = summarise(s.t2, params, s);
+  measure(params, z, lod_by_model, a, b, s, i, r, pulse);
 }
 
 }  // namespace m3c2::detail

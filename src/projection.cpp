@@ -40,22 +40,27 @@ void progressive_truncate(std::vector<double>& t, const Params& params, Projecti
 
 }  // namespace
 
+void project_first_pass(const Octree& cloud, const Vec3& core, const Vec3& normal, const Params& params,
+                        ProjectionScratch& s, std::vector<double>& t, std::vector<std::uint32_t>* index) {
+  cloud.cylinder(make_cylinder(core, normal, params, params.first_pass_depth), t, &s.descent, index);
+}
+
+void project_full_depth(const Octree& cloud, const Vec3& core, const Vec3& normal, const Params& params,
+                        ProjectionScratch& s, std::vector<double>& t, std::vector<std::uint32_t>* index) {
+  cloud.cylinder(make_cylinder(core, normal, params, params.max_depth), t, &s.descent, index);
+  if (params.depth_search == DepthSearch::kProgressive) progressive_truncate(t, params, s, index);
+}
+
 void project(const Octree& reference, const Octree& compared, const Vec3& core, const Vec3& normal,
              const Params& params, ProjectionScratch& s, std::vector<double>& t1, std::vector<double>& t2,
              std::vector<std::uint32_t>* index1, std::vector<std::uint32_t>* index2) {
   if (params.depth_search == DepthSearch::kTwoPass) {
-    const Cylinder short_cyl = make_cylinder(core, normal, params, params.first_pass_depth);
-    reference.cylinder(short_cyl, t1, &s.descent, index1);
-    compared.cylinder(short_cyl, t2, &s.descent, index2);
+    project_first_pass(reference, core, normal, params, s, t1, index1);
+    project_first_pass(compared, core, normal, params, s, t2, index2);
     if (!t1.empty() && !t2.empty()) return;
   }
-  const Cylinder cyl = make_cylinder(core, normal, params, params.max_depth);
-  reference.cylinder(cyl, t1, &s.descent, index1);
-  compared.cylinder(cyl, t2, &s.descent, index2);
-  if (params.depth_search == DepthSearch::kProgressive) {
-    progressive_truncate(t1, params, s, index1);
-    progressive_truncate(t2, params, s, index2);
-  }
+  project_full_depth(reference, core, normal, params, s, t1, index1);
+  project_full_depth(compared, core, normal, params, s, t2, index2);
 }
 
 }  // namespace m3c2::detail

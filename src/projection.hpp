@@ -29,4 +29,16 @@ void project(const Octree& reference, const Octree& compared, const Vec3& core, 
              const Params& params, ProjectionScratch& scratch, std::vector<double>& t1, std::vector<double>& t2,
              std::vector<std::uint32_t>* index1 = nullptr, std::vector<std::uint32_t>* index2 = nullptr);
 
+/// project()'s two searches in one cloud, for a caller that keeps one cloud's offsets (a time
+/// series' reference): project() is the first pass in both clouds (kTwoPass only), kept when
+/// neither came back empty, else the full depth in both.
+/// The short cylinder of kTwoPass (half-length first_pass_depth) in `cloud`.
+void project_first_pass(const Octree& cloud, const Vec3& core, const Vec3& normal, const Params& params,
+                        ProjectionScratch& scratch, std::vector<double>& t,
+                        std::vector<std::uint32_t>* index = nullptr);
+/// The full depth in `cloud`: half-length max_depth, then kProgressive's truncation.
+void project_full_depth(const Octree& cloud, const Vec3& core, const Vec3& normal, const Params& params,
+                        ProjectionScratch& scratch, std::vector<double>& t,
+                        std::vector<std::uint32_t>* index = nullptr);
+
 }  // namespace m3c2::detail

@@ -18,6 +18,11 @@ struct Comparison::State {
   std::optional<detail::Octree> reference;
   std::vector<std::uint32_t> order;  // Morton order of the core points (spatial_order.hpp)
   std::vector<detail::OrientedNormal> normals;
+  // The reference's cylinder at each core point, the same for every epoch, summarised once:
+  // the full depth and, with kTwoPass, the first pass (project_first_pass). measure() reads no
+  // more of it, except the bootstrap, which resamples the offsets: then it is searched again.
+  bool reference_summarised = false;
+  std::vector<detail::CylinderSummary> reference_full, reference_first;
   double z = 0.0;
 
   PointsView core_view() const { return {core.data(), core.size() / 3}; }
@@ -57,13 +62,26 @@ Comparison::Comparison(PointsView reference, PointsView core_points, const Param
   if (src == NormalSource::kReference || src == NormalSource::kHorizontal)
     reference_normals.emplace(reference, *s.reference, s.params, s.grid);
   s.normals.resize(core_points.size());
+  const bool two_pass = params.depth_search == DepthSearch::kTwoPass;
+  s.reference_summarised = params.lod != Lod::kBootstrap;
+  if (s.reference_summarised) {
+    s.reference_full.resize(core_points.size());
+    if (two_pass) s.reference_first.resize(core_points.size());
+  }
   const PointsView core = s.core_view();
-  detail::parallel_blocks<detail::NormalScratch>(
-      core.size(), run, [&](std::size_t begin, std::size_t end, detail::NormalScratch& scratch) {
+  detail::parallel_blocks<detail::Scratch>(
+      core.size(), run, [&](std::size_t begin, std::size_t end, detail::Scratch& scratch) {
         for (std::size_t k = begin; k < end; ++k) {
           const std::size_t i = s.order[k];
-          s.normals[i] = detail::normal_at(core[i], i, s.params, reference_normals ? &*reference_normals : nullptr,
-                                           nullptr, s.core_normals, scratch);
+          const detail::OrientedNormal& n = s.normals[i] =
+              detail::normal_at(core[i], i, s.params, reference_normals ? &*reference_normals : nullptr, nullptr,
+                                s.core_normals, scratch.normal);
+          if (!s.reference_summarised || n.status != PointStatus::kOk) continue;
+          detail::project_full_depth(*s.reference, core[i], n.normal, s.params, scratch.projection, scratch.t1);
+          s.reference_full[i] = detail::summarise(scratch.t1, s.params, scratch);
+          if (!two_pass) continue;
+          detail::project_first_pass(*s.reference, core[i], n.normal, s.params, scratch.projection, scratch.t1);
+          s.reference_first[i] = detail::summarise(scratch.t1, s.params, scratch);
         }
       });
 }
@@ -83,6 +101,7 @@ Result Comparison::compare(PointsView compared, const RunOptions& run) const {
   Result result;
   result.resize(size());
   const PointsView core = s.core_view();
+  const bool two_pass = s.params.depth_search == DepthSearch::kTwoPass;
   // The body of compute()'s Pipeline::run with the normal looked up instead of estimated.
   detail::parallel_blocks<detail::Scratch>(
       core.size(), run, [&](std::size_t begin, std::size_t end, detail::Scratch& scratch, detail::Pulse& pulse) {
@@ -98,8 +117,24 @@ Result Comparison::compare(PointsView compared, const RunOptions& run) const {
                 std::numeric_limits<double>::quiet_NaN();
             continue;
           }
-          detail::project(*s.reference, epoch, core[i], n.normal, s.params, scratch.projection, scratch.t1, scratch.t2);
-          detail::measure(s.params, s.z, false, scratch, i, result, pulse);
+          if (!s.reference_summarised) {
+            detail::project(*s.reference, epoch, core[i], n.normal, s.params, scratch.projection, scratch.t1,
+                            scratch.t2);
+            detail::measure(s.params, s.z, false, scratch, i, result, pulse);
+            continue;
+          }
+          // project()'s rule with the reference's side known: the first pass where it found
+          // points in both clouds, else the full depth in both.
+          const detail::CylinderSummary* a = &s.reference_full[i];
+          if (two_pass && s.reference_first[i].n > 0) {
+            detail::project_first_pass(epoch, core[i], n.normal, s.params, scratch.projection, scratch.t2);
+            if (!scratch.t2.empty()) a = &s.reference_first[i];
+          }
+          if (a == &s.reference_full[i])
+            detail::project_full_depth(epoch, core[i], n.normal, s.params, scratch.projection, scratch.t2);
+          const detail::CylinderSummary b =
+              a->n == 0 ? detail::counted(scratch.t2) : detail::summarise(scratch.t2, s.params, scratch);
+          detail::measure(s.params, s.z, false, *a, b, scratch, i, result, pulse);
         }
       });
   return result;

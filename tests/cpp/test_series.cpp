@@ -62,6 +62,18 @@ std::vector<Case> cases() {
   Params horizontal = base;
   horizontal.normal_source = NormalSource::kHorizontal;
   out.push_back({"horizontal", horizontal});
+  Params two_pass = base;
+  two_pass.depth_search = DepthSearch::kTwoPass;
+  two_pass.first_pass_depth = 0.15;
+  out.push_back({"two pass", two_pass});
+  return out;
+}
+
+/// The points of `cloud` outside the band x0 <= x <= x1.
+Cloud without_band(const Cloud& cloud, double x0, double x1) {
+  Cloud out;
+  for (std::size_t i = 0; i < cloud.size(); ++i)
+    if (cloud[i].x() < x0 || cloud[i].x() > x1) out.add(cloud[i]);
   return out;
 }
 
@@ -75,6 +87,38 @@ TEST(Series, EveryEpochEqualsComputeBitForBit) {
       const Result b = compute(pair.reference.view(), compared.view(), pair.cores.view(), c.params, with_threads(1));
       EXPECT_TRUE(SameBits(a, b)) << c.name << ", epoch " << epoch;
     }
+  }
+}
+
+// The reference's cylinders are searched once for all epochs (series.cpp): every branch of
+// project()'s rule must still give compute()'s bits. A hole in the reference (empty reference
+// cylinders), one in an epoch (empty compared ones), and an epoch moved beyond the two-pass
+// search's first pass (the full depth in both clouds where the reference's short cylinder held
+// points); min_points above the smallest cylinders (too few points for the LOD).
+TEST(Series, EmptyAndShortCylindersEqualCompute) {
+  const Pair pair = rough_pair(15, 5000);
+  const Cloud reference = without_band(pair.reference, 2.0, 3.0);
+  const Cloud cores = rough_pair(16, 1500).reference;  // over the holes too
+  const std::vector<Cloud> epochs{without_band(rough_pair(200, 4000, 10.0, 0.03, 0.0).compared, 6.0, 7.0),
+                                  rough_pair(201, 4000, 10.0, 0.03, 0.4).compared};
+  for (Case c : cases()) {
+    if (c.params.bootstrap_samples > 0) continue;  // searched per epoch: EveryEpochEqualsComputeBitForBit
+    c.params.min_points = 4;
+    const Comparison series(reference.view(), cores.view(), c.params, with_threads(2));
+    std::size_t empty1 = 0, empty2 = 0, too_few = 0;
+    for (std::size_t e = 0; e < epochs.size(); ++e) {
+      const Result a = series.compare(epochs[e].view(), with_threads(2));
+      const Result b = compute(reference.view(), epochs[e].view(), cores.view(), c.params, with_threads(1));
+      EXPECT_TRUE(SameBits(a, b)) << c.name << ", epoch " << e;
+      for (const PointStatus st : a.status) {
+        empty1 += st == PointStatus::kEmptyCylinder1;
+        empty2 += st == PointStatus::kEmptyCylinder2;
+        too_few += st == PointStatus::kTooFewPointsForLod;
+      }
+    }
+    EXPECT_GT(empty1, 0u) << c.name;
+    EXPECT_GT(empty2, 0u) << c.name;
+    EXPECT_GT(too_few, 0u) << c.name;
   }
 }
 
