@@ -13,6 +13,7 @@
 #include <m3c2/uncertainty.hpp>
 
 #include <cstdint>
+#include <optional>
 #include <vector>
 
 namespace m3c2 {
@@ -84,6 +85,13 @@ std::vector<double> roughness_by_scale(PointsView cloud, PointsView core_points,
 /// chosen greedily in input order (the first point of a cluster is kept). Serial and
 /// deterministic; the result is sorted.
 std::vector<std::uint64_t> subsample_min_spacing(PointsView points, double min_spacing);
+
+/// For each row of `queries`, the index of the first row of `points` equal to it (as numbers:
+/// -0.0 equals 0.0, NaN equals nothing), in input order; nullopt when some query equals no row.
+/// Queries equal to the points row for row (the core points are the cloud) get the identity.
+/// How the command line finds the reference points that the core points are, to carry their
+/// attributes (intensity, classification, ...) into the output. Serial; O(points + queries).
+std::optional<std::vector<std::uint64_t>> match_rows(PointsView points, PointsView queries);
 
 /// Regular grid of core points over the XY extent of `points` (2D use, section 3.1.1 and 6.1.2).
 struct Grid {

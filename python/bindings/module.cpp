@@ -365,6 +365,19 @@ NB_MODULE(_core, m) {
       "points"_a, "min_spacing"_a);
 
   m.def(
+      "match_rows",
+      [](const Points& points, const Points& queries) -> std::optional<nb::ndarray<nb::numpy, std::uint64_t>> {
+        std::optional<std::vector<std::uint64_t>> found;
+        {
+          nb::gil_scoped_release nogil;
+          found = m3c2::match_rows(view(points), view(queries));
+        }
+        if (!found) return std::nullopt;
+        return to_numpy(std::move(*found));
+      },
+      "points"_a, "queries"_a);
+
+  m.def(
       "grid_core_points",
       [](const Points& points, double cell) {
         m3c2::Grid g;

@@ -24,7 +24,7 @@ from .errors import Cancelled, UsageError
 
 __all__ = ["PARAM_FIELDS", "RESULT_FIELDS", "OPTIONAL_RESULT_FIELDS", "STATUS_NAMES", "MAX_CELLS_PER_AXIS", "MAX_BOOTSTRAP_SAMPLES", "INDEX_MEMORY", "Params",
            "translated", "make_params", "default_fields", "params_fields", "compute", "compute_normals",
-           "subsample_min_spacing", "grid_core_points", "roughness_by_scale", "dimensionality", "c2c", "max_abs_coordinate",
+           "subsample_min_spacing", "match_rows", "grid_core_points", "roughness_by_scale", "dimensionality", "c2c", "max_abs_coordinate",
            "neighbourhood_reach", "tile_halo"]
 
 Params = _core.Params
@@ -133,6 +133,12 @@ def subsample_min_spacing(points: np.ndarray, spacing: float, option: str = "min
     """Indices of the points kept with no two closer than `spacing` (greedy in input order)."""
     with translated(option):
         return np.asarray(_core.subsample_min_spacing(points, spacing))
+
+
+def match_rows(points: np.ndarray, queries: np.ndarray) -> np.ndarray | None:
+    """For each query row, the index of the first identical row of `points` (m3c2::match_rows),
+    or None when some query is no row."""
+    return _core.match_rows(points, queries)
 
 
 def grid_core_points(points: np.ndarray, cell: float, option: str = "cell") -> dict:

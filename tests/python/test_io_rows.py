@@ -1,5 +1,5 @@
 """m3c2kit.io.rows.match_rows against a brute-force oracle: first identical row in input order,
-None when a query is no row, -0.0 equal to 0.0, and hash collisions settled exactly."""
+None when a query is no row, -0.0 equal to 0.0, rows one ulp apart and NaN told apart."""
 from __future__ import annotations
 
 import numpy as np
@@ -51,10 +51,33 @@ def test_identical_arrays_are_the_identity():
     np.testing.assert_array_equal(rows.match_rows(pts, pts.copy()), np.arange(len(pts)))
 
 
-def test_collisions_are_settled_exactly(monkeypatch):
-    # Every row hashes alike: the exact record sort must still find each query's first row.
-    monkeypatch.setattr(rows, "_hash", lambda a: np.zeros(len(a), dtype=np.uint64))
-    pts = _cloud(5)
+def test_rows_one_ulp_apart_and_nan_rows_are_told_apart():
+    # Each query has neighbours one ulp off on each axis (before it in input order) and rows
+    # holding NaN: only the identical row is its match; a NaN query equals no row.
+    pts = _cloud(5, n=300)
+    off = []
+    for a in range(3):
+        for direction in (-np.inf, np.inf):
+            near = pts.copy()
+            near[:, a] = np.nextafter(near[:, a], direction)
+            off.append(near)
+    nan_rows = pts[:50].copy()
+    nan_rows[:, 1] = np.nan
+    everything = np.vstack(off + [nan_rows, pts])
     queries = pts[::-7]
+    np.testing.assert_array_equal(rows.match_rows(everything, queries), _oracle(everything, queries))
+    assert rows.match_rows(everything, np.vstack([queries, nan_rows[:1]])) is None
+
+
+def test_many_points_few_queries_against_the_oracle():
+    # Far more points than queries (the table of distinct queries is small and most points probe
+    # slots held by other rows), duplicates among the queries, queries late in the points.
+    rng = np.random.default_rng(6)
+    pts = np.round(rng.normal(0, 50, (20000, 3)), 2)
+    queries = np.vstack([pts[-3:], pts[rng.integers(0, len(pts), 40)], pts[-3:]])
     np.testing.assert_array_equal(rows.match_rows(pts, queries), _oracle(pts, queries))
-    assert rows.match_rows(pts, np.array([[7.0, 7.0, 7.0]])) is None
+
+
+def test_no_queries_and_no_points():
+    assert len(rows.match_rows(_cloud(7), np.empty((0, 3)))) == 0
+    assert rows.match_rows(np.empty((0, 3)), _cloud(7)[:2]) is None
