@@ -365,7 +365,7 @@ def run_whole(tool: str, folder: Path, D, d, L, threads: int, tag: str) -> dict:
         cmd = [sys.executable, "-c", M3C2_WHOLE, "compare", str(folder / "ref.laz"), str(folder / "cmp.laz"),
                "--core", str(folder / "core.npy"), "-o", str(out), "--normal-scale", str(D[0]),
                "--projection-scale", str(d), "--max-depth", str(L), "--min-points", "1", "--lod", PEER_LOD,
-               "--threads", str(threads), "--quiet", "--all-fields", "--float64"]  # every column at full precision, as py4dgeo's: the checks read them
+               "--threads", str(threads), "--quiet", "--float64"]  # the default columns at full precision, as py4dgeo's 4: the checks read them
     else:
         cmd = [sys.executable, "-c", PY4DGEO_WHOLE, str(folder / "ref.laz"), str(folder / "cmp.laz"),
                str(folder / "core.npy"), str(out), str(D[0]), str(d), str(L), str(threads)]
@@ -416,6 +416,8 @@ def agreement(folder: Path, ours_tag: str, theirs_tag: str, D, d, L, normals: st
     agree = close(ours["distance"], theirs["distance"]) & close(lod, theirs["lod"])
     bad = np.flatnonzero(~agree)
     flagged = 0
+    if len(bad) and "normal" not in ours.files:  # W7's LAS output holds the default columns, without the normals
+        return f"{agree.mean():.3%} of {len(agree)} ({len(bad)} differ, not classified: no normals in the output)"
     if len(bad) and normals != "vertical":
         ref, cmp, core = (np.load(folder / f"{k}.npy") for k in ("ref", "cmp", "core"))
         flags = py4dgeo_defect_flags(ref, cmp, core, ours["normal"], D[0], d, L, which=bad[:20000])
