@@ -1,6 +1,7 @@
 // The thin binding: numpy arrays in (viewed, not copied, when float64 and C-contiguous),
 // the GIL released while the engine runs, numpy arrays out (the engine's vectors, not copied).
 
+#include <m3c2/cylinder_index.hpp>
 #include <m3c2/m3c2.hpp>
 #include <m3c2/objects_by_change.hpp>
 #include <m3c2/series.hpp>
@@ -453,6 +454,37 @@ NB_MODULE(_core, m) {
 
   // Time series (include/m3c2/series.hpp, docs/series.md): the reference prepared once, one
   // epoch compared at a time; the reference array is kept alive by the object.
+  // One cloud queried with cylinders of several diameters (the data-quality diagnosis).
+  struct CloudCylinders {
+    nb::object cloud;  // the engine reads the cloud's coordinates in place
+    std::optional<m3c2::CylinderIndex> index;
+  };
+  nb::class_<CloudCylinders>(m, "CylinderIndex")
+      .def(
+          "__init__",
+          [](CloudCylinders* self, const Points& cloud, double smallest_diameter, int threads) {
+            new (self) CloudCylinders{nb::cast(cloud), std::nullopt};
+            self->index.emplace(run_engine(nb::none(), threads, [&](const m3c2::RunOptions& run) {
+              return m3c2::CylinderIndex(view(cloud), smallest_diameter, run);
+            }));
+          },
+          "cloud"_a, "smallest_diameter"_a, "threads"_a = 0)
+      .def(
+          "statistics",
+          [](const CloudCylinders& self, const Points& core, const Points& normals, double diameter, double half_length,
+             int threads) {
+            const std::vector<double> axes(normals.data(), normals.data() + 3 * normals.shape(0));
+            m3c2::CylinderStatistics c = run_engine(nb::none(), threads, [&](const m3c2::RunOptions& run) {
+              return self.index->statistics(view(core), axes, diameter, half_length, run);
+            });
+            nb::dict d;
+            d["count"] = to_numpy(std::move(c.count));
+            d["mean"] = to_numpy(std::move(c.mean));
+            d["sigma"] = to_numpy(std::move(c.sigma));
+            return d;
+          },
+          "core_points"_a, "normals"_a, "diameter"_a, "half_length"_a, "threads"_a = 0);
+
   struct SeriesComparison {
     nb::object reference;  // the engine reads the reference's coordinates in place
     std::optional<m3c2::Comparison> comparison;

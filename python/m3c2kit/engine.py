@@ -24,7 +24,7 @@ from .errors import Cancelled, UsageError
 
 __all__ = ["PARAM_FIELDS", "RESULT_FIELDS", "OPTIONAL_RESULT_FIELDS", "STATUS_NAMES", "MAX_CELLS_PER_AXIS", "MAX_BOOTSTRAP_SAMPLES", "INDEX_MEMORY", "Params",
            "translated", "make_params", "default_fields", "params_fields", "compute", "compute_normals",
-           "subsample_min_spacing", "match_rows", "grid_core_points", "roughness_by_scale", "dimensionality", "c2c", "max_abs_coordinate",
+           "subsample_min_spacing", "match_rows", "CylinderIndex", "grid_core_points", "roughness_by_scale", "dimensionality", "c2c", "max_abs_coordinate",
            "neighbourhood_reach", "tile_halo"]
 
 Params = _core.Params
@@ -182,6 +182,21 @@ def memory_estimate(n_reference: int, n_compared: int, n_core: int, params: _cor
     """Bytes compute() allocates beyond its inputs for clouds of these sizes (INDEX_MEMORY; an
     upper estimate), with `order_in_place` as compute() is given it."""
     return int(_core.memory_estimate(int(n_reference), int(n_compared), int(n_core), params, bool(order_in_place)))
+
+
+class CylinderIndex:
+    """One cloud's index, queried with cylinders of any diameter >= `smallest_diameter` along given
+    axes (include/m3c2/cylinder_index.hpp): each call gives the points' count and the mean and
+    spread of their offsets along the axis, as compute() summarises a cylinder."""
+
+    def __init__(self, cloud: np.ndarray, smallest_diameter: float, *, threads: int = 0):
+        with translated():
+            self._impl = _core.CylinderIndex(cloud, smallest_diameter, threads=threads)
+
+    def statistics(self, core: np.ndarray, normals: np.ndarray, diameter: float, half_length: float, *,
+                   threads: int = 0) -> dict:
+        with translated():
+            return self._impl.statistics(core, normals, diameter, half_length, threads=threads)
 
 
 def tile_halo(params: _core.Params) -> float:

@@ -94,30 +94,17 @@ class CylinderDiagnosis:
         return int(round(kind.size * self.empty / self.diagnosed)) if self.sampled else int(kind.size)
 
 
-def _stand_ins(core: np.ndarray, normals: np.ndarray, box, reach: float, diameter: float) -> np.ndarray:
-    """One point on each core point's cylinder axis, within the cylinder (half-length `reach`):
-    the axis point nearest the centre of `box`, a cloud's bounding box. Where the cylinder holds a
-    point of that cloud, this one lies within the box's half-diagonal plus `diameter` of its
-    centre; the others, whose cylinders miss the cloud, are left out (so that none lies far away,
-    beyond the grid's range, as core points may)."""
-    lo, hi = box
-    centre, radius = (lo + hi) / 2, float(np.linalg.norm(hi - lo)) / 2 + diameter
-    t = np.clip(np.einsum("ij,ij->i", centre - core, normals), -0.999 * reach, 0.999 * reach)
-    on_axis = core + t[:, None] * normals
-    return on_axis[np.linalg.norm(on_axis - centre, axis=1) <= radius]
-
-
 def cylinder_diagnosis(reference: np.ndarray, compared: np.ndarray, result, *, projection_scale: float,
                        max_depth: float, threads: int = 0, at_most: int | None = None) -> list[CylinderDiagnosis]:
     """One :class:`CylinderDiagnosis` per cloud with empty cylinders (see the module docstring);
     `at_most`: diagnose at most that many of each cloud's empty cylinders, evenly spaced in the
     core points' order (the warnings: :data:`WARNING_SAMPLE`), else all."""
-    from .api import compare_quietly as compare  # the engine run, lazily; no warnings of its own
+    from . import engine
 
     status = np.asarray(result.status)
     with_normal = int(np.count_nonzero(~np.isin(status, _NO_NORMAL)))
     out = []
-    boxes = reach = None
+    reach = None
     for cloud, code in _EMPTY.items():
         idx = np.flatnonzero(status == code)
         if not idx.size:
@@ -125,25 +112,20 @@ def cylinder_diagnosis(reference: np.ndarray, compared: np.ndarray, result, *, p
         empty = int(idx.size)
         if at_most is not None and empty > at_most:
             idx = idx[np.unique(np.linspace(0, empty - 1, int(at_most)).round().astype(np.int64))]
-        if boxes is None:  # once for both clouds
-            boxes = {1: bounds(reference), 2: bounds(compared)}
-            extent = np.linalg.norm(np.maximum(boxes[1][1], boxes[2][1]) - np.minimum(boxes[1][0], boxes[2][0]))
-            reach = max(float(extent), 2.0 * float(max_depth))
+        if reach is None:  # once for both clouds
+            (lo1, hi1), (lo2, hi2) = bounds(reference), bounds(compared)
+            reach = max(float(np.linalg.norm(np.maximum(hi1, hi2) - np.minimum(lo1, lo2))), 2.0 * float(max_depth))
         points = reference if cloud == 1 else compared
+        core, normals = result.core[idx], result.normal[idx]
+        # Only that cloud is indexed, once for both questions below (the diagnosis was most of a
+        # sparse run's time: issue 19, W8).
+        cylinders = engine.CylinderIndex(points, float(projection_scale), threads=threads)
 
         def along(keep: np.ndarray, diameter: float):
             """Points of that cloud, offset and spread of their mean along the normal, in a
-            cylinder of `diameter` as long as the extent, at the core points idx[keep]. Only that
-            cloud is indexed (the diagnosis was most of a sparse run's time: issue 19, W8): it is
-            the run's reference, and the compared cloud a stand-in point in each cylinder that can
-            meet it, so that no status of the other cloud's hides the reference's values."""
-            core, normals = result.core[idx[keep]], result.normal[idx[keep]]
-            stand_ins = _stand_ins(core, normals, boxes[cloud], reach, diameter)
-            if not len(stand_ins):  # no cylinder meets the cloud
-                return np.zeros(len(core)), np.full(len(core), np.nan), np.full(len(core), np.nan)
-            far = compare(points, stand_ins, core, normal_source="core", core_normals=normals,
-                          projection_scale=diameter, max_depth=reach, min_points=1, threads=threads)
-            return np.asarray(far.n1), np.asarray(far.i1), np.asarray(far.sigma1)
+            cylinder of `diameter` as long as the extent, at the core points idx[keep]."""
+            s = cylinders.statistics(core[keep], normals[keep], diameter, reach, threads=threads)
+            return np.asarray(s["count"]), np.asarray(s["mean"]), np.asarray(s["sigma"])
 
         counts, offset, spread = along(np.ones(idx.size, bool), float(projection_scale))
         found = counts > 0

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 import m3c2kit
-from m3c2kit import quality as Q
+from m3c2kit import engine, quality as Q
 from m3c2kit.io.arrays import bounds
 
 TORONTO = Path(__file__).resolve().parents[2] / "data" / "toronto-ttp"
@@ -28,31 +28,34 @@ def _no_compared_point_on_the_line(cmp_xyz, core, normal, radius) -> bool:
 
 
 @pytest.mark.parametrize("cloud", [1, 2])
-def test_one_cloud_and_its_stand_ins_give_the_two_cloud_runs_cylinders(toronto, cloud):
-    # The diagnosis indexes only the cloud it reads, with a stand-in point on each cylinder's axis
-    # as the other cloud: its counts and offsets must be those of a run on both clouds, and it has
-    # an offset wherever it found points (the two-cloud run has none where the other cloud's
-    # cylinder is empty too).
+def test_the_one_cloud_index_gives_the_two_cloud_runs_cylinders(toronto, cloud):
+    # The diagnosis indexes only the cloud it reads (engine.CylinderIndex), once for both of its
+    # diameters: its counts, offsets and spreads must be those of a run on both clouds (exactly at
+    # the index's own diameter; the wider cylinder's sums in another key order, so to rounding),
+    # and it has an offset wherever it found points (the two-cloud run has none where the other
+    # cloud's cylinder is empty too).
     ref, cmp_ = toronto
     core = ref[::7] + np.array([0.0, 0.0, 30.0]) if cloud == 1 else ref[::7]  # lifted: empty in the reference
     r = m3c2kit.compare(ref, cmp_, core, normal_scale=2, projection_scale=1, max_depth=5, normal_source="vertical")
     idx = np.flatnonzero(r.status == Q._EMPTY[cloud])
     assert idx.size > 100
     reach = 200.0
+    points = ref if cloud == 1 else cmp_
+    index = engine.CylinderIndex(points, 1.0)
     for diameter in (1.0, 4.0):
         kw = dict(normal_source="core", core_normals=r.normal[idx], projection_scale=diameter, max_depth=reach,
                   min_points=1)
         both = m3c2kit.api.compare_quietly(ref, cmp_, r.core[idx], **kw)
-        points = ref if cloud == 1 else cmp_
-        stand_ins = Q._stand_ins(r.core[idx], r.normal[idx], bounds(points), reach, diameter)
-        alone = m3c2kit.api.compare_quietly(points, stand_ins, r.core[idx], **kw)
+        alone = index.statistics(r.core[idx], r.normal[idx], diameter, reach)
         n, offset = (both.n1, both.i1) if cloud == 1 else (both.n2, both.i2)
-        assert np.array_equal(alone.n1, n) and (n > 0).sum() > 10
+        sigma = both.sigma1 if cloud == 1 else both.sigma2
+        assert np.array_equal(alone["count"], n) and (n > 0).sum() > 10
         found, both_found = n > 0, np.isfinite(offset)
-        assert np.isfinite(alone.i1[found]).all() and both_found.sum() > 10
-        assert np.array_equal(alone.i1[both_found], offset[both_found])
-        assert np.array_equal(alone.sigma1[both_found], (both.sigma1 if cloud == 1 else both.sigma2)[both_found],
-                              equal_nan=True)  # NaN: one point, no spread
+        assert np.isfinite(alone["mean"][found]).all() and both_found.sum() > 10
+        assert np.isnan(alone["mean"][~found]).all()
+        same = np.array_equal if diameter == 1.0 else lambda a, b, **kw: np.allclose(a, b, rtol=1e-12, atol=1e-9, **kw)
+        assert same(alone["mean"][both_found], offset[both_found])
+        assert same(alone["sigma"][both_found], sigma[both_found], equal_nan=True)  # NaN: one point, no spread
 
 
 def test_both_clouds_diagnosed_alike_on_one_thread_and_two(toronto):
