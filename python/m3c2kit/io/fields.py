@@ -32,7 +32,6 @@ from typing import Literal
 import numpy as np
 
 from .quantised import Quantised, quantised
-from .rows import match_rows
 
 __all__ = ["Field", "FIELDS", "FIELD_NAME_SETS", "FieldNames", "output_name", "typed_columns",
            "core_attributes", "markdown_table", "FLOAT32_RELATIVE_PRECISION"]
@@ -127,20 +126,16 @@ def typed_columns(table: dict[str, np.ndarray], *, field_names: str = "m3c2", fl
     return {output_name(k, field_names, spaces=spaces): _stored(k, v, float64, las) for k, v in table.items()}
 
 
-def core_attributes(source, core: np.ndarray, taken: set[str]) -> dict[str, np.ndarray]:
+def core_attributes(source, index: np.ndarray | None, taken: set[str]) -> dict[str, np.ndarray]:
     """The attributes (intensity, classification, GPS time, RGB, ...) of the points of `source`
     (a Cloud) that the core points are, in core-point order, with their own types.
 
-    Core points are matched to `source` points by identical coordinates (they are the reference
-    itself, a subsample of it, or the --core file's points); when some core point is not among
-    them, or `source` has no fields, nothing is carried. A name already in `taken` (an M3C2
-    column) is prefixed ``core_``."""
+    `index`: for each core point, the row of `source` it is (m3c2kit.engine.match_rows: the core
+    points are the reference itself, a subsample of it, or the --core file's points), or None when
+    some core point is not among them; then, or when `source` has no fields, nothing is carried. A
+    name already in `taken` (an M3C2 column) is prefixed ``core_``."""
     fields = getattr(source, "fields", None) or {}
-    xyz = getattr(source, "xyz", None)
-    if not fields or xyz is None or len(core) == 0:
-        return {}
-    index = match_rows(np.asarray(xyz, dtype=np.float64), np.asarray(core, dtype=np.float64))
-    if index is None:
+    if not fields or index is None:
         return {}
     out = {}
     for name, values in fields.items():
