@@ -6,6 +6,7 @@
 #include <m3c2/errors.hpp>
 #include <m3c2/objects_by_change.hpp>
 
+#include "dtw_many.hpp"
 #include "kdtree.hpp"
 #include "parallel_for.hpp"
 #include "threads.hpp"
@@ -195,16 +196,18 @@ struct Seen {
     mark[c] = generation;
     return seen;
   }
+  bool test(std::uint32_t c) const { return mark[c] == generation; }
   std::vector<std::uint32_t> ball;  // Neighbours::of's buffer
 };
 
 /// Region growing at one threshold (py4dgeo's fixed_threshold_region_growing): candidates in
 /// ascending DTW; a neighbour under the threshold joins, and grows the object further only if
 /// its DTW is under the 95th percentile of the distinct DTW values so far (once the object has
-/// min_segments members). `dtw(core)` is the memoised DTW to the seed.
-template <class Dtw>
+/// min_segments members). `dtw(core)` is the memoised DTW to the seed; `prepare(list, seen)` may
+/// compute those a candidate's neighbours will ask for, all at once.
+template <class Dtw, class Prepare>
 Grown grow(const Seed& seed, double threshold, const Neighbours& adjacent, const ObjectsParams& p, Dtw&& dtw,
-           Seen& seen) {
+           Prepare&& prepare, Seen& seen) {
   Grown g;
   g.threshold = threshold;
   seen.start(adjacent.rows());
@@ -216,7 +219,9 @@ Grown grow(const Seed& seed, double threshold, const Neighbours& adjacent, const
   while (!candidates.empty()) {
     const std::uint32_t candidate = candidates.begin()->second;
     candidates.erase(candidates.begin());
-    for (const std::uint32_t nb : adjacent.of(candidate, seen.ball)) {
+    const Neighbours::List around = adjacent.of(candidate, seen.ball);
+    prepare(around, seen);
+    for (const std::uint32_t nb : around) {
       if (seen.test_and_set(nb)) continue;
       const double d = dtw(nb);
       if (d < threshold) {
@@ -315,6 +320,28 @@ ObjectsResult objects_by_change(const double* distances, std::size_t rows, std::
       memo.emplace(nb, d);
       return d;
     };
+    // The DTWs a candidate's unseen neighbours will ask for, computed together (dtw_many.hpp:
+    // the same values, 61 % of 4D-OBC's time at 100k points before), where no series has a NaN.
+    const auto finite = [&](const double* v) {
+      return std::none_of(v, v + span.length, [](double x) { return std::isnan(x); });
+    };
+    const bool lanes = finite(a);
+    std::vector<std::uint32_t> pending;
+    std::vector<const double*> series;
+    std::vector<double> norms, values;
+    const auto prepare = [&](const Neighbours::List& around, const Seen& seen) {
+      if (!lanes) return;
+      pending.clear(), series.clear(), norms.clear();
+      for (const std::uint32_t nb : around) {
+        if (seen.test(nb) || memo.count(nb) || !finite(row(nb) + span.begin)) continue;
+        pending.push_back(nb), series.push_back(row(nb) + span.begin), norms.push_back(span.norm(row(nb)));
+      }
+      if (pending.size() < detail::kDtwLanes) return;  // asked one at a time
+      values.resize(pending.size());
+      detail::normalised_dtw_many(a, series.data(), norms.data(), pending.size(), span.length, norm_a, origin,
+                                  thresholds.back(), values.data());
+      for (std::size_t k = 0; k < pending.size(); ++k) memo.emplace(pending[k], values[k]);
+    };
     // Adaptive threshold: the first threshold whose object is at most half the next one's
     // (by a ratio no larger than the previous one), or the first reaching max_segments. Each
     // threshold is grown only when this rule needs it: the rule never looks past the next one,
@@ -323,7 +350,7 @@ ObjectsResult objects_by_change(const double* distances, std::size_t rows, std::
     std::vector<Grown> grown;
     grown.reserve(thresholds.size());  // `chosen` points into it
     const auto grown_at = [&](std::size_t i) -> const Grown& {
-      while (grown.size() <= i) grown.push_back(grow(seed, thresholds[grown.size()], adjacent, p, dtw, seen));
+      while (grown.size() <= i) grown.push_back(grow(seed, thresholds[grown.size()], adjacent, p, dtw, prepare, seen));
       return grown[i];
     };
     const Grown* chosen = nullptr;

@@ -2,11 +2,13 @@
 // the lower bound (src/dtw_bound.hpp) is never above the exact cost, the strips of rows
 // (src/dtw_rows.hpp) give the same bits as row by row, and the early stops never change a
 // comparison with a threshold <= at_least, on seeded random series with NaNs, equal and
-// constant series.
+// constant series; the pairs computed lanes at a time (src/dtw_many.hpp) give the same bits as
+// one at a time.
 
 #include <m3c2/objects_by_change.hpp>
 
 #include "dtw_bound.hpp"
+#include "dtw_many.hpp"
 
 #include <gtest/gtest.h>
 
@@ -151,6 +153,48 @@ TEST(Dtw, EqualSeriesAreZeroAndLongSeriesMatch) {
     const double want = full_normalised(a, b, a[0], b[0], 0.0);
     EXPECT_TRUE(same_bits(normalised_dtw(a.data(), b.data(), n, a[0], b[0], 0.0, 1.0), want)) << n << " epochs";
   }
+}
+
+TEST(Dtw, ManyPairsAtOnceGiveTheSameBitsAsOneAtATime) {
+  // One seed against 0 to 13 neighbours (full groups of lanes and a remainder), lengths from 1
+  // epoch to the benchmark's 100, every at_least: each value, stopped (1.0) or exact, equals
+  // normalised_dtw's own for that pair.
+  std::mt19937_64 rng(23);
+  std::normal_distribution<double> step(0.0, 1.0);
+  std::uniform_real_distribution<double> u(0.0, 1.0);
+  int stopped = 0, exact = 0;
+  for (const std::size_t n : {1, 2, 3, 4, 5, 7, 9, 60, 100}) {
+    for (int trial = 0; trial < 30; ++trial) {
+      std::vector<double> a(n);
+      double v = 0.0;
+      for (double& e : a) e = v += step(rng);
+      const std::size_t count = std::size_t(trial % 14);
+      std::vector<std::vector<double>> neighbours(count, std::vector<double>(n));
+      std::vector<const double*> b;
+      std::vector<double> norms;
+      for (auto& nb : neighbours) {
+        const double kind = u(rng), noise = 2.0 * u(rng);
+        double w = 0.0;
+        for (std::size_t e = 0; e < n; ++e)
+          nb[e] = kind < 0.5 ? a[e] + noise * step(rng) : kind < 0.6 ? a[e] : kind < 0.7 ? 0.25 : w += step(rng);
+        b.push_back(nb.data());
+        norms.push_back(trial % 2 ? 0.0 : nb[0]);
+      }
+      const double norm_a = trial % 2 ? 0.0 : a[0], origin = trial % 3 ? 0.0 : a[0];
+      for (const double at_least : {0.1, 0.3, 0.5, 0.9, 1.0}) {
+        std::vector<double> got(count);
+        detail::normalised_dtw_many(a.data(), b.data(), norms.data(), count, n, norm_a, origin, at_least, got.data());
+        for (std::size_t k = 0; k < count; ++k) {
+          const double want = normalised_dtw(a.data(), b[k], n, norm_a, norms[k], origin, at_least);
+          ASSERT_TRUE(same_bits(got[k], want) || (std::isnan(got[k]) && std::isnan(want)))
+              << n << " epochs, trial " << trial << ", pair " << k << ": " << got[k] << " != " << want;
+          (want == 1.0 && at_least < 1.0 ? stopped : exact) += 1;
+        }
+      }
+    }
+  }
+  EXPECT_GT(stopped, 100);
+  EXPECT_GT(exact, 100);
 }
 
 }  // namespace
