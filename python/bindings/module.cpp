@@ -452,9 +452,8 @@ NB_MODULE(_core, m) {
       },
       "cloud"_a, "core_points"_a, "diameters"_a, "min_points"_a = 3, "threads"_a = 0, "progress"_a = nb::none());
 
-  // Time series (include/m3c2/series.hpp, docs/series.md): the reference prepared once, one
-  // epoch compared at a time; the reference array is kept alive by the object.
-  // One cloud queried with cylinders of several diameters (the data-quality diagnosis).
+  // One cloud queried with cylinders of several diameters (include/m3c2/cylinder_index.hpp, the
+  // data-quality diagnosis); the cloud's array is kept alive by the object.
   struct CloudCylinders {
     nb::object cloud;  // the engine reads the cloud's coordinates in place
     std::optional<m3c2::CylinderIndex> index;
@@ -485,6 +484,8 @@ NB_MODULE(_core, m) {
           },
           "core_points"_a, "normals"_a, "diameter"_a, "half_length"_a, "threads"_a = 0);
 
+  // Time series (include/m3c2/series.hpp, docs/series.md): the reference prepared once, one
+  // epoch compared at a time; the reference array is kept alive by the object.
   struct SeriesComparison {
     nb::object reference;  // the engine reads the reference's coordinates in place
     std::optional<m3c2::Comparison> comparison;
