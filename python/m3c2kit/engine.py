@@ -136,9 +136,12 @@ def subsample_min_spacing(points: np.ndarray, spacing: float, option: str = "min
 
 
 def match_rows(points: np.ndarray, queries: np.ndarray) -> np.ndarray | None:
-    """For each query row, the index of the first identical row of `points` (m3c2::match_rows),
-    or None when some query is no row."""
-    return _core.match_rows(points, queries)
+    """For each row of `queries` ((m, 3)), the index of the first row of `points` ((n, 3)) equal to
+    it as numbers (-0.0 equals 0.0, NaN equals nothing), or None when some query is no row
+    (m3c2::match_rows: a table of the distinct queries and one pass over the points)."""
+    as_rows = lambda a: np.ascontiguousarray(a, dtype=np.float64).reshape(-1, 3)  # noqa: E731
+    with translated():
+        return _core.match_rows(as_rows(points), as_rows(queries))
 
 
 def grid_core_points(points: np.ndarray, cell: float, option: str = "cell") -> dict:

@@ -30,13 +30,6 @@ def write(path, result: Result, *, like: Cloud | None = None, projected: bool = 
     fields = typed_columns(table, field_names=field_names, float64=float64, spaces=spaces, las=spaces,
                            all_fields=all_fields)
     if attributes and getattr(like, "fields", None) and len(result.core):
-        fields.update(core_attributes(like, _rows_of(like.xyz, result.core), set(fields)))
+        # The reference point each core point is, matched in the engine (src/match_rows.cpp).
+        fields.update(core_attributes(like, engine.match_rows(like.xyz, result.core), set(fields)))
     write_cloud_table(Path(path), xyz, fields, like=like)
-
-
-def _rows_of(points: np.ndarray, core: np.ndarray) -> np.ndarray | None:
-    """For each core point, the first row of `points` identical to it, or None when some core point
-    is no row (m3c2::match_rows, src/match_rows.cpp: a table of the distinct core points and one
-    pass over the points; numpy's hash and argsort of every point took a tenth of a whole run)."""
-    as_rows = lambda a: np.ascontiguousarray(a, dtype=np.float64).reshape(-1, 3)  # noqa: E731
-    return engine.match_rows(as_rows(points), as_rows(core))

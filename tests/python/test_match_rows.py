@@ -1,15 +1,11 @@
-"""m3c2kit.engine.match_rows (m3c2::match_rows) against a brute-force oracle: first identical row in input order,
-None when a query is no row, -0.0 equal to 0.0, rows one ulp apart and NaN told apart."""
+"""m3c2kit.engine.match_rows (m3c2::match_rows) against a brute-force oracle: the first identical
+row in input order, None when a query is no row, -0.0 equal to 0.0, rows one ulp apart and NaN
+told apart."""
 from __future__ import annotations
 
 import numpy as np
 
 from m3c2kit import engine
-
-
-def _match(points, queries):
-    as_rows = lambda a: np.ascontiguousarray(a, dtype=np.float64).reshape(-1, 3)  # noqa: E731
-    return engine.match_rows(as_rows(points), as_rows(queries))
 
 
 def _oracle(points, queries):
@@ -32,28 +28,28 @@ def test_matches_the_first_identical_row():
     pts = _cloud(1)
     queries = pts[np.random.default_rng(2).integers(0, len(pts), 150)]
     expected = _oracle(pts, queries)
-    np.testing.assert_array_equal(_match(pts, queries), expected)
+    np.testing.assert_array_equal(engine.match_rows(pts, queries), expected)
     assert len(np.unique(pts, axis=0)) < len(pts)  # the fixture has duplicates to choose among
 
 
 def test_none_when_a_query_is_no_row():
     pts = _cloud(3)
     queries = np.vstack([pts[:5], [[9.9, 9.9, 9.9]]])
-    assert _match(pts, queries) is None
+    assert engine.match_rows(pts, queries) is None
     shifted = pts[:5].copy()
     shifted[2, 1] = np.nextafter(shifted[2, 1], 10.0)  # one ulp off on one axis
-    assert _match(pts, shifted) is None
+    assert engine.match_rows(pts, shifted) is None
 
 
 def test_negative_zero_matches_zero():
     pts = np.array([[1.0, 0.0, 2.0], [0.0, 0.0, 0.0]])
     queries = np.array([[0.0, -0.0, -0.0], [1.0, -0.0, 2.0]])
-    np.testing.assert_array_equal(_match(pts, queries), [1, 0])
+    np.testing.assert_array_equal(engine.match_rows(pts, queries), [1, 0])
 
 
 def test_identical_arrays_are_the_identity():
     pts = _cloud(4)
-    np.testing.assert_array_equal(_match(pts, pts.copy()), np.arange(len(pts)))
+    np.testing.assert_array_equal(engine.match_rows(pts, pts.copy()), np.arange(len(pts)))
 
 
 def test_rows_one_ulp_apart_and_nan_rows_are_told_apart():
@@ -70,8 +66,8 @@ def test_rows_one_ulp_apart_and_nan_rows_are_told_apart():
     nan_rows[:, 1] = np.nan
     everything = np.vstack(off + [nan_rows, pts])
     queries = pts[::-7]
-    np.testing.assert_array_equal(_match(everything, queries), _oracle(everything, queries))
-    assert _match(everything, np.vstack([queries, nan_rows[:1]])) is None
+    np.testing.assert_array_equal(engine.match_rows(everything, queries), _oracle(everything, queries))
+    assert engine.match_rows(everything, np.vstack([queries, nan_rows[:1]])) is None
 
 
 def test_many_points_few_queries_against_the_oracle():
@@ -80,9 +76,9 @@ def test_many_points_few_queries_against_the_oracle():
     rng = np.random.default_rng(6)
     pts = np.round(rng.normal(0, 50, (20000, 3)), 2)
     queries = np.vstack([pts[-3:], pts[rng.integers(0, len(pts), 40)], pts[-3:]])
-    np.testing.assert_array_equal(_match(pts, queries), _oracle(pts, queries))
+    np.testing.assert_array_equal(engine.match_rows(pts, queries), _oracle(pts, queries))
 
 
 def test_no_queries_and_no_points():
-    assert len(_match(_cloud(7), np.empty((0, 3)))) == 0
-    assert _match(np.empty((0, 3)), _cloud(7)[:2]) is None
+    assert len(engine.match_rows(_cloud(7), np.empty((0, 3)))) == 0
+    assert engine.match_rows(np.empty((0, 3)), _cloud(7)[:2]) is None
