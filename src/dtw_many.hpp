@@ -6,7 +6,9 @@
 
 namespace m3c2::detail {
 
-/// Pairs whose cost matrices are computed together.
+/// Pairs whose cost matrices are computed together: SSE2's two double lanes (x86-64's baseline),
+/// the vector path of dtw_strip_lanes; another count takes its generic loops, which the
+/// compilers leave scalar (no faster than one pair at a time).
 inline constexpr std::size_t kDtwLanes = 2;
 
 /// out[k] = normalised_dtw(a, b[k], n, norm_a, norm_b[k], dmax_origin, at_least) for k < count,
