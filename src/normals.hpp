@@ -64,10 +64,14 @@ class NormalEstimator {
 /// Roughness sqrt(lambda3) of the co-moment divided by n - 1 (kSample) or n (kPopulation).
 double plane_roughness(double smallest_eigenvalue_of_comoment, std::uint32_t n, Variance variance);
 
-/// Whether lambda3 of the co-moment is too small against lambda1 for its rounding (about eps
-/// lambda1 from the summed moments) to leave sigma(D) accurate: below kCentredRatio, sigma(D) is
-/// recomputed by a centred pass over the points (docs/algorithm.md#3.3).
-inline constexpr double kCentredRatio = 1e-4;
+/// Whether lambda3 of the co-moment is too small against lambda1 for its rounding to leave
+/// sigma(D) accurate: below kCentredRatio, sigma(D) is recomputed by a centred pass over the
+/// points (docs/algorithm.md#3.3). The summed moments' lambda3 is off by about 6e-17 lambda1
+/// (measured on planes at UTM coordinates, D 1 and 16), so sigma(D)'s relative error is about
+/// 3e-17 / ratio: below 1e-9 above this threshold (test_roughness_precision.cpp). It was 1e-4, which
+/// sent most core points of smooth terrain at large D (ratios 1e-5 to 1e-4) through a second pass
+/// over every neighbour for an accuracy of 1e-12.
+inline constexpr double kCentredRatio = 1e-7;
 bool roughness_needs_centred_pass(const Eigen::Vector3d& ascending_eigenvalues);
 
 /// sigma(D) by a second, centred pass over the points' offsets (3 per point, key order, summed

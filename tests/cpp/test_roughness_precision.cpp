@@ -145,6 +145,35 @@ TEST(RoughnessPrecision, RoughNoiseKeepsTheEigenvalueAndAgreesWithTheBruteForce)
   }
 }
 
+TEST(RoughnessPrecision, EveryRatioOfEigenvaluesAgreesWithTheBruteForceTo1e9) {
+  // Either side of kCentredRatio: above it sigma(D) is the summed moments' lambda3 (error about
+  // 3e-17 / ratio), below it the centred pass. A threshold below ~1e-8 fails here (2-4e-9 at 1e-8).
+  const Vec3 origin(5412345.123, 4870000.77, 1234.5);
+  const Vec3 n = Vec3(0.3, -0.4, 1.0).normalized();
+  const auto [u, v] = orthonormal_basis(n);
+  std::mt19937_64 rng(23);
+  std::uniform_real_distribution<double> side(-1.5, 1.5);
+  std::normal_distribution<double> g(0.0, 1.0);
+  for (const double D : {1.0, 16.0})
+    for (const double ratio : {1e-3, 1e-5, 3e-7, 1.2e-7, 8e-8, 1e-8, 1e-9, 1e-11}) {
+      // lambda3 / lambda1 of a disc of radius R with noise sigma along n: sigma^2 / (R^2 / 4).
+      const double R = 0.5 * D, sigma = std::sqrt(ratio) * 0.5 * R;
+      Cloud c;
+      for (int k = 0; k < 12000; ++k) c.add(origin + (R * side(rng)) * u + (R * side(rng)) * v + (sigma * g(rng)) * n);
+      Cloud cores;
+      for (std::size_t i = 0; i < c.size() && cores.size() < 4; ++i)
+        if ((c[i] - origin).norm() < 0.5 * R) cores.add(c[i]);
+      Params p;
+      p.normal_diameters = {D};
+      const NormalsResult r = compute_normals(c.view(), cores.view(), p);
+      for (std::size_t i = 0; i < cores.size(); ++i) {
+        ASSERT_EQ(r.status[i], PointStatus::kOk);
+        const Brute b = brute(c, cores[i], D);
+        EXPECT_NEAR(r.roughness[i] / double(b.sigma), 1.0, 1e-9) << "D " << D << " ratio " << ratio << " core " << i;
+      }
+    }
+}
+
 // --- Scale selection: py4dgeo's rule ------------------------------------------------------
 
 TEST(ScaleSelectionPy4dgeo, ChoosesTheLargestPlanarityOfABruteForceDecomposition) {
