@@ -1,22 +1,33 @@
 #include "statistics.hpp"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <limits>
 
 namespace m3c2::detail {
 namespace {
 constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
+
+/// sum of term(v) over values, in four interleaved partial sums (mean_and_sigma's order).
+template <class Term>
+double sum_in_four(std::span<const double> values, Term&& term) {
+  std::array<double, 4> s{};
+  const std::size_t n = values.size();
+  std::size_t j = 0;
+  for (; j + 4 <= n; j += 4)
+    for (std::size_t k = 0; k < 4; ++k) s[k] += term(values[j + k]);
+  for (std::size_t k = 0; j < n; ++j, ++k) s[k] += term(values[j]);
+  return (s[0] + s[1]) + (s[2] + s[3]);
 }
+
+}  // namespace
 
 Spread mean_and_sigma(std::span<const double> values, Variance variance) {
   const std::size_t n = values.size();
   if (n == 0) return {kNaN, kNaN};
-  double sum = 0.0;
-  for (const double v : values) sum += v;
-  const double mean = sum / double(n);
-  double ss = 0.0;
-  for (const double v : values) ss += (v - mean) * (v - mean);
+  const double mean = sum_in_four(values, [](double v) { return v; }) / double(n);
+  const double ss = sum_in_four(values, [mean](double v) { return (v - mean) * (v - mean); });
   const double denom = variance == Variance::kSample ? double(n) - 1.0 : double(n);
   const double sigma = denom > 0.0 ? std::sqrt(ss / denom) : kNaN;
   return {mean, sigma};
