@@ -537,8 +537,9 @@ def main() -> None:
             folder = folders[key]
             n_in = sum(len(np.load(folder / f"{k}.npy", mmap_mode="r")) for k in ("ref", "cmp"))
             n_core = len(np.load(folder / "core.npy", mmap_mode="r"))
-            repeat = str(args.repeat if args.repeat != "auto" else
-                         SMALL_REPEAT if n_in < SMALL_INPUT and name not in STREAMED | WHOLE else 1)
+            # A whole process (W7) is one run of each tool whatever --repeat says.
+            repeat = str(1 if name in WHOLE else args.repeat if args.repeat != "auto" else
+                         SMALL_REPEAT if n_in < SMALL_INPUT and name not in STREAMED else 1)
             memory_limit = args.memory_limit
             if memory_limit == "auto":
                 memory_limit = str(max(40 * n_in, 512 * 2**20))
