@@ -14,16 +14,15 @@ from typing import Mapping
 
 import numpy as np
 
-from .engine import STATUS_NAMES
 from . import quality
+from .result import status_in
 from .errors import M3C2Warning
 
 __all__ = ["run_warnings", "cylinder_warnings", "normal_accuracy",
            "normal_accuracy_warnings", "warn"]
 
 #: Statuses of core points whose cylinders were searched (a normal was found).
-_SEARCHED = tuple(STATUS_NAMES.index(name) for name in ("ok", "empty_cylinder_reference", "empty_cylinder_compared",
-                                                        "too_few_points_for_lod"))
+_SEARCHED = ("ok", "empty_cylinder_reference", "empty_cylinder_compared", "too_few_points_for_lod")
 
 
 def run_warnings(result, values: Mapping, reference=None, compared=None) -> list[str]:
@@ -41,8 +40,8 @@ def _empty_cylinder_warnings(result, values: Mapping, reference, compared) -> li
     """m3c2kit.quality's diagnosis of empty cylinders: no overlap (no depth helps), or a depth too
     short (and the depth that reaches)."""
     status = np.asarray(result.status)
-    with_normal = np.count_nonzero(np.isin(status, _SEARCHED))
-    empty = np.count_nonzero(np.isin(status, _SEARCHED[1:3]))
+    with_normal = np.count_nonzero(status_in(status, _SEARCHED))
+    empty = np.count_nonzero(status_in(status, _SEARCHED[1:3]))
     if not with_normal or empty / with_normal <= quality.EMPTY_SHARE:
         return []
     diagnoses = quality.cylinder_diagnosis(reference, compared, result, projection_scale=values["projection_scale"],
@@ -54,7 +53,7 @@ def _empty_cylinder_warnings(result, values: Mapping, reference, compared) -> li
 def cylinder_warnings(result, min_points: int, max_depth=None, projection_scale=None) -> list[str]:
     """The median n1 or n2 below `min_points` (a cylinder too thin for the point spacing). Empty
     cylinders in one cloud are m3c2kit.quality's to diagnose (no overlap, or a depth too short)."""
-    searched = np.isin(result.status, _SEARCHED)
+    searched = status_in(result.status, _SEARCHED)
     if not searched.any():
         return []
     lines = []

@@ -24,7 +24,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .io.arrays import bounds
-from .result import STATUS_NAMES
+from .result import NO_NORMAL, STATUS_NAMES, status_in
 
 __all__ = ["CylinderDiagnosis", "cylinder_diagnosis", "cylinder_messages", "normal_failure_message",
            "share_text", "NORMAL_FAILURE_SHARE", "EMPTY_SHARE", "WIDE_FACTOR", "SPARSE_EXPECTED", "ADVISED_POINTS",
@@ -52,7 +52,6 @@ ADVISED_POINTS = 10
 WARNING_SAMPLE = 2000
 
 _EMPTY = {1: STATUS_NAMES.index("empty_cylinder_reference"), 2: STATUS_NAMES.index("empty_cylinder_compared")}
-_NO_NORMAL = (STATUS_NAMES.index("too_few_normal_points"), STATUS_NAMES.index("degenerate_normal"))
 
 
 def share_text(count: int, total: int, of: str, about: bool = False) -> str:
@@ -102,7 +101,7 @@ def cylinder_diagnosis(reference: np.ndarray, compared: np.ndarray, result, *, p
     from . import engine
 
     status = np.asarray(result.status)
-    with_normal = int(np.count_nonzero(~np.isin(status, _NO_NORMAL)))
+    with_normal = int(np.count_nonzero(~status_in(status, NO_NORMAL)))
     out = []
     reach = None
     for cloud, code in _EMPTY.items():
@@ -140,7 +139,7 @@ def cylinder_diagnosis(reference: np.ndarray, compared: np.ndarray, result, *, p
         # the core points with a normal) and a wider one meets the cloud within the depth there.
         thin = np.zeros(idx.size, bool)
         scale = None
-        n_run = np.asarray(result.n1 if cloud == 1 else result.n2)[~np.isin(status, _NO_NORMAL)]
+        n_run = np.asarray(result.n1 if cloud == 1 else result.n2)[~status_in(status, NO_NORMAL)]
         if (~found).any() and np.nanmean(n_run) < SPARSE_EXPECTED:
             wide = WIDE_FACTOR * float(projection_scale)
             n_wide, off_wide, _ = along(~found, wide)
@@ -199,12 +198,12 @@ def normal_failure_message(result, normal_scale) -> str | None:
     naming the likely cause (D is a diameter)."""
     status = np.asarray(result.status)
     n = len(status)
-    failed = int(np.count_nonzero(np.isin(status, _NO_NORMAL)))
+    failed = int(np.count_nonzero(status_in(status, NO_NORMAL)))
     if not n or failed / n <= NORMAL_FAILURE_SHARE:
         return None
     scales = np.atleast_1d(np.asarray(normal_scale, dtype=float))
     d = float(scales.max()) if scales.size else float("nan")
-    few = int(np.count_nonzero(status == _NO_NORMAL[0]))
+    few = int(np.count_nonzero(status_in(status, NO_NORMAL[:1])))
     why = ("too few neighbours within D/2" if few >= failed - few else "collinear or coincident neighbours")
     return (f"{share_text(failed, n, 'core points')} have no normal ({why}): D = --normal-scale {d:g} is a "
             f"DIAMETER (neighbours within D/2 = {d / 2:g}); did you give a radius? Try --normal-scale {2 * d:g} "

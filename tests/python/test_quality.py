@@ -176,3 +176,17 @@ def test_normal_failures_name_the_diameter(toronto):
 
 def test_share_text():
     assert Q.share_text(1234, 5678, "core points with a normal") == "1,234 of the 5,678 core points with a normal (21.7 %)"
+
+
+def test_status_in_is_membership_of_the_named_codes():
+    """m3c2kit.result.status_in against set membership, for every subset size and every code."""
+    from m3c2kit.result import STATUS_NAMES, status_in
+
+    rng = np.random.default_rng(3)
+    status = rng.integers(0, len(STATUS_NAMES), 5000).astype(np.uint8)
+    for k in range(len(STATUS_NAMES) + 1):
+        names = tuple(rng.choice(STATUS_NAMES, size=k, replace=False))
+        codes = {STATUS_NAMES.index(n) for n in names}
+        want = np.array([int(s) in codes for s in status])
+        np.testing.assert_array_equal(status_in(status, names), want)
+    assert status_in(status, ()).dtype == bool and not status_in(status, ()).any()
