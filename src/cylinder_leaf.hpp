@@ -25,8 +25,8 @@ inline bool cylinder_holds(const double* p, const Cylinder& cyl, double r2, doub
   return (t >= cyl.t_min) & (t <= cyl.t_max) & (wx * wx + wy * wy + wz * wz <= r2);
 }
 
-/// Appends to t_out the offsets t of the points xyz[0, n) (3 doubles each) inside `cyl`, in
-/// their order, and to index_out (if not null) first_index + j of each; returns how many. Both
+/// Writes to t_out the offsets t of the points xyz[0, n) (3 doubles each) inside `cyl`, in their
+/// order, and to index_out (if not null) original[j] of each point j; returns how many. Both
 /// outputs need room for n values: every point is written and the end advanced only past those
 /// inside (a branch per point mispredicted: a thin cylinder keeps about a third of a crossing
 /// leaf's points).
