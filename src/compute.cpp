@@ -238,7 +238,8 @@ NormalsResult compute_normals(PointsView cloud, PointsView core_points, const Pa
   if (cloud.empty()) throw InvalidArgument("the cloud is empty");
   detail::require_finite_points("core points", core_points);
   const OctreeGrid grid = grid_for(params.normal_diameters, 0.0);
-  const Octree tree = index_of(cloud, "cloud", grid, params.normal_subsample_spacing <= 0.0);
+  const Octree tree =
+      index_of(cloud, "cloud", grid, params.normal_subsample_spacing <= 0.0, false, detail::requested_threads(run));
   const NormalCloud normals(cloud, tree, params, grid);
   NormalsResult out;
   out.resize(core_points.size());
@@ -275,7 +276,7 @@ std::vector<double> roughness_by_scale(PointsView cloud, PointsView core_points,
   std::vector<double> radii;
   for (const std::size_t k : by_size) radii.push_back(0.5 * diameters[k]);
 
-  const Octree tree = index_of(cloud, "cloud", grid_for(diameters, 0.0), true);
+  const Octree tree = index_of(cloud, "cloud", grid_for(diameters, 0.0), true, false, detail::requested_threads(run));
   const std::size_t scales = diameters.size();
   std::vector<double> out(core_points.size() * scales, std::numeric_limits<double>::quiet_NaN());
   const auto order = detail::morton_order(core_points);
