@@ -7,13 +7,15 @@
 
 For each workload the inputs are generated once (fixed seeds) and saved (workloads on the same
 inputs share them); then each tool runs in its own process (so that its peak resident memory is
-its own): m3c2 with --threads threads, then (thread scaling, unless --no-scaling) m3c2 again with
-1 thread, then py4dgeo with --threads threads; each prints per-phase times. Each tool runs its
+its own): m3c2 with --threads threads, each run followed by one with 1 thread in the same
+process (thread scaling, unless --no-scaling: both walls taken in turn, under the same conditions;
+W5 and W7 run again with 1 thread in a process of their own), then py4dgeo with --threads
+threads; each prints per-phase times. Each tool runs its
 whole computation --repeat times in its process and reports the shortest wall time (auto: 5 runs
 for workloads under 500k input points, W1, whose ~35 ms run is otherwise at the mercy of the
 scheduler; 1 run for the others); the first run's wall is printed beside. The driver prints the
-table: phase times, wall time, peak memory (bytes per input point; m3c2's is its run's own, taken
-before the phase re-runs, and the peak with them is printed below the table), core points per second, the
+table: phase times, wall time, peak memory (bytes per input point; m3c2's is its first run's own, taken
+before any other run, and the peak with the phase re-runs is printed below the table), core points per second, the
 ratio py4dgeo wall / m3c2 wall, and the agreement of the results (|Δdistance| and |ΔLOD| <= 1e-6,
 excluding core points where py4dgeo hits one of its known defects, decided from the inputs by
 validation/common.py's rule); then the thread-scaling table: m3c2's wall time with 1 thread and
@@ -173,7 +175,12 @@ def las_columns(las) -> dict:
     return {k: np.asarray(las[k]) for k in COLUMNS if k in names}
 
 
-def run_m3c2(folder: Path, D, d, L, normals: str, threads: int, tag: str, wall_only: bool, repeat: int) -> dict:
+def run_m3c2(folder: Path, D, d, L, normals: str, threads: int, tag: str, wall_only: bool, repeat: int,
+             one_thread_tag: str | None = None) -> dict:
+    """`one_thread_tag`: each run with `threads` is followed by one with 1 thread (its result saved
+    under that tag), so that both walls of the thread scaling are taken in turn, in one process,
+    under the same conditions (separate processes, minutes apart, differed by 20-30 % on a shared
+    machine); `wall_1` is the best of those."""
     import m3c2kit
     from m3c2kit import _core
 
@@ -182,15 +189,23 @@ def run_m3c2(folder: Path, D, d, L, normals: str, threads: int, tag: str, wall_o
     if normals == "vertical":
         params.update(normal_source="vertical")
         del params["normal_scale"]
-    walls, cpus = [], []
-    for _ in range(repeat):
+    walls, cpus, walls_1 = [], [], []
+    peak = 0
+    for k in range(repeat):
         t0, c0 = time.perf_counter(), time.process_time()
         r = m3c2kit.compare(ref, cmp, core, **params)
         walls.append(time.perf_counter() - t0)
         cpus.append(time.process_time() - c0)  # every thread's CPU: what holds on a loaded machine
-    # The run's own peak, before the phase re-runs below, which hold a second result (issue 19's
-    # goal counts the run alone); the peak with them is kept beside.
-    peak = peak_rss_bytes()
+        if k == 0:
+            # The first run's own peak, before any other run holds a second result (issue 19's goal
+            # counts the run alone); the peak with the phase re-runs below is kept beside.
+            peak = peak_rss_bytes()
+        if one_thread_tag:
+            t0 = time.perf_counter()
+            r1 = m3c2kit.compare(ref, cmp, core, **{**params, "threads": 1})
+            walls_1.append(time.perf_counter() - t0)
+            save_table(folder / f"m3c2-{one_thread_tag}.npz", r1.columns())
+            del r1
     t_index = t_normals = t_projection = float("nan")
     if not wall_only:
         # Phases, measured after the real run: index builds (normals on no core point), normals,
@@ -221,7 +236,8 @@ def run_m3c2(folder: Path, D, d, L, normals: str, threads: int, tag: str, wall_o
     peak_with_phases = peak_rss_bytes()
     save_table(folder / f"m3c2-{tag}.npz", r.columns())
     return dict(wall=min(walls), first=walls[0], cpu=min(cpus), index=t_index, normals=t_normals,
-                projection=t_projection, peak=peak, peak_with_phases=peak_with_phases)
+                projection=t_projection, peak=peak, peak_with_phases=peak_with_phases,
+                **({"wall_1": min(walls_1)} if walls_1 else {}))
 
 
 def run_m3c2_tiled(folder: Path, D, d, L, normals: str, threads: int, tag: str, memory_limit: str,
@@ -455,7 +471,7 @@ def worker(args) -> None:
         out = run_m3c2_tiled(folder, *spec[1:], args.threads, args.tag, args.memory_limit, args.tile_size,
                              args.stream_format)
     else:
-        out = run_m3c2(folder, *spec[1:], args.threads, args.tag, args.wall_only, args.repeat)
+        out = run_m3c2(folder, *spec[1:], args.threads, args.tag, args.wall_only, args.repeat, args.one_thread_tag)
     print(json.dumps(out))
 
 
@@ -499,6 +515,7 @@ def main() -> None:
     ap.add_argument("--folder", help=argparse.SUPPRESS)
     ap.add_argument("--tag", help=argparse.SUPPRESS)
     ap.add_argument("--wall-only", action="store_true", help=argparse.SUPPRESS)
+    ap.add_argument("--one-thread-tag", help=argparse.SUPPRESS)
     args = ap.parse_args()
     if args.worker:
         args.tool, args.workload = args.worker
@@ -544,10 +561,12 @@ def main() -> None:
             if memory_limit == "auto":
                 memory_limit = str(max(40 * n_in, 512 * 2**20))
 
-            def run(tool: str, threads: int, tag: str, wall_only: bool = False) -> dict:
+            def run(tool: str, threads: int, tag: str, wall_only: bool = False, one_thread_tag: str = "") -> dict:
                 cmd = [sys.executable, __file__, "--worker", tool, name, "--folder", str(folder), "--tag", tag,
                        "--threads", str(threads), "--memory-limit", memory_limit, "--repeat", repeat,
                        "--stream-format", args.stream_format]
+                if one_thread_tag:
+                    cmd += ["--one-thread-tag", one_thread_tag]
                 if args.tile_size:
                     cmd += ["--tile-size", str(args.tile_size)]
                 if wall_only:
@@ -560,10 +579,13 @@ def main() -> None:
             rows = {}
             tag = f"{name}-t{args.threads}"
             if "m3c2" in tools:  # m3c2 first (N threads, then 1 thread), then py4dgeo
-                rows["m3c2"] = run("m3c2", args.threads, tag)
+                # In memory, the 1-thread runs alternate with the N-thread ones in the same process
+                # (run_m3c2); whole processes (W7) and the streamed W5 run again in a process of their own.
+                in_turn = scaling and name not in WHOLE and name not in STREAMED
+                rows["m3c2"] = run("m3c2", args.threads, tag, one_thread_tag=f"{name}-t1" if in_turn else "")
                 if scaling:
-                    one = run("m3c2", 1, f"{name}-t1", wall_only=True)
-                    scaling_rows.append((name, one["wall"], rows["m3c2"]["wall"], same_bits(folder, f"{name}-t1", tag)))
+                    wall_1 = rows["m3c2"]["wall_1"] if in_turn else run("m3c2", 1, f"{name}-t1", wall_only=True)["wall"]
+                    scaling_rows.append((name, wall_1, rows["m3c2"]["wall"], same_bits(folder, f"{name}-t1", tag)))
             p4_key = (key, tuple(D), d, L, normals)
             p4_shared = None
             if "py4dgeo" in tools:
@@ -655,7 +677,8 @@ def main() -> None:
             print(f"wrote {args.plot}")
         if scaling_rows:
             print()
-            print(f"Thread scaling, m3c2 (each run in its own process, same inputs; speed-up = 1-thread wall / "
+            print(f"Thread scaling, m3c2 (1-thread runs alternating with the N-thread ones in one process, W5 and "
+                  f"W7 in processes of their own; best of each; speed-up = 1-thread wall / "
                   f"{args.threads}-thread wall; 'results': the two runs' output tables compared bit for bit):")
             print()
             print(f"| workload | wall s, 1 thread | wall s, {args.threads} threads | speed-up | results |")
