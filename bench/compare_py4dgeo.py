@@ -331,7 +331,7 @@ def timed(self, name, total=None):
         yield step
     seconds[name] = seconds.get(name, 0.0) + time.perf_counter() - t
 m3c2kit.phases.Phases.phase = timed
-rc = m3c2kit.cli.main(sys.argv[1:])
+rc = m3c2kit.cli.main()  # as the `m3c2` script calls it: the arguments from sys.argv
 print("PHASES " + json.dumps(seconds), file=sys.stderr)
 sys.exit(rc)
 """

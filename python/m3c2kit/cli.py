@@ -18,7 +18,7 @@ from .cli_parser import ArgumentParser, add_progress_option, phases_for
 from .errors import M3C2Error, M3C2Warning, UsageError, printable
 from .io import read_cloud, write_cloud_table
 from .io import crs as crs_mod
-from .io import laz_threads
+from .io import laspy_local, laz_threads
 from .io.collisions import check_outputs
 from .io.describe import describe, describe_text
 from .report.outputs import CompareOutputs, write_compare_outputs
@@ -464,6 +464,11 @@ def join_dash_values(argv: list[str]) -> list[str]:
 
 
 def main(argv=None) -> int:
+    """The `m3c2` command. Without `argv` (the `m3c2` script, ``python -m m3c2kit``) the process
+    is the command line's own: laspy is imported without the modules a local file never uses
+    (m3c2kit.io.laspy_local) when the arguments name a LAS/LAZ file."""
+    if argv is None and laspy_local.names_las_file(sys.argv[1:]):
+        laspy_local.import_laspy_for_local_files()
     # SIGHUP, SIGQUIT and SIGTERM end the run as SIGINT does: an exception that unwinds through
     # the atomic writer, which removes its private folders (no partial output, no leftover).
     previous = {s: signal.signal(s, _raise_interrupted) for s in _CLEAN_EXIT_SIGNALS}

@@ -317,6 +317,18 @@ def test_nonfinite_coordinates_rejected_with_count_or_dropped(tmp_path):
         read_cloud(only_nan, drop_nonfinite=True)
 
 
+def test_finite_coordinates_whose_sum_overflows_are_finite(tmp_path):
+    # read_cloud tests one sum first: here it is infinite although every coordinate is finite,
+    # and the points are then tested one by one (none is dropped, none reported).
+    path = tmp_path / "huge.xyz"
+    path.write_text("1.5e308 1.5e308 0\n-1e308 1.5e308 1\n2 3 4\n")
+    cloud = read_cloud(path)
+    assert len(cloud) == 3 and cloud.dropped_nonfinite == 0
+    path.write_text("1.5e308 1.5e308 0\n-1e308 1.5e308 nan\n2 3 4\n")
+    with pytest.raises(CloudReadError, match="1 of 3 points have non-finite"):
+        read_cloud(path)
+
+
 # ------------------------------------------------------------------------------ text layouts
 
 _XYZ = np.array([[1.5, -2.25, 3.0], [4.0, 5.125, -6.5], [7.0, 8.0, 9.75]])

@@ -134,7 +134,10 @@ def _read_crs(header: laspy.LasHeader) -> tuple[str | None, str | None, tuple]:
             break
     keys = _geokeys(records)
     # GeoTIFF keys only: their EPSG code, else (user-defined keys) what pyproj makes of them.
-    crs = wkt or geokey_crs(keys) or _pyproj_wkt(header)
+    # laspy's parse_crs() reads LASF_Projection records only: without one there is nothing for
+    # pyproj to parse, and its import (0.06 s) is spared.
+    projection = any(v.user_id == _PROJECTION_USER for v in records)
+    crs = wkt or geokey_crs(keys) or (_pyproj_wkt(header) if projection else None)
     units = (wkt_units(wkt) if wkt else None) or geokey_units(keys) or (wkt_units(crs) if crs else None)
     return crs, units, raw
 
