@@ -269,6 +269,13 @@ void Octree::build(std::vector<K>&& keys, std::vector<std::uint32_t>& order, boo
   if (with_moments) sum_moments(run);
 }
 
+void Octree::add_moments(int threads) {
+  if (nodes_.empty() || !moments_.empty()) return;
+  RunOptions run;
+  run.threads = threads;
+  sum_moments(run);
+}
+
 void Octree::sum_moments(const RunOptions& run) {
   // Each leaf's cells and their branchings from its points' cells (cell_of, as a query's leaf
   // computes them): the digit at which two cells first differ is that of their Morton keys.

@@ -114,6 +114,10 @@ class Octree {
   Octree(PointsView points, OctreeGrid grid, bool with_moments, const char* name = "a cloud",
          bool order_in_place = false, int threads = 1);
 
+  /// Adds the node moments of normals to an index built without them, on `threads` OpenMP
+  /// threads (0: all): the same bits as an index built with them. Nothing if it has them.
+  void add_moments(int threads);
+
   PointsView points() const { return points_; }
   std::size_t size() const { return index_.original.size(); }
   std::uint32_t original_index(std::size_t slot) const { return index_.original[slot]; }

@@ -100,6 +100,30 @@ TEST(Octree, InclusiveSphereBoundaryOnQuantisedPoints) {
   }
 }
 
+TEST(Octree, MomentsAddedAfterTheBuildAreTheBuildsBits) {
+  // compute() builds two indexes side by side without moments, then adds them on every thread.
+  const Cloud cloud = test_cloud(5, 30000, Vec3(600000.0, 4200000.0, 50.0));
+  const std::vector<double> radii = {0.2, 0.5, 1.5};
+  const OctreeGrid grid = detail::octree_grid(0.4, 3.0);
+  const Octree built(cloud.view(), grid, true);
+  for (const int threads : {1, 2}) {
+    Octree added(cloud.view(), grid, false);
+    added.add_moments(threads);
+    added.add_moments(threads);  // a second call changes nothing
+    OctreeScratch scratch;
+    std::vector<Moments> a, b;
+    for (int q = 0; q < 200; ++q) {
+      const Vec3 core = cloud[std::size_t(q) * 149 % cloud.size()] + Vec3(0.01, -0.02, 0.0);
+      built.ball_moments(core, radii, scratch, a);
+      added.ball_moments(core, radii, scratch, b);
+      for (std::size_t k = 0; k < radii.size(); ++k) {
+        ASSERT_GT(a[k].count, 0.0);
+        EXPECT_TRUE(same_bits(a[k], b[k])) << threads << " threads, query " << q << " radius " << radii[k];
+      }
+    }
+  }
+}
+
 /// The index of a tile holds the neighbours of its core points plus an arbitrary subset of the
 /// rest, in the same relative order: the moments must be the same bits. Trials alternate between
 /// keeping 60 %, 5 % and none of the other points (the last: the neighbours' own index, whose
