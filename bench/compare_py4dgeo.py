@@ -578,7 +578,7 @@ def main() -> None:
 
             rows = {}
             tag = f"{name}-t{args.threads}"
-            if "m3c2" in tools:  # m3c2 first (N threads, then 1 thread), then py4dgeo
+            if "m3c2" in tools:  # m3c2 first (N threads, with the 1-thread runs), then py4dgeo
                 # In memory, the 1-thread runs alternate with the N-thread ones in the same process
                 # (run_m3c2); whole processes (W7) and the streamed W5 run again in a process of their own.
                 in_turn = scaling and name not in WHOLE and name not in STREAMED
