@@ -12,18 +12,21 @@ without arguments): in a user's process laspy keeps COPC over HTTP.
 from __future__ import annotations
 
 import sys
+from pathlib import Path
 
-__all__ = ["UNUSED_BY_LOCAL_FILES", "LAS_EXTENSIONS", "names_las_file", "import_laspy_for_local_files"]
+from . import las
+from .registry import format_for
+
+__all__ = ["UNUSED_BY_LOCAL_FILES", "names_las_file", "import_laspy_for_local_files"]
 
 #: Imported by laspy's own import, used by no local read or write.
 UNUSED_BY_LOCAL_FILES = ("requests", "pyproj")
-#: A command-line argument ending so names a LAS/LAZ/COPC file the run reads or writes.
-LAS_EXTENSIONS = (".las", ".laz")
 
 
 def names_las_file(argv) -> bool:
-    """Whether a command line's arguments name a LAS/LAZ file (by its extension)."""
-    return any(str(a).lower().endswith(LAS_EXTENSIONS) for a in argv)
+    """Whether a command line's arguments name a LAS/LAZ/COPC file (by the extensions the
+    registry gives the LAS reader)."""
+    return any(getattr(format_for(Path(str(a))), "read", None) is las.read for a in argv)
 
 
 def import_laspy_for_local_files() -> None:
