@@ -56,8 +56,42 @@ def translated(option: str | None = None) -> Iterator[None]:
     except _core.Cancelled:
         raise Cancelled("computation cancelled by the progress callback") from None
     except (ValueError, TypeError) as e:
-        message = str(e)
+        message = _user_message(e)
         raise UsageError(f"{option}: {message}" if option else message) from None
+
+
+#: nanobind's words for a value its C++ type cannot hold, and the C++ library's for an allocation
+#: past max_size(): neither may reach a user (their text names the binding's signature or std::).
+_BINDING_TYPE_ERROR = "incompatible function arguments"
+_CPP_WORDS = ("std::", "max_size()", "vector::", "basic_string::", "_M_")  # libstdc++'s std::length_error texts
+
+
+def _user_message(err: Exception) -> str:
+    text = str(err)
+    if isinstance(err, TypeError) and _BINDING_TYPE_ERROR in text:
+        return ("a value the engine cannot take: integers must be >= 0 and below 2^32 (threads below 2^31), "
+                "coordinates and lengths real numbers")
+    if any(word in text for word in _CPP_WORDS):
+        return "the sizes asked for are larger than any allocation can hold; use smaller counts or inputs"
+    return text
+
+
+def _count(name: str, value, high: int = 2**32 - 1) -> int:
+    """`value` as an integer the binding's std::uint32_t takes, else a UsageError naming `name`
+    (nanobind would raise a TypeError quoting its signature)."""
+    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or not 0 <= int(value) <= high:
+        raise UsageError(f"{name} must be an integer from 0 to {high}, got {value!r}")
+    return int(value)
+
+
+def _threads(value) -> int:
+    return _count("threads", value, 2**31 - 1)  # the binding's int
+
+
+def _progress(progress):
+    if progress is not None and not callable(progress):
+        raise TypeError(f"progress must be a callable progress(done, total) or None, got {type(progress).__name__}")
+    return progress
 
 
 def _enum_type(name: str):
@@ -100,7 +134,8 @@ def compute(reference: np.ndarray, compared: np.ndarray, core: np.ndarray, param
     `order_in_place`: the engine may order the two clouds' arrays in place instead of copying
     them, every row back before it returns (RunOptions::order_clouds_in_place); taken only where
     both are writeable."""
-    progress = _with_fault_checkpoint(progress)
+    progress = _with_fault_checkpoint(_progress(progress))
+    threads = _threads(threads)
     order_in_place = bool(order_in_place) and all(np.asarray(a).flags.writeable for a in (reference, compared))
     with translated():
         return _core.compute(reference, compared, core, params, core_normals, threads=threads, progress=progress,
@@ -126,7 +161,7 @@ def _with_fault_checkpoint(progress):
 def compute_normals(cloud: np.ndarray, core: np.ndarray, params: _core.Params, *, threads: int = 0,
                     progress=None) -> dict:
     with translated():
-        return _core.compute_normals(cloud, core, params, threads=threads, progress=progress)
+        return _core.compute_normals(cloud, core, params, threads=_threads(threads), progress=_progress(progress))
 
 
 def subsample_min_spacing(points: np.ndarray, spacing: float, option: str = "min_spacing") -> np.ndarray:
@@ -151,21 +186,30 @@ def grid_core_points(points: np.ndarray, cell: float, option: str = "cell") -> d
 
 def roughness_by_scale(cloud, core, diameters, variance: str = "sample", min_points: int = 3, *, threads: int = 0,
                        progress=None) -> np.ndarray:
+    diameters = list(diameters)
     with translated():
-        return _core.roughness_by_scale(cloud, core, list(diameters), _core.Variance[variance], min_points,
-                                        threads=threads, progress=progress)
+        out = _core.roughness_by_scale(cloud, core, diameters, _core.Variance[variance],
+                                       _count("min_points", min_points), threads=_threads(threads),
+                                       progress=_progress(progress))
+    return np.asarray(out).reshape(-1, len(diameters))  # (core points, scales): the binding drops a single scale's axis
 
 
 def dimensionality(cloud: np.ndarray, core: np.ndarray, diameters, min_points: int = 3, *, threads: int = 0,
                    progress=None) -> dict:
     """Multi-scale dimensionality features (Brodu & Lague 2012; include/m3c2/dimensionality.hpp)."""
     with translated():
-        return _core.dimensionality(cloud, core, [float(d) for d in diameters], int(min_points), int(threads),
-                                    progress)
+        return _core.dimensionality(cloud, core, [float(d) for d in diameters], _count("min_points", min_points),
+                                    _threads(threads), _progress(progress))
 
 
 def c2c(reference, compared, **kwargs) -> dict:
     """Closest-point distances (include/m3c2/baselines.hpp); keywords as the binding's."""
+    if "model_neighbours" in kwargs:
+        kwargs["model_neighbours"] = _count("model_neighbours", kwargs["model_neighbours"])
+    if "threads" in kwargs:
+        kwargs["threads"] = _threads(kwargs["threads"])
+    if "progress" in kwargs:
+        kwargs["progress"] = _progress(kwargs["progress"])
     with translated():
         return _core.c2c(reference, compared, **kwargs)
 

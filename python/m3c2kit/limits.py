@@ -8,7 +8,7 @@ import sys
 
 from .errors import UsageError
 
-__all__ = ["usable_length", "check_tile_size", "MIN_TILE_TO_HALO"]
+__all__ = ["usable_length", "check_halo", "check_tile_size", "MIN_TILE_TO_HALO"]
 
 #: A tile of side S reads its own area grown by the halo h on every side: (S + 2h)^2 / S^2 times
 #: its area, about 25 times at S = h / 2 (S = 4 h, the usual choice, reads 2.25 times). Below it
@@ -33,12 +33,23 @@ def usable_length(option: str, value) -> float:
     return v
 
 
+def check_halo(halo: float) -> None:
+    """A UsageError when the halo (the reach of the scales and --max-depth, summed) is no finite
+    length: lengths near the float range's end sum to infinity, and a tile count or a tile's reach
+    in tiles computed from it would overflow."""
+    if not math.isfinite(4 * halo):  # 4 x the halo: the tile size the messages suggest, 2 x: a tile's reach
+        raise UsageError("the halo of the tiles (the reach of the normal and projection scales and --max-depth) "
+                         "exceeds the largest float; give lengths that fit the clouds' extent")
+
+
 def check_tile_size(tile_size: float, halo: float) -> None:
     """A UsageError naming --tile-size and the halo when tiles are smaller than
     MIN_TILE_TO_HALO x the halo."""
     if tile_size < MIN_TILE_TO_HALO * halo:
-        reads = ((tile_size + 2 * halo) / tile_size) ** 2
+        ratio = (tile_size + 2 * halo) / tile_size
+        reads = ratio * ratio  # not ratio ** 2: a float power raises OverflowError past 1e308, a product is inf
+        about = f"about {reads:.3g}" if math.isfinite(reads) else "more than 1e308"
         raise UsageError(f"--tile-size {tile_size:.6g} is too small for the halo of {halo:.6g} (the reach of the "
-                         f"normal and projection scales and --max-depth): each tile would read about "
-                         f"{reads:.3g} times its own area; use --tile-size {MIN_TILE_TO_HALO * halo:.6g} or more "
+                         f"normal and projection scales and --max-depth): each tile would read {about} "
+                         f"times its own area; use --tile-size {MIN_TILE_TO_HALO * halo:.6g} or more "
                          f"(4 x the halo, {4 * halo:.6g}, reads 2.25 times), or --memory-limit to choose it")

@@ -8,6 +8,7 @@ import numpy as np
 from . import engine
 from .io import Cloud, write_cloud_table
 from .io.fields import core_attributes, typed_columns
+from .io.input_file import path_argument
 from .io.registry import format_for
 from .result import Result
 
@@ -23,6 +24,9 @@ def write(path, result: Result, *, like: Cloud | None = None, projected: bool = 
     carries CloudCompare's default columns and ``status`` unless `all_fields`. The attributes of `like`'s points that are the core points (intensity,
     classification, GPS time, RGB, ...) are carried beside them (LAS standard fields filled)
     unless not `attributes` (tiled runs stream the reference and carry none)."""
+    path = path_argument("path", path)
+    if not isinstance(result, Result):  # a str or an array has no .columns: say what write() takes
+        raise TypeError(f"result must be an m3c2kit.Result (what m3c2kit.compare returns), got {type(result).__name__}")
     table = result.columns(projected=projected, position=position)
     xyz = np.column_stack([table.pop("x"), table.pop("y"), table.pop("z")])
     fmt = format_for(Path(path), writing=True)

@@ -507,13 +507,13 @@ def test_line_without_equals_is_rejected(tmp_path):
 
 def test_missing_file_is_rejected(tmp_path):
     path = tmp_path / "absent.txt"
-    expected = f"{path}: cannot read CloudCompare parameter file"
+    expected = f"{path}: no such file"
     with pytest.raises(UsageError, match=re.escape(expected)):
         read_cloudcompare_params(path)
 
 
 def test_directory_is_rejected(tmp_path):
-    with pytest.raises(UsageError, match=re.escape(f"{tmp_path}: cannot read")):
+    with pytest.raises(UsageError, match=re.escape(f"{tmp_path}: is a directory")):
         read_cloudcompare_params(tmp_path)
 
 

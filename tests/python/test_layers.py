@@ -18,7 +18,7 @@ LAYERS = {
     "run": "run", "api": "run", "tiling": "run", "raster": "run", "diagnostics": "run", "uncertainty_inputs": "run",
     "analysis": "run", "compat": "run", "classify": "run", "lod_rates": "run", "lod_table": "run", "quality": "run", "phases": "run",
     "report": "report", "summary": "report", "writing": "report",
-    "cli": "cli", "cli_parser": "cli", "analysis.cli": "cli", "classify.cli": "cli", "series": "run", "series.report": "report", "series.cli": "cli", "__main__": "cli",
+    "cli": "cli", "cli_parser": "cli", "cli_integers": "cli", "analysis.cli": "cli", "classify.cli": "cli", "series": "run", "series.report": "report", "series.cli": "cli", "__main__": "cli",
 }
 
 

@@ -2,11 +2,13 @@
 (docs/analysis.md). Registered by m3c2kit.cli.make_parser through `analysis_parsers`."""
 from __future__ import annotations
 
+import os
 import shlex
 from pathlib import Path
 
 import numpy as np
 
+from ..cli_integers import COUNT_MAX, SEED_MAX, THREADS_MAX, integer
 from ..errors import UsageError
 from ..io import read_cloud, write_cloud_table
 from ..cli_parser import phases_for
@@ -41,7 +43,7 @@ def _check_outputs(args) -> None:
     orient = getattr(args, "orient", None)
     inputs = {"input cloud": getattr(args, "cloud", None), "reference cloud": getattr(args, "reference", None),
               "compared cloud": getattr(args, "compared", None), "core points file": getattr(args, "core", None),
-              "orientation file": orient if orient and Path(orient).is_file() else None}
+              "orientation file": orient if orient and os.path.isfile(orient) else None}
     check_outputs({"-o": getattr(args, "output", None), "--plot": getattr(args, "plot", None)}, inputs)
 
 
@@ -64,12 +66,12 @@ def analysis_parsers(sub) -> None:
     _core_options(p)
     p.add_argument("--fit-range", help="MIN:MAX: scales used in the fit (default all)")
     p.add_argument("--l0", type=float, default=roughness_mod.L0, help="reference scale l0 of eq. (3) (default 0.5)")
-    p.add_argument("--min-points", type=int, default=10, help="fewest neighbours for sigma(D) (default 10)")
+    p.add_argument("--min-points", type=integer(1, COUNT_MAX), default=10, help="fewest neighbours for sigma(D) (default 10)")
     p.add_argument("--variance", choices=["sample", "population"], default="sample",
                    help="sigma(D) with the n - 1 (sample) or n (population) denominator")
     p.add_argument("-o", "--output", type=Path, required=True, help="CSV table")
     p.add_argument("--plot", type=Path, help="log-log plot (PNG, PDF, SVG)")
-    p.add_argument("--threads", type=int, default=0, help=THREADS_HELP)
+    p.add_argument("--threads", type=integer(0, THREADS_MAX), default=0, help=THREADS_HELP)
     p.add_argument("-q", "--quiet", action="store_true",
                    help="no progress bar or summary (warnings and errors still go to stderr)")
     p.set_defaults(run=run_roughness)
@@ -86,17 +88,17 @@ def analysis_parsers(sub) -> None:
     p.add_argument("--normal-scale", help=D_HELP + " (default: vertical normals, as the paper: 'We impose a fixed "
                                                    "normal direction')")
     _core_options(p)
-    p.add_argument("--max-core", type=int, default=2000,
+    p.add_argument("--max-core", type=integer(1, COUNT_MAX), default=2000,
                    help="at most this many core points, drawn with --seed (default 2000)")
     p.add_argument("--max-depth", type=float, help="cylinder half-length (default: the largest d)")
-    p.add_argument("--bootstrap", type=int, default=100, help="bootstrap resamples (0: skip; default 100)")
-    p.add_argument("--seed", type=int, default=0, help="seed of the core-point draw and the bootstrap")
-    p.add_argument("--min-points", type=int, default=4, help="fewest points per cylinder for a LOD")
+    p.add_argument("--bootstrap", type=integer(0, COUNT_MAX), default=100, help="bootstrap resamples (0: skip; default 100)")
+    p.add_argument("--seed", type=integer(0, SEED_MAX), default=0, help="seed of the core-point draw and the bootstrap")
+    p.add_argument("--min-points", type=integer(1, COUNT_MAX), default=4, help="fewest points per cylinder for a LOD")
     p.add_argument("--fit-range", help="MIN:MAX of d used in the LOD and roughness fits (default all)")
     p.add_argument("--orient", default="+z", help="normal orientation, as m3c2 compare's --orient")
     p.add_argument("-o", "--output", type=Path, required=True, help="CSV table")
     p.add_argument("--plot", type=Path, help="plot of the calibration (PNG, PDF, SVG)")
-    p.add_argument("--threads", type=int, default=0, help=THREADS_HELP)
+    p.add_argument("--threads", type=integer(0, THREADS_MAX), default=0, help=THREADS_HELP)
     p.set_defaults(run=run_calibrate)
 
     p = sub.add_parser("c2c", help="closest-point baselines C2C and C2C_HF (section 3.4)",
@@ -110,11 +112,11 @@ def analysis_parsers(sub) -> None:
     p.add_argument("--model", choices=["none", "plane"], default="none",
                    help="local model: none (C2C) or plane (also C2C_HF)")
     p.add_argument("--model-radius", type=float, help="model neighbours within this radius of the closest point")
-    p.add_argument("--model-knn", type=int, default=6, help="else its k nearest reference points (default 6)")
+    p.add_argument("--model-knn", type=integer(1, COUNT_MAX), default=6, help="else its k nearest reference points (default 6)")
     p.add_argument("--rule", choices=["closer", "model"], default="closer",
                    help="closer: min(C2C, plane) as CloudCompare >= 2.5 (default); model: the plane distance as "
                         "CloudCompare 2.3")
-    p.add_argument("--threads", type=int, default=0, help=THREADS_HELP)
+    p.add_argument("--threads", type=integer(0, THREADS_MAX), default=0, help=THREADS_HELP)
     p.add_argument("-q", "--quiet", action="store_true",
                    help="no progress bar or summary (warnings and errors still go to stderr)")
     p.set_defaults(run=run_c2c)
@@ -133,7 +135,7 @@ def analysis_parsers(sub) -> None:
     p.add_argument("--orient", default="+z", help="normal orientation, as m3c2 compare's --orient")
     p.add_argument("-o", "--output", type=Path, required=True,
                    help="the projected points: .csv .txt .ply .las .laz")
-    p.add_argument("--threads", type=int, default=0, help=THREADS_HELP)
+    p.add_argument("--threads", type=integer(0, THREADS_MAX), default=0, help=THREADS_HELP)
     p.add_argument("-q", "--quiet", action="store_true",
                    help="no progress bar or summary (warnings and errors still go to stderr)")
     p.set_defaults(run=run_simplify)
@@ -144,9 +146,9 @@ def analysis_parsers(sub) -> None:
                                    "percentile of |distance| of a first pass), printing the numbers behind each.")
     p.add_argument("reference", type=Path, help="the reference cloud")
     p.add_argument("compared", type=Path, help="the compared cloud")
-    p.add_argument("--sample", type=int, default=2000, help="sampled core points (default 2000)")
-    p.add_argument("--seed", type=int, default=0, help="seed of the core-point sample")
-    p.add_argument("--threads", type=int, default=0, help=THREADS_HELP)
+    p.add_argument("--sample", type=integer(1, COUNT_MAX), default=2000, help="sampled core points (default 2000)")
+    p.add_argument("--seed", type=integer(0, SEED_MAX), default=0, help="seed of the core-point sample")
+    p.add_argument("--threads", type=integer(0, THREADS_MAX), default=0, help=THREADS_HELP)
     p.set_defaults(run=run_suggest)
 
 
@@ -222,8 +224,10 @@ def run_simplify(args) -> int:
                                                progress=step)
     write_cloud_table(args.output, points, fields, like=cloud)
     if not args.quiet:
+        # No projected point (every core point without a normal): no median, and no numpy warning for it.
+        density = f"{np.median(fields['density']):.4g} points per cylinder" if len(points) else "none"
         print(f"wrote {args.output}: {len(points)} projected points ({'median' if args.median else 'mean'}, "
-              f"d = {args.projection_scale:g}); median density {np.median(fields['density']):.4g} points per cylinder")
+              f"d = {args.projection_scale:g}); median density {density}")
     return 0
 
 

@@ -8,6 +8,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..cli_integers import COUNT_MAX, SEED_MAX, THREADS_MAX, integer
 from ..errors import UsageError
 from ..io import read_cloud, write_cloud_table
 from ..io.collisions import check_outputs
@@ -45,12 +46,12 @@ def classify_parsers(sub) -> None:
                                           "value is its own label)")
     t.add_argument("--polygons", type=Path, help="GeoJSON polygons (XY) labelling the points of FILE samples")
     t.add_argument("--polygon-property", default="label", help="the polygons' label property (default label)")
-    t.add_argument("--min-points", type=int, default=3, help="fewest neighbours of a scale (default 3)")
-    t.add_argument("--max-per-class", type=int, default=50_000,
+    t.add_argument("--min-points", type=integer(1, COUNT_MAX), default=3, help="fewest neighbours of a scale (default 3)")
+    t.add_argument("--max-per-class", type=integer(0, COUNT_MAX), default=50_000,
                    help="training points drawn per class and sample, seeded (default 50000; 0: all)")
-    t.add_argument("--seed", type=int, default=0, help="seed of the per-class sample draw")
+    t.add_argument("--seed", type=integer(0, SEED_MAX), default=0, help="seed of the per-class sample draw")
     t.add_argument("--plot", type=Path, metavar="FILE", help="PNG of the samples in the classifier's plane")
-    t.add_argument("--threads", type=int, default=0, help=THREADS_HELP)
+    t.add_argument("--threads", type=integer(0, THREADS_MAX), default=0, help=THREADS_HELP)
     t.add_argument("-q", "--quiet", action="store_true",
                    help="no progress bar or summary (warnings and errors still go to stderr)")
     t.set_defaults(run=run_train)
@@ -69,7 +70,7 @@ def classify_parsers(sub) -> None:
                                        "integer labels are their own codes)")
     a.add_argument("--unclassified", type=int, default=0,
                    help="code of points without features (too few neighbours at the largest scale; default 0)")
-    a.add_argument("--threads", type=int, default=0, help=THREADS_HELP)
+    a.add_argument("--threads", type=integer(0, THREADS_MAX), default=0, help=THREADS_HELP)
     a.add_argument("-q", "--quiet", action="store_true",
                    help="no progress bar or summary (warnings and errors still go to stderr)")
     a.set_defaults(run=run_apply)

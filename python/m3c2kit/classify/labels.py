@@ -8,12 +8,12 @@ polygons of two different labels is refused as ambiguous; points in no polygon a
 """
 from __future__ import annotations
 
-import json
 from pathlib import Path
 
 import numpy as np
 
 from ..errors import UsageError
+from ..io.input_file import read_small_json
 
 
 def parse_sample(text: str) -> tuple[Path, str | None]:
@@ -84,12 +84,7 @@ def _ring_inside(x, y, ring: np.ndarray) -> np.ndarray:
 
 def read_polygons(path: Path, prop: str) -> list[tuple[str, list[list[np.ndarray]]]]:
     """[(label, [polygon = [outer ring, hole, ...], ...]), ...] from a GeoJSON file."""
-    try:
-        doc = json.loads(Path(path).read_text(encoding="utf-8"))
-    except OSError as e:
-        raise UsageError(f"{path}: cannot read the polygon file: {e.strerror or e}") from None
-    except ValueError as e:
-        raise UsageError(f"{path}: not a GeoJSON file: {e}") from None
+    doc = read_small_json(path, "polygon file")  # a FIFO, device or huge file refused there
     feats = doc.get("features") if isinstance(doc, dict) else None
     if doc.get("type") == "Feature" if isinstance(doc, dict) else False:
         feats = [doc]
@@ -97,8 +92,9 @@ def read_polygons(path: Path, prop: str) -> list[tuple[str, list[list[np.ndarray
         raise UsageError(f"{path}: expected a GeoJSON FeatureCollection with Polygon features")
     out = []
     for k, f in enumerate(feats):
-        geom = (f or {}).get("geometry") or {}
-        props = (f or {}).get("properties") or {}
+        f = f if isinstance(f, dict) else {}  # a forged file's feature may be any JSON value
+        geom = f.get("geometry") if isinstance(f.get("geometry"), dict) else {}
+        props = f.get("properties") if isinstance(f.get("properties"), dict) else {}
         if prop not in props:
             raise UsageError(f"{path}: feature {k} has no {prop!r} property (the label; see --polygon-property)")
         kind, coords = geom.get("type"), geom.get("coordinates")
@@ -110,7 +106,7 @@ def read_polygons(path: Path, prop: str) -> list[tuple[str, list[list[np.ndarray
             raise UsageError(f"{path}: feature {k} is a {kind}, not a Polygon or MultiPolygon")
         try:
             rings = [[np.asarray(r, dtype=float)[:, :2] for r in poly] for poly in polys]
-        except (TypeError, ValueError, IndexError):
+        except (TypeError, ValueError, IndexError, OverflowError):
             raise UsageError(f"{path}: feature {k} has malformed coordinates") from None
         if any(len(r) < 3 for poly in rings for r in poly):
             raise UsageError(f"{path}: feature {k} has a ring of fewer than 3 points")

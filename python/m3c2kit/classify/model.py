@@ -20,9 +20,11 @@ import numpy as np
 
 from ..errors import M3C2Error
 from ..io.atomic import atomic_output
+from ..io.input_file import read_small_bytes, read_small_json
 
 FORMAT = "m3c2kit-canupo-classifier"
 VERSION = 1
+CLASSIFIER_KIND = "classifier"  # its size limit: io.input_file.SMALL_FILE_LIMITS
 
 
 class ClassifierFileError(M3C2Error):
@@ -113,33 +115,108 @@ def _to_json(clf: Classifier) -> dict:
     }
 
 
+#: The most scales and two-class classifiers a file may hold (as the .prm reader's bounds): far
+#: above any real classifier, so that a forged count never sizes an allocation.
+MAX_SCALES = 10000
+MAX_CLASSIFIERS = 10000
+MAX_BOUNDARY_POINTS = 100000
+#: min_points is a neighbour count the engine takes as a 32-bit unsigned integer.
+MAX_MIN_POINTS = 2**32 - 1
+
+
+def _numbers(path, value, where: str, shape: tuple) -> np.ndarray:
+    """`value` as a float64 array of `shape` (-1: any length): a forged file's strings, objects,
+    ragged lists or booleans are refused by name, not left to numpy's messages."""
+    def flat(v):
+        return isinstance(v, (int, float)) and not isinstance(v, bool)
+    ok = isinstance(value, list) and (all(flat(v) for v in value) if len(shape) == 1 else
+                                      all(isinstance(r, list) and len(r) == shape[1] and all(flat(v) for v in r)
+                                          for r in value))
+    if not ok:
+        raise ClassifierFileError(f"{path}: {where} must be a list of {'numbers' if len(shape) == 1 else 'pairs of numbers'}")
+    try:
+        out = np.array(value, dtype=np.float64).reshape(-1, *shape[1:])
+    except OverflowError:  # an integer past float64's range, e.g. 10**400 written in full
+        raise ClassifierFileError(f"{path}: {where} holds a number out of range") from None
+    if shape[0] != -1 and len(out) != shape[0]:
+        raise ClassifierFileError(f"{path}: {where} must hold {shape[0]} values, got {len(out)}")
+    return out
+
+
+def _integer(path, value, where: str, low: int, high: int) -> int:
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or value != value or \
+            value in (float("inf"), float("-inf")) or value != int(value) or not low <= int(value) <= high:
+        raise ClassifierFileError(f"{path}: {where} must be an integer in [{low}, {high}], got {value!r}")
+    return int(value)
+
+
+def _label(path, value, where: str) -> str:
+    # Labels are written back (JSON, .prm) and printed: a string or an integer, nothing else.
+    if isinstance(value, bool) or not isinstance(value, (str, int)):
+        raise ClassifierFileError(f"{path}: {where} must be a string or an integer, got {type(value).__name__}")
+    return str(value)
+
+
+def _object(path, value, where: str) -> dict:
+    if not isinstance(value, dict):
+        raise ClassifierFileError(f"{path}: {where} must be a JSON object")
+    return value
+
+
 def _from_json(path: Path, d: dict) -> Classifier:
     def need(obj, key, where="the file"):
         if key not in obj:
             raise ClassifierFileError(f"{path}: {where} has no {key!r}")
         return obj[key]
     if d.get("format") != FORMAT:
-        raise ClassifierFileError(f"{path}: not an m3c2kit classifier (format {d.get('format')!r}, "
+        raise ClassifierFileError(f"{path}: not an m3c2kit classifier (format {printable_value(d.get('format'))}, "
                                   f"expected {FORMAT!r}; CloudCompare classifiers end in .prm)")
-    if int(d.get("version", 0)) > VERSION:
-        raise ClassifierFileError(f"{path}: classifier version {d['version']} is newer than this m3c2kit "
+    version = _integer(path, d.get("version", 0), "'version'", 0, 2**31)
+    if version > VERSION:
+        raise ClassifierFileError(f"{path}: classifier version {version} is newer than this m3c2kit "
                                   f"reads ({VERSION})")
-    scales = np.asarray(need(d, "scales"), float)
+    scales = _numbers(path, need(d, "scales"), "'scales'", (-1,))
+    if not 0 < len(scales) <= MAX_SCALES:
+        raise ClassifierFileError(f"{path}: 'scales' must hold 1 to {MAX_SCALES} values, got {len(scales)}")
     dim = 2 * len(scales) + 1
+    classifiers = need(d, "classifiers")
+    if not isinstance(classifiers, list) or not 0 < len(classifiers) <= MAX_CLASSIFIERS:
+        raise ClassifierFileError(f"{path}: 'classifiers' must be a list of 1 to {MAX_CLASSIFIERS} objects")
+    labels_given = need(d, "labels")
+    if not isinstance(labels_given, list):
+        raise ClassifierFileError(f"{path}: 'labels' must be a list")
+    labels = [_label(path, x, "'labels'") for x in labels_given]
+    if len(set(labels)) != len(labels):
+        raise ClassifierFileError(f"{path}: 'labels' lists a class twice")
     binaries = []
-    for k, c in enumerate(need(d, "classifiers")):
+    for k, c in enumerate(classifiers):
         where = f"classifier {k}"
-        b = BinaryClassifier(str(need(c, "class1", where)), str(need(c, "class2", where)),
-                             np.asarray(need(c, "w1", where), float), np.asarray(need(c, "w2", where), float),
-                             np.asarray(need(c, "path", where), float).reshape(-1, 2),
-                             np.asarray(need(c, "ref_pos", where), float), np.asarray(need(c, "ref_neg", where), float),
-                             c.get("info", {}))
-        if len(b.w1) != dim or len(b.w2) != dim or len(b.path) < 2:
-            raise ClassifierFileError(f"{path}: {where} has {len(b.w1)} and {len(b.w2)} weights for {len(scales)} "
-                                      f"scales (expected {dim}) and {len(b.path)} boundary points (>= 2)")
+        c = _object(path, c, where)
+        path_points = _numbers(path, need(c, "path", where), f"{where}'s 'path'", (-1, 2))
+        if not 2 <= len(path_points) <= MAX_BOUNDARY_POINTS:
+            raise ClassifierFileError(f"{path}: {where} has a boundary of {len(path_points)} points "
+                                      f"(2 to {MAX_BOUNDARY_POINTS})")
+        b = BinaryClassifier(_label(path, need(c, "class1", where), f"{where}'s 'class1'"),
+                             _label(path, need(c, "class2", where), f"{where}'s 'class2'"),
+                             _numbers(path, need(c, "w1", where), f"{where}'s 'w1'", (dim,)),
+                             _numbers(path, need(c, "w2", where), f"{where}'s 'w2'", (dim,)),
+                             path_points,
+                             _numbers(path, need(c, "ref_pos", where), f"{where}'s 'ref_pos'", (2,)),
+                             _numbers(path, need(c, "ref_neg", where), f"{where}'s 'ref_neg'", (2,)),
+                             _object(path, c.get("info", {}), f"{where}'s 'info'"))
+        unknown = [x for x in (b.class1, b.class2) if x not in labels]
+        if unknown:  # applying it would look the class up in 'labels' and find nothing
+            raise ClassifierFileError(f"{path}: {where} separates {unknown[0]!r}, which 'labels' does not list")
         binaries.append(b)
-    return _checked(path, Classifier(scales, binaries, [str(x) for x in need(d, "labels")],
-                                     int(d.get("min_points", 3)), d.get("info", {}), "json"))
+    return _checked(path, Classifier(scales, binaries, labels,
+                                     _integer(path, d.get("min_points", 3), "'min_points'", 3, MAX_MIN_POINTS),
+                                     _object(path, d.get("info", {}), "'info'"), "json"))
+
+
+def printable_value(value) -> str:
+    """A short repr of a value read from a forged file (a 'format' may be a megabyte of text)."""
+    text = repr(value)
+    return text if len(text) <= 80 else text[:77] + "..."
 
 
 def _checked(path, clf: Classifier) -> Classifier:
@@ -181,18 +258,18 @@ class _Reader:
 
 
 def _read_prm(path: Path) -> Classifier:
-    r = _Reader(path, path.read_bytes())
+    r = _Reader(path, read_small_bytes(path, CLASSIFIER_KIND, error=ClassifierFileError))
     scale_count, descriptor, dims = r.take("I"), _DESC_DIMENSIONALITY, 2
     if scale_count == _NEW_HEADER:
         descriptor, dims, scale_count = r.take("I"), r.take("I"), r.take("I")
     if descriptor != _DESC_DIMENSIONALITY or dims != 2:
         raise ClassifierFileError(f"{path}: qCANUPO descriptor {descriptor} with {dims} values per scale; only "
                                   f"the dimensionality descriptor (1, 2 values per scale) is supported")
-    if not 0 < scale_count <= 10000:
+    if not 0 < scale_count <= MAX_SCALES:
         raise ClassifierFileError(f"{path}: not a qCANUPO .prm file ({scale_count} scales)")
     scales = np.atleast_1d(np.array(r.take("f", scale_count), dtype=np.float64))
     count = r.take("I")
-    if not 0 < count <= 10000:
+    if not 0 < count <= MAX_CLASSIFIERS:
         raise ClassifierFileError(f"{path}: not a qCANUPO .prm file ({count} classifiers)")
     dim = scale_count * dims + 1
     binaries = []
@@ -201,7 +278,7 @@ def _read_prm(path: Path) -> Classifier:
         w1 = np.array(r.take("f", dim), dtype=np.float64)
         w2 = np.array(r.take("f", dim), dtype=np.float64)
         k = r.take("I")
-        if not 2 <= k <= 100000:
+        if not 2 <= k <= MAX_BOUNDARY_POINTS:
             raise ClassifierFileError(f"{path}: classifier {c1}/{c2} has a boundary of {k} points (>= 2 needed)")
         pts = np.array(r.take("f", 2 * k), dtype=np.float64).reshape(k, 2)
         ref_pos = np.array(r.take("f", 2), dtype=np.float64)
@@ -244,24 +321,15 @@ def is_prm(path) -> bool:
 
 
 def read_classifier(path: str | os.PathLike) -> Classifier:
-    """Reads our JSON classifier, or a CloudCompare qCANUPO .prm file (by extension)."""
+    """Reads our JSON classifier, or a CloudCompare qCANUPO .prm file (by extension). A forged or
+    damaged file of either kind raises ClassifierFileError naming it, never another exception."""
     path = Path(path)
-    try:
-        if is_prm(path):
-            return _read_prm(path)
-        text = path.read_text(encoding="utf-8")
-    except OSError as e:
-        raise ClassifierFileError(f"{path}: cannot read the classifier: {e.strerror or e}") from None
-    try:
-        d = json.loads(text)
-    except (ValueError, UnicodeDecodeError) as e:
-        raise ClassifierFileError(f"{path}: not a classifier file (JSON: {e})") from None
+    if is_prm(path):
+        return _read_prm(path)
+    d = read_small_json(path, CLASSIFIER_KIND, error=ClassifierFileError)
     if not isinstance(d, dict):
         raise ClassifierFileError(f"{path}: not a classifier file (JSON without an object)")
-    try:
-        return _from_json(path, d)
-    except (TypeError, ValueError) as e:
-        raise ClassifierFileError(f"{path}: malformed classifier: {e}") from None
+    return _from_json(path, d)
 
 
 def write_classifier(path: str | os.PathLike, clf: Classifier) -> None:

@@ -3,11 +3,13 @@ hard link to, or be reached through a symbolic link to any of its inputs, and an
 that is read-only is refused rather than replaced (docs/errors.md, "Outputs")."""
 from __future__ import annotations
 
+import errno
 import os
 import stat
 from typing import Mapping
 
 from ..errors import CloudWriteError, UsageError
+from .input_file import os_problem
 
 __all__ = ["check_outputs"]
 
@@ -37,6 +39,7 @@ def check_outputs(outputs: Mapping[str, object], inputs: Mapping[str, object]) -
     for label, path in outputs.items():
         if path is None:
             continue
+        _refuse_name_too_long(path)
         for key in (_identity(path), os.path.realpath(path)):
             if key is not None and key in known:
                 in_label, in_path = known[key]
@@ -46,6 +49,17 @@ def check_outputs(outputs: Mapping[str, object], inputs: Mapping[str, object]) -
         if os.path.isdir(path):
             raise CloudWriteError(f"{os.fspath(path)}: is a directory")
         _refuse_read_only(label, path)
+
+
+def _refuse_name_too_long(path) -> None:
+    # Found now, not when the output is written after the whole run (the same check reading does).
+    try:
+        os.stat(path)
+    except OSError as e:
+        if e.errno == errno.ENAMETOOLONG:
+            raise CloudWriteError(f"{os.fspath(path)}: {os_problem(e)}") from None
+    except ValueError:  # an embedded NUL: the writer reports it
+        pass
 
 
 def _refuse_read_only(label: str, path) -> None:

@@ -13,6 +13,7 @@ key tables (:func:`geokey_crs`, :func:`geokey_units`: numbers, not WKT) are done
 from __future__ import annotations
 
 import functools
+import os
 import re
 from typing import Any
 
@@ -261,13 +262,9 @@ def assign_crs(spec: str) -> str:
     """WKT2 of a user's ``--crs`` (``EPSG:32617``, a WKT, a PROJ string or a path to a .prj/.wkt
     file), or a UsageError naming it."""
     text = spec
-    try:
-        from pathlib import Path
-        p = Path(spec)
-        if len(spec) < 4096 and p.is_file():
-            text = p.read_text(encoding="utf-8", errors="replace")
-    except OSError:
-        pass
+    if os.path.lexists(spec):  # a .prj/.wkt file (lexists is False for a name too long to exist)
+        from .input_file import read_small_bytes
+        text = read_small_bytes(spec, "CRS file", label=f"--crs {spec}").decode("utf-8", errors="replace")
     if not _has_pyproj():
         raise UsageError(f"--crs {spec!r} needs the crs extra (pyproj): pip install 'm3c2kit[crs]'")
     crs = parse_crs(text.strip())

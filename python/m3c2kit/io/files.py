@@ -10,6 +10,7 @@ from ..errors import CloudReadError, CloudWriteError, UsageError
 from ..fault_hook import checkpoint as fault_checkpoint
 from .arrays import bounds as column_bounds
 from .cloud import Cloud
+from .input_file import check_input_file, path_argument
 from .guard import available_memory, format_bytes, read_errors
 from .las_header import check_las_file
 from .quantised import Quantised
@@ -21,12 +22,9 @@ __all__ = ["read_cloud", "write_cloud_table", "info"]
 def _open_checked(path: Path, columns) -> Cloud:
     """Checks that `path` is a readable, non-empty file whose content matches its extension,
     then reads it with the extension's reader. Clouds may be empty or hold non-finite points."""
-    if not path.exists():
-        raise CloudReadError(f"{path}: no such file")
-    if path.is_dir():
-        raise CloudReadError(f"{path}: is a directory, not a point-cloud file")
-    if not path.is_file():  # a FIFO, socket or device: reading could block forever
-        raise CloudReadError(f"{path}: not a regular file")
+    # A missing file, a directory, a FIFO, socket or device (reading could block forever) or a
+    # name too long: refused where every input file is opened.
+    check_input_file(path, error=CloudReadError, directory_note="not a point-cloud file")
     fmt = format_for(path)
     if fmt is None:
         raise CloudReadError(f"{path}: unknown point-cloud file extension {extension_of(path)!r} "
@@ -89,7 +87,7 @@ def read_cloud(path: str | os.PathLike, *, columns: tuple[int, int, int] | None 
     unknown, mismatched, corrupt or truncated file, and for a file without points; UsageError
     for a bad `columns`.
     """
-    path = Path(path)
+    path = path_argument("path", path)  # None or a number: a TypeError naming the argument
     cloud = _open_checked(path, columns)
     if len(cloud) == 0:
         raise CloudReadError(f"{path}: contains no points")
@@ -123,7 +121,7 @@ def info(path: str | os.PathLike) -> dict:
     (names), ``scale`` and ``offset`` (LAS, else None), ``scan_count`` (E57, else None).
     Unlike :func:`read_cloud`, a file without points is described, not rejected.
     """
-    path = Path(path)
+    path = path_argument("path", path)  # None or a number: a TypeError naming the argument
     cloud = _open_checked(path, None)
     finite = np.isfinite(cloud.xyz).all(axis=1)
     points = cloud.xyz[finite]
@@ -157,9 +155,15 @@ def write_cloud_table(path: str | os.PathLike, xyz: np.ndarray, fields: dict[str
     from) supplies the LAS scale, offset and CRS. Raises CloudWriteError
     (``"{path}: {problem}"``).
     """
-    xyz = np.asarray(xyz, dtype=np.float64)
+    path = path_argument("path", path)
+    try:
+        xyz = np.asarray(xyz, dtype=np.float64)
+    except (TypeError, ValueError):
+        raise TypeError(f"xyz must be an (N, 3) array of numbers, got {type(xyz).__name__}") from None
     if xyz.ndim != 2 or xyz.shape[1] != 3:
         raise CloudWriteError(f"{path}: points must have shape (N, 3), got {xyz.shape}")
+    if not isinstance(fields, dict):
+        raise TypeError(f"fields must be a dict of name -> per-point array, got {type(fields).__name__}")
     # A Quantised column (LAS: scaled integers, m3c2kit.io.quantised) is checked through its values.
     fields = {str(name): values if isinstance(values, Quantised) else np.asarray(values)
               for name, values in fields.items()}

@@ -64,7 +64,8 @@ def choose_tile_size(limit: int, h: float, ref_density: float, cmp_density: floa
     b = BYTES_PER_CORE * core_density
 
     def need(s):
-        return a * (s + 2 * h) ** 2 + b * s * s
+        side = s + 2 * h
+        return a * side * side + b * s * s  # products reach inf where a float power raises OverflowError
 
     floor_size = max(h, 1e-9) / 4
     if budget <= 0 or need(floor_size) > budget:

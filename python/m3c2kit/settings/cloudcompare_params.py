@@ -23,9 +23,9 @@ import logging
 import math
 import os
 import re
-import stat
 
 from ..errors import UsageError
+from ..io.input_file import read_small_bytes
 from .parsers import scale_range
 from .table import by_cloudcompare_key, by_name
 
@@ -33,7 +33,7 @@ __all__ = ["read_cloudcompare_params"]
 
 _log = logging.getLogger(__name__)
 
-_MAX_BYTES = 1 << 20  # a real parameter file is under 1 KiB
+PARAMS_KIND = "CloudCompare parameter file"  # its size limit: io.input_file.SMALL_FILE_LIMITS
 
 _FLOAT_RE = re.compile(r"[+-]?(?:\d+\.?\d*|\.\d+)(?:[eE][+-]?\d+)?", re.ASCII)
 _INT_RE = re.compile(r"[+-]?\d+", re.ASCII)
@@ -220,19 +220,8 @@ def _multi_scales(fail, low: float, step: float, high: float) -> list[float]:
 
 
 def _read_general_section(name: str, path: str | os.PathLike) -> dict[str, str]:
-    try:
-        info = os.stat(path)
-        # A FIFO or device would block or never end; only regular files are read.
-        if not stat.S_ISREG(info.st_mode):
-            raise UsageError(f"{name}: cannot read CloudCompare parameter file: not a regular file")
-        if info.st_size > _MAX_BYTES:
-            raise UsageError(
-                f"{name}: {info.st_size} bytes is too large for a CloudCompare parameter file"
-            )
-        with open(path, "rb") as f:
-            data = f.read(_MAX_BYTES + 1)
-    except OSError as e:
-        raise UsageError(f"{name}: cannot read CloudCompare parameter file: {e.strerror}") from e
+    # A FIFO, device or directory is refused and the size bounded where every input file is opened.
+    data = read_small_bytes(path, PARAMS_KIND, label=name)
     if b"\0" in data:
         raise UsageError(f"{name}: not a CloudCompare parameter file (binary data)")
     try:

@@ -19,6 +19,7 @@ subsampled reference by default), and so does m3c2: it is the core points' exact
 from __future__ import annotations
 
 import math
+import os
 from dataclasses import dataclass
 from fractions import Fraction
 from pathlib import Path
@@ -165,7 +166,7 @@ def orientation(spec, read_points: Callable | None = None, core_points=None,
                     raise UsageError(f"--orient point must be finite, got {spec!r}")
                 return AXES["+z"], np.asarray([point], dtype=float), away
         path = Path(rest)
-        if read_points is not None and path.exists():
+        if read_points is not None and os.path.exists(path):  # False, not OSError, for a name too long
             pts = read_points(path)
             return AXES["+z"], _checked_points(pts), away
         if key in AXES:

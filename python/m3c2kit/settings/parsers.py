@@ -51,10 +51,14 @@ def scale_range(minimum: float, maximum: float, step: float) -> list[float]:
     Raises ValueError for an empty or oversized range."""
     if maximum < minimum:
         raise ValueError(f"the largest scale {maximum!r} is below the smallest {minimum!r}")
+    if not step > 0:  # a step of 0 (a parameter file's NormalStep=0) would divide by zero
+        raise ValueError(f"the step must be > 0, got {step!r}")
     limit = maximum + 1e-9 * maximum
-    count = math.floor((limit - minimum) / step) + 1
-    if count > MAX_SCALES:
-        raise ValueError(f"step {step!r} gives {count} scales from {minimum!r} to {maximum!r} (at most {MAX_SCALES})")
+    steps = (limit - minimum) / step  # inf for a tiny step over a huge span: math.floor(inf) would raise
+    if not steps < MAX_SCALES:
+        shown = f"{math.floor(steps) + 1}" if math.isfinite(steps) else "too many"
+        raise ValueError(f"step {step!r} gives {shown} scales from {minimum!r} to {maximum!r} (at most {MAX_SCALES})")
+    count = math.floor(steps) + 1
     return [s for s in (minimum + k * step for k in range(count + 1)) if s <= limit]
 
 
