@@ -21,8 +21,11 @@ from .io import crs as crs_mod
 from .io import laspy_local, laz_threads
 from .io.collisions import check_outputs
 from .io.describe import describe, describe_text
+from .io.input_file import os_error_message
 from .report.outputs import CompareOutputs, write_compare_outputs
-from .settings import by_name, parameters_of
+from .run.checks import check_all_fields, check_core_normals
+from .settings import by_name, parameters_of, resolve
+from .settings.resolve import without_inapplicable
 from .settings import orientation
 from .settings.cloudcompare_params import ORIENT_KEY_VALUES, read_cloudcompare_params
 from .summary import summary_lines
@@ -154,6 +157,13 @@ def compare_settings(args) -> dict:
     if getattr(args, "grid", None) is not None:
         explicit = {p.name: getattr(args, p.name, None) for p in parameters_of("compare")}
         settings = raster.grid_settings(args.grid, settings, dict(explicit, core_normals=args.core_normals))
+        for name, value in explicit.items():  # 2D mode drops what it replaces: given here, it would do nothing
+            if value is not None and name not in settings:
+                raise UsageError(f"--grid imposes vertical normals on grid cells: {by_name()[name].flag} would change "
+                                 f"nothing; leave it out")
+    if args.params is not None:  # the file's values that the options make moot are its dialog's state: dropped
+        typed = {p.name for p in parameters_of("compare") if getattr(args, p.name, None) is not None}
+        settings = without_inapplicable(settings, keep=typed)
     return settings
 
 
@@ -209,15 +219,19 @@ def run_compare_tiled(args, settings: dict, grid=None) -> int:
     checked = dict(settings, threads=threads, core_spacing=core_spacing)
     if orientation.needs_scan_positions(checked.get("orient")):
         checked.pop("orient")  # read with the files; it does not change the halo
-    preflight(checked, args.tile_size, args.memory_limit,
-              read_points=lambda p: read_cloud(p, drop_nonfinite=drop).xyz)
+    plan = preflight(checked, args.tile_size, args.memory_limit,
+                     read_points=lambda p: read_cloud(p, drop_nonfinite=drop).xyz)[0]
     client = connect(args.dask_scheduler) if args.dask_scheduler is not None else None
     try:
-        return _compare_tiled(args, settings, client, position, threads, core_spacing, drop,
+        code = _compare_tiled(args, settings, client, position, threads, core_spacing, drop,
                               dict(field_names=field_names, float64=float64, all_fields=all_fields))
     finally:
         if client is not None:
             client.close()
+    if args.verbose:  # as the in-memory run: the parameters the run was given, with D as a list
+        for name, value in sorted(plan.record.items()):
+            print(f"parameter {name}: {value}")
+    return code
 
 
 def _compare_tiled(args, settings, client, position, threads, core_spacing, drop, storage: dict) -> int:
@@ -227,8 +241,10 @@ def _compare_tiled(args, settings, client, position, threads, core_spacing, drop
     ref_src = PointSource(args.reference, drop_nonfinite=drop)
     cmp_src = PointSource(args.compared, drop_nonfinite=drop)
     core_cloud = read_cloud(args.core, drop_nonfinite=drop) if args.core is not None else None
-    settings["orient"] = _orient_spec(args, settings, ref_src.cloud, core_cloud)
-    check_same_crs(ref_src.like(), cmp_src.like(), core_cloud, ignore=getattr(args, "ignore_crs", False))
+    if settings.get("normal_source") != "core":  # given normals are used as they are
+        settings["orient"] = _orient_spec(args, settings, ref_src.cloud, core_cloud)
+    check_same_crs(ref_src.like(), cmp_src.like(), core_cloud, ignore=getattr(args, "ignore_crs", False),
+                   allow_angular=getattr(args, "allow_angular", False))
     core_normals = _core_normals(args, core_cloud) if settings.get("normal_source") == "core" else None
     say = (lambda s: None) if args.quiet else (lambda s: print(f"m3c2: {s}", flush=True))
     report = run_tiled(ref_src, cmp_src, output=args.output,
@@ -251,7 +267,7 @@ def _inputs(args, settings: dict | None = None) -> dict:
     orient = (settings or {}).get("orient", getattr(args, "orient", None))
     if isinstance(orient, str) and orient.strip().lower().startswith(orientation.AWAY):
         orient = orient.strip()[len(orientation.AWAY):].strip()
-    if isinstance(orient, (str, Path)) and str(orient) and Path(orient).exists():
+    if isinstance(orient, (str, Path)) and str(orient) and os.path.exists(orient):  # False, not OSError, for a name too long
         files["orientation file"] = orient
     return files
 
@@ -272,14 +288,18 @@ def _compare_outputs(args) -> dict:
 def run_compare(args) -> int:
     cell = args.grid
     settings = compare_settings(args)  # with --grid: 2D mode's settings (raster.grid_settings)
+    # Every parameter's checks, options that would change nothing included, before any file is read.
+    resolve(settings, "compare")
+    check_core_normals(settings, args.core_normals, "--core-normals")
+    check_all_fields(args.output, settings.get("all_fields"))
     laz_threads.set_threads(api.threads_count(settings.get("threads")))  # LAZ coding: --threads too (checked first)
     check_outputs(_compare_outputs(args), _inputs(args, settings))  # before any work (docs/errors.md)
+    phases = phases_for(args)  # -q with --progress refused here, in every mode
     if args.tile_size is not None or args.memory_limit is not None or args.dask_scheduler is not None:
         if getattr(args, "crs", None):
             raise UsageError("--crs is not available with --tile-size, --memory-limit or --dask-scheduler; "
                              "give the inputs a CRS (e.g. convert them to LAS with one) or run in memory")
         return run_compare_tiled(args, settings, grid=cell)  # out-of-core / Dask (docs/scaling.md)
-    phases = phases_for(args)
     files = [f for f in (args.reference, args.compared, args.core) if f is not None]
     with phases.phase("reading", total=len(files)) as step:
         reference = _read(args.reference, args)
@@ -296,7 +316,8 @@ def run_compare(args) -> int:
     if cell is not None:
         grid = raster.grid_core_points(reference, cell)
         core_cloud = grid.core_points
-    settings["orient"] = _orient_spec(args, settings, reference, core_cloud)
+    if settings.get("normal_source") != "core":  # given normals are used as they are
+        settings["orient"] = _orient_spec(args, settings, reference, core_cloud)
     position = settings.pop("position", "core")
     field_names = settings.pop("field_names", "m3c2")
     float64 = bool(settings.pop("float64", False))
@@ -378,6 +399,7 @@ def _core_normals(args, core_cloud) -> np.ndarray:
 
 
 def run_normals(args) -> int:
+    resolve({p.name: getattr(args, p.name) for p in parameters_of("normals")}, "normals")  # before any file is read
     check_outputs({"-o": args.output}, _inputs(args))
     phases = phases_for(args)
     files = [f for f in (args.input, args.core) if f is not None]
@@ -398,6 +420,10 @@ def run_normals(args) -> int:
     with phases.phase("writing", total=1) as step:
         write_cloud_table(args.output, out["core"], fields, like=cloud)
         step(1, 1)
+    if args.verbose:
+        for name, value in sorted(given.items()):
+            if value is not None:
+                print(f"parameter {name}: {value}")
     if not args.quiet:
         ok = int(np.count_nonzero(np.asarray(out["status"]) == 0))
         print(f"wrote {args.output}: normals at {ok:,} of {len(out['core']):,} points "
@@ -507,6 +533,12 @@ def _main(argv) -> int:
         # stdout closed by the reader (`m3c2 info x.las | head -1`): stop quietly, as Unix tools
         # do, and point stdout at /dev/null so that the interpreter's final flush stays quiet.
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        return 1
+    except OSError as e:
+        # An OS error no reader or writer turned into a message: e.g. a name over 255 bytes, which
+        # pathlib's checks (exists, is_file) raise instead of answering. Writers remove their
+        # temporaries on any exception (io.atomic), so nothing half-written is left.
+        print(f"m3c2: error: {printable(os_error_message(e))}", file=sys.stderr)
         return 1
 
 

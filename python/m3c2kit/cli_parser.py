@@ -39,6 +39,8 @@ def phases_for(args):
     from .phases import Phases
 
     if getattr(args, "quiet", False):
+        if getattr(args, "progress", False):  # both asked: one would be silently ignored
+            raise UsageError("--progress would change nothing in this run: -q/--quiet shows no progress bar")
         return Phases(enabled=False)
     return Phases(enabled=True if getattr(args, "progress", False) else None)
 

@@ -306,12 +306,12 @@ def test_estimate_memory_formula():
     # Normals on both clouds: moments on both; given core normals: none.
     both = build_params(normal_scale=1, projection_scale=1, max_depth=1, normal_source="mean")
     assert api.estimate_memory(1000, 1000, 0, both) == int(2000 * (copied + moments) * mem["overhead"])
-    given = build_params(normal_scale=1, projection_scale=1, max_depth=1, normal_source="core")
+    given = build_params(projection_scale=1, max_depth=1, normal_source="core")
     assert api.estimate_memory(1000, 1000, 0, given) == int(2000 * copied * mem["overhead"])
     # Ordered in place: no copies, unless an uncertainty model forbids it.
     in_place = mem["bytes_per_point"]
     assert api.estimate_memory(1000, 1000, 0, given, reorder_inputs=True) == int(2000 * in_place * mem["overhead"])
-    ep = build_params(normal_scale=1, projection_scale=1, max_depth=1, normal_source="core", uncertainty="ep")
+    ep = build_params(projection_scale=1, max_depth=1, normal_source="core", uncertainty="ep")
     assert api.estimate_memory(1000, 1000, 0, ep, reorder_inputs=True) == int(2000 * copied * mem["overhead"])
 
 

@@ -36,7 +36,7 @@ def test_the_one_cloud_index_gives_the_two_cloud_runs_cylinders(toronto, cloud):
     # cloud's cylinder is empty too).
     ref, cmp_ = toronto
     core = ref[::7] + np.array([0.0, 0.0, 30.0]) if cloud == 1 else ref[::7]  # lifted: empty in the reference
-    r = m3c2kit.compare(ref, cmp_, core, normal_scale=2, projection_scale=1, max_depth=5, normal_source="vertical")
+    r = m3c2kit.compare(ref, cmp_, core, projection_scale=1, max_depth=5, normal_source="vertical")
     idx = np.flatnonzero(r.status == Q._EMPTY[cloud])
     assert idx.size > 100
     reach = 200.0
@@ -64,7 +64,7 @@ def test_both_clouds_diagnosed_alike_on_one_thread_and_two(toronto):
     # reference; the shoreline: empty in the compared cloud).
     ref, cmp_ = toronto
     core = np.concatenate([ref[::7], ref[::11] + np.array([0.0, 0.0, 30.0])])
-    r = m3c2kit.compare(ref, cmp_, core, normal_scale=2, projection_scale=1, max_depth=5, normal_source="vertical")
+    r = m3c2kit.compare(ref, cmp_, core, projection_scale=1, max_depth=5, normal_source="vertical")
     runs = [Q.cylinder_diagnosis(ref, cmp_, r, projection_scale=1, max_depth=5, threads=t, at_most=500) for t in (1, 2)]
     assert [d.cloud for d in runs[0]] == [1, 2]
     for one, two in zip(*runs):

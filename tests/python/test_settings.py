@@ -58,18 +58,23 @@ def test_the_result_schema_is_the_engine_struct():
 
 
 def test_params_pickle_with_every_field():
-    p = build_params(normal_scale="1,2", projection_scale=2.5, max_depth=3, orient="1,2,3", median=True,
-                     variance="population", scale_selection="cloudcompare", min_points_normal=5,
-                     min_points_multiscale=12, first_pass_depth=1.5, positive_search_only=True,
-                     registration_error=0.1, confidence=0.9, min_points=6, bootstrap=10,
-                     seed=2**64 - 1, normal_subsample=0.5, median_lod="cloudcompare", uncertainty="ep",
-                     precision_rule="all", precision_scales="2,0.5", ep_covariance="mean-of-points",
-                     ep_lod="published", ep_weights="matrix")
-    q = pickle.loads(pickle.dumps(p))
-    assert engine.params_fields(q) == engine.params_fields(p)
-    assert engine.params_fields(q) != engine.default_fields()  # the values travelled, not defaults
-    assert q.depth_search == _core.DepthSearch.two_pass and q.bootstrap_seed == 2**64 - 1
-    assert q.lod == _core.Lod.bootstrap and q.precision_scale2 == 0.5
+    # Every field set, in runs where each acts (an option that would change nothing is refused:
+    # m3c2kit.settings.needs), so the fields of eq. (1), its median, PM and EP in four Params.
+    runs = [build_params(normal_scale="1,2", projection_scale=2.5, max_depth=3, orient="1,2,3", median=True,
+                         variance="population", scale_selection="cloudcompare", min_points_normal=5,
+                         min_points_multiscale=12, first_pass_depth=1.5, positive_search_only=True,
+                         registration_error=0.1, confidence=0.9, min_points=6, bootstrap=10,
+                         seed=2**64 - 1, normal_subsample=0.5),
+            build_params(median=True, median_lod="cloudcompare", **REQUIRED),
+            build_params(uncertainty="pm", precision_rule="all", precision_scales="2,0.5", **REQUIRED),
+            build_params(uncertainty="ep", ep_covariance="mean-of-points", ep_lod="published", ep_weights="matrix",
+                         **REQUIRED)]
+    for p in runs:
+        q = pickle.loads(pickle.dumps(p))
+        assert engine.params_fields(q) == engine.params_fields(p)
+        assert engine.params_fields(q) != engine.default_fields()  # the values travelled, not defaults
+    assert runs[0].depth_search == _core.DepthSearch.two_pass and runs[0].bootstrap_seed == 2**64 - 1
+    assert runs[0].lod == _core.Lod.bootstrap and runs[2].precision_scale2 == 0.5
 
 
 def test_defaults_come_from_the_engine_struct():
@@ -116,6 +121,13 @@ def test_core_is_the_api_name_of_core_points_too():
         m3c2kit.compare(ref, cmp, core, core=core, **params)
 
 
+#: The options each of those needs to act at all (alone they are refused as changing nothing).
+NEEDS = {"scale_selection": ["--normal-scale", "1,2"], "min_points_multiscale": ["--normal-scale", "1,2"],
+         "median_lod": ["--median"], "seed": ["--bootstrap", "9"], "precision_rule": ["--uncertainty", "pm"],
+         "precision_scales": ["--uncertainty", "pm"], "ep_covariance": ["--uncertainty", "ep"],
+         "ep_lod": ["--uncertainty", "ep"], "ep_weights": ["--uncertainty", "ep", "--ep-covariance", "independent"]}
+
+
 @pytest.mark.parametrize("param", [p for p in PARAMETERS if p.engine is not None], ids=lambda p: p.name)
 def test_every_engine_parameter_is_reachable_from_the_command_line(param):
     values = {"normal_scale": "2,3", "normal_source": "mean", "scale_selection": "cloudcompare",
@@ -129,6 +141,7 @@ def test_every_engine_parameter_is_reachable_from_the_command_line(param):
     argv = ["compare", "r.xyz", "c.xyz", "-o", "o.csv", "--projection-scale", "2", "--max-depth", "3",
             "--normal-scale", "1"]
     argv += [param.flag] if param.cli_type is None else [param.flag, values[param.name]]
+    argv += NEEDS.get(param.name, [])  # what the option acts with (m3c2kit.settings.needs)
     settings = compare_settings(make_parser().parse_args(argv))
     settings.pop("position", None)
     p = build_params(**settings)

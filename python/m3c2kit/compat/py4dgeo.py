@@ -316,10 +316,13 @@ class M3C2:
             raise UsageError(f"M3C2: corepoints must be an (N, 3) array, got shape {core.shape}")
         radius = self._radius()
         depth = max(float(self.max_distance), radius)  # py4dgeo: the cylinder reaches at least r
+        options = self._normal_options(reference, compared, len(core))
+        orient = self._orient()  # checked always; given normals are used as they are (as py4dgeo's)
+        if options.get("normal_source") != "core":
+            options["orient"] = orient
         result = compare(reference, compared, core, projection_scale=2.0 * radius, max_depth=depth,
                          registration_error=float(self.registration_error), median=bool(self.robust_aggr),
-                         orient=self._orient(), min_points=1, lod="z", threads=_THREADS,  # py4dgeo's z
-                         **self._normal_options(reference, compared, len(core)))
+                         min_points=1, lod="z", threads=_THREADS, **options)  # py4dgeo's z
         self.result = result
         return result.distance, uncertainties_of(result)
 

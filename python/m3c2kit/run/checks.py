@@ -4,6 +4,7 @@ engine's limits, m3c2kit.engine)."""
 from __future__ import annotations
 
 import math
+from pathlib import Path
 
 import numpy as np
 
@@ -54,3 +55,25 @@ def check_coordinate_range(name: str, source, points: np.ndarray, limit: float) 
     raise UsageError(f"the {name} cloud: {message}")
 
 
+
+
+def check_core_normals(values, core_normals, name: str = "core_normals") -> None:
+    """Given normals are used only by --normal-source core (the other sources fit or impose their
+    own): given with another source they would change nothing, a usage error naming `name`."""
+    if core_normals is not None and values.get("normal_source") != "core":
+        raise UsageError(f"{name} would change nothing in this run: it applies only with --normal-source core "
+                         f"(this run's: --normal-source {values.get('normal_source') or by_name()['normal_source'].default_for()})")
+
+
+def check_all_fields(output, all_fields) -> None:
+    """--all-fields chooses the columns of a LAS/LAZ output only (text and PLY outputs have every
+    column): with another output, or none, it would change nothing."""
+    from ..io.registry import format_for  # noqa: PLC0415 - only runs given --all-fields need it
+
+    if not all_fields:
+        return
+    fmt = format_for(Path(output), writing=True) if output is not None else None
+    if output is None or (fmt is not None and fmt.name != "LAS/LAZ"):  # no format: the writer names the extension
+        where = "no output file" if output is None else f"-o {output} is {fmt.name}, which has every column already"
+        raise UsageError(f"--all-fields would change nothing in this run: it applies only to a LAS/LAZ output "
+                         f"({where})")

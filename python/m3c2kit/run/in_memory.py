@@ -7,7 +7,7 @@ from typing import Callable
 from .. import uncertainty_inputs
 from ..errors import UsageError
 from ..result import Result
-from .checks import as_points, check_coordinate_range, check_spacing
+from .checks import as_points, check_coordinate_range, check_core_normals, check_spacing
 from .cores import core_points_for
 from .memory import check_memory
 from ..settings import engine_params
@@ -26,6 +26,7 @@ def compare(reference, compared, core_points=None, *, core_normals=None,
     sensor = getattr(reference if core_points is None else core_points, "scan_positions", None)  # --orient sensor
     plan = make_plan(params, read_points, scan_positions=sensor)
     values = plan.values
+    check_core_normals(values, core_normals)
     given = (reference, compared)  # the warnings look at the clouds as given
     reference, compared = filtered_clouds(plan.filter, reference, compared, threads=values["threads"])
     ref = as_points("reference", reference)

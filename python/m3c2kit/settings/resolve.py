@@ -8,9 +8,10 @@ from typing import Callable, Iterable, Mapping
 
 from .. import engine
 from ..errors import UsageError
+from .needs import check_effective, inapplicable
 from .table import Parameter, by_name, parameters_of
 
-__all__ = ["check_keywords", "resolve", "engine_params", "build_params"]
+__all__ = ["check_keywords", "resolve", "engine_params", "build_params", "without_inapplicable"]
 
 
 def check_keywords(given: Iterable[str], valid: Iterable[str], where: str) -> None:
@@ -24,9 +25,10 @@ def check_keywords(given: Iterable[str], valid: Iterable[str], where: str) -> No
         raise UsageError(f"{where}: unknown parameter {key!r}{hint}; valid parameters: {', '.join(valid)}")
 
 
-def resolve(given: Mapping, command: str = "compare", api: bool = False) -> dict:
+def resolve(given: Mapping, command: str = "compare", api: bool = False, check_needs: bool = True) -> dict:
     """Every parameter of `command`: the checked given value (None counts as not given), or its
-    default (CloudCompare's with compat='cloudcompare'); then the rules that tie parameters.
+    default (CloudCompare's with compat='cloudcompare'); then the rules that tie parameters, and
+    (`check_needs`) that each given parameter acts in this run (m3c2kit.settings.needs).
     `api`: the keywords of the Python function, which writes nothing (no "output" parameter)."""
     table = parameters_of(command)
     check_keywords(given, (p.name for p in table if not (api and p.scope == "output")), f"{command}()"
@@ -38,7 +40,17 @@ def resolve(given: Mapping, command: str = "compare", api: bool = False) -> dict
         values[p.name] = p.default_for(compat) if raw is None else _checked(p, raw)
     for rule in RULES.get(command, ()):
         rule(values, given)
+    if check_needs:  # last: the values it looks at are final (the depth search and LOD the rules imply)
+        check_effective(table, values, given)
     return values
+
+
+def without_inapplicable(given: Mapping, keep: Iterable[str], command: str = "compare") -> dict:
+    """`given` without the parameters that would change nothing in its run, but those in `keep`
+    (which resolve then refuses): a CloudCompare params file holds a whole dialog, some of whose
+    values the command line's options make moot (NormalScale under --normal-source vertical)."""
+    moot = inapplicable(parameters_of(command), resolve(given, command, check_needs=False))
+    return {k: v for k, v in given.items() if k not in moot or k in keep}
 
 
 def _checked(p: Parameter, value):

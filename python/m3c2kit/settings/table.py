@@ -16,6 +16,8 @@ from typing import Any, Callable
 
 from .. import engine
 from . import orientation, parsers
+from .needs import (A_VARIANCE, BOOTSTRAP, EP, FITTED_NORMALS, MOVED_OR_PROPAGATED, NOT_CORE_NORMALS,
+                    PARAMETRIC_MEDIAN, PM, SEVERAL_SCALES, TRANSFORM, TWO_PASS, WEIGHTED_CENTRES, WELCH_T, Needs)
 from .parsers import UINT32_MAX, UINT64_MAX, Choice, Flag, Integer, Positives, Real, Scales, Text
 
 __all__ = ["Parameter", "EngineField", "PARAMETERS", "FROM_ENGINE", "SAME", "by_name", "parameters_of"]
@@ -91,6 +93,7 @@ class Parameter:
     metavar: str | None = None
     commands: tuple[str, ...] = ("compare",)
     scope: str = "engine"  # "engine": sets engine fields; "run": how the run is made; "output": how it is written
+    needs: tuple[Needs, ...] = ()  # when it acts (m3c2kit.settings.needs): given where one fails, a usage error
 
     def default_for(self, compat: str | None = None):
         """The default, under --compat cloudcompare when `compat` says so."""
@@ -132,7 +135,7 @@ PARAMETERS: tuple[Parameter, ...] = (
     Parameter("normal_scale", "--normal-scale", Scales(), section="3.1.2, 3.2", engine=unset_is_zero(
         "normal_diameters", []), cli_type=str, cloudcompare_keys=("NormalScale", "NormalMinScale", "NormalStep",
                                                                    "NormalMaxScale"),
-              py4dgeo="normal_radii (radii: D / 2)", commands=BOTH,
+              py4dgeo="normal_radii (radii: D / 2)", commands=BOTH, needs=(FITTED_NORMALS,),
               help="D, the normal scale: DIAMETER of the sphere of neighbours (as in the paper and CloudCompare). "
                    "One value, a list '0.5,1,2' or a range 'MIN:MAX:STEP' (multi-scale: the most planar scale "
                    "wins); required unless --normal-source is vertical or core"),
@@ -141,20 +144,21 @@ PARAMETERS: tuple[Parameter, ...] = (
               help="where normals come from"),
     Parameter("scale_selection", "--scale-selection", Choice("most-planar", "cloudcompare", "py4dgeo"),
               section="3.2", engine=enum("scale_selection"), cloudcompare="cloudcompare", cli_type=str,
-              commands=BOTH, help="multi-scale rule: the most planar scale (the paper's), CloudCompare's, or "
+              commands=BOTH, needs=(FITTED_NORMALS, SEVERAL_SCALES), help="multi-scale rule: the most planar scale (the paper's), CloudCompare's, or "
                                   "py4dgeo's largest (lambda2 - lambda3) / lambda1"),
     Parameter("min_points_normal", "--min-points-normal", PLANE_POINTS, section="3.1.2",
-              engine=same("min_points_normal"), cli_type=int, commands=BOTH,
+              engine=same("min_points_normal"), cli_type=int, commands=BOTH, needs=(FITTED_NORMALS,),
               help="fewest neighbours for a plane fit at one scale"),
     Parameter("min_points_multiscale", "--min-points-multiscale", PLANE_POINTS, section="3.2",
               engine=same("min_points_multiscale"), cli_type=int, commands=BOTH,
+              needs=(FITTED_NORMALS, SEVERAL_SCALES),
               help="fewest neighbours at the scale multi-scale normals choose"),
     Parameter("normal_subsample", "--normal-subsample", Real(), section="5.1",
-              engine=unset_is_zero("normal_subsample_spacing"), commands=BOTH,
+              engine=unset_is_zero("normal_subsample_spacing"), commands=BOTH, needs=(FITTED_NORMALS,),
               help="compute normals on the cloud subsampled to this minimum spacing"),
     Parameter("orient", "--orient", parsers.Orientation(), section="3.1.2", engine=ORIENTATION, default="+z",
               cli_type=str, cloudcompare_keys=("NormalPreferedOri",), py4dgeo="orientation_vector",
-              commands=BOTH,
+              commands=BOTH, needs=(NOT_CORE_NORMALS,),
               help="normal orientation: +z -z +x -x +y -y; towards a point X,Y,Z, the closest point of a "
                    "FILE (scanner positions), origin (0,0,0), the core points' barycentre, or the sensor "
                    "(E57 scan positions; the default when the reference has them); away:POINT for away "
@@ -171,7 +175,7 @@ PARAMETERS: tuple[Parameter, ...] = (
               cloudcompare_keys=("UseSinglePass4Depth",),
               help="how the cylinder's length is searched; two-pass when --first-pass-depth is given"),
     Parameter("first_pass_depth", "--first-pass-depth", Real(), section="5.3",
-              engine=unset_is_zero("first_pass_depth"),
+              engine=unset_is_zero("first_pass_depth"), needs=(TWO_PASS,),
               help="two-pass depth search: a short half-length first, --max-depth only where it finds nothing"),
     Parameter("positive_search_only", "--positive-search-only", Flag(), section="3.1.3",
               engine=same("positive_search_only"), cli_type=None, cloudcompare_keys=("PositiveSearchOnly",),
@@ -180,7 +184,7 @@ PARAMETERS: tuple[Parameter, ...] = (
               cloudcompare_keys=("UseMedian",), py4dgeo="robust_aggr",
               help="median and IQR instead of mean and standard deviation"),
     Parameter("variance", "--variance", Choice("sample", "population"), section="3.3",
-              engine=same("variance"), cloudcompare="population", cli_type=str, commands=BOTH,
+              engine=same("variance"), cloudcompare="population", cli_type=str, commands=BOTH, needs=(A_VARIANCE,),
               help="denominator of every variance: n - 1 (sample, as py4dgeo) or n (population, as CloudCompare)"),
     # Confidence (section 3.3, Appendix B)
     Parameter("registration_error", "--registration-error", Real(closed=True), section="3.3 eq. (1)",
@@ -198,58 +202,58 @@ PARAMETERS: tuple[Parameter, ...] = (
               help="the LOD's statistic: eq. (1) with z, with Welch's t (eq. 2), the paper's rule auto (t when "
                    "n1 or n2 < 30), or the bootstrap of Appendix B (--bootstrap N resamples)"),
     Parameter("median_lod", "--median-lod", Choice("maritz-jarrett", "cloudcompare"), section="3.3, Appendix B",
-              engine=enum("median_lod"), cloudcompare="cloudcompare", cli_type=str,
+              engine=enum("median_lod"), cloudcompare="cloudcompare", cli_type=str, needs=(PARAMETRIC_MEDIAN,),
               help="with --median: the median's standard error in eq. (1), exact (Maritz-Jarrett) or "
                    "CloudCompare's IQR / 1.349 as if it were a mean's spread"),
     Parameter("t_statistic", "--t-statistic", Flag(), section="3.3 eq. (2)", default=False, cli_type=None,
-              scope="alias", help="the same as --lod auto: Welch t instead of z when n1 or n2 < 30 (eq. 2)"),
+              scope="alias", needs=(WELCH_T,), help="the same as --lod auto: Welch t instead of z when n1 or n2 < 30 (eq. 2)"),
     Parameter("bootstrap", "--bootstrap", Integer(0, engine.MAX_BOOTSTRAP_SAMPLES, "0 (off) or >= 2 resamples",
                                                  excluded=(1,)),
               section="Appendix B", engine=same("bootstrap_samples"), cli_type=int,
               help="LOD from N bootstrap resamples (implies --lod bootstrap)"),
     Parameter("seed", "--seed", Integer(0, UINT64_MAX, "a non-negative integer"), section="Appendix B",
-              engine=same("bootstrap_seed"), cli_type=int, help="bootstrap seed"),
+              engine=same("bootstrap_seed"), cli_type=int, needs=(BOOTSTRAP,), help="bootstrap seed"),
     # Per-point uncertainty (section 6.2; include/m3c2/uncertainty.hpp)
     Parameter("uncertainty", "--uncertainty", Choice("eq1", "pm", "ep"), section="6.2", engine=enum("uncertainty"),
               cli_type=str, cloudcompare_keys=("UsePrecisionMaps",), help="the LOD's uncertainty model: eq. (1), M3C2-PM (precision maps) or M3C2-EP "
                                  "(error propagation); pm and ep need their per-point inputs"),
     Parameter("precision_rule", "--precision-rule", Choice("nearest", "all"), section="6.2",
-              engine=enum("precision_rule"), cli_type=str,
+              engine=enum("precision_rule"), cli_type=str, needs=(PM,),
               help="M3C2-PM: the precision of the point nearest the cylinder's centre (CloudCompare's) or of "
                    "every point in it"),
     Parameter("precision_scales", "--precision-scales", Positives(2), section="6.2", engine=PRECISION_SCALES,
-              cli_type=str, cloudcompare_keys=("PM1Scale", "PM2Scale"), metavar="S1,S2", help="M3C2-PM: scale of each cloud's precisions"),
+              cli_type=str, cloudcompare_keys=("PM1Scale", "PM2Scale"), metavar="S1,S2", needs=(PM,), help="M3C2-PM: scale of each cloud's precisions"),
     Parameter("ep_covariance", "--ep-covariance", Choice("independent", "mean-of-points", "empirical"), section="6.2",
-              engine=enum("ep_covariance"), cli_type=str, help="M3C2-EP: the covariance of a centre of gravity"),
+              engine=enum("ep_covariance"), cli_type=str, needs=(EP,), help="M3C2-EP: the covariance of a centre of gravity"),
     Parameter("ep_lod", "--ep-lod", Choice("projected", "published"), section="6.2", engine=enum("ep_lod"),
-              cli_type=str, help="M3C2-EP: the level of detection, projected on the normal or as published"),
+              cli_type=str, needs=(EP,), help="M3C2-EP: the level of detection, projected on the normal or as published"),
     Parameter("ep_weights", "--ep-weights", Choice("normal", "matrix"), section="6.2", engine=enum("ep_weights"),
-              cli_type=str, help="M3C2-EP: the weights of the centres of gravity"),
+              cli_type=str, needs=(EP, WEIGHTED_CENTRES), help="M3C2-EP: the weights of the centres of gravity"),
     # The per-point inputs of pm and ep (read by m3c2kit.uncertainty_inputs; in-memory runs)
     Parameter("precision_fields", "--precision-fields", Text("three field names SX,SY,SZ"), section="6.2",
-              default="sx,sy,sz", cli_type=str, metavar="SX,SY,SZ", scope="run",
+              default="sx,sy,sz", cli_type=str, metavar="SX,SY,SZ", scope="run", needs=(PM,),
               help="M3C2-PM: each cloud's fields holding the precisions sx, sy, sz (LAS extra bytes, PLY "
                    "properties, ASCII columns)"),
     Parameter("scan_positions", "--scan-positions", Text("a file, or FILE1,FILE2"), section="6.2", default=None,
-              cli_type=str, metavar="FILE[,FILE2]", scope="run",
+              cli_type=str, metavar="FILE[,FILE2]", scope="run", needs=(EP,),
               help="M3C2-EP: scan positions (py4dgeo's sps.json or a CSV: id, origin, sigma_range, sigma_scan, "
                    "sigma_yaw[, sigma_range_ppm]); a second file for the compared epoch; an entry without an "
                    "origin takes the E57 scan's pose"),
     Parameter("scan_position_field", "--scan-position-field", Text("a field name"), section="6.2",
-              default="point_source_id", cli_type=str, metavar="NAME", scope="run",
+              default="point_source_id", cli_type=str, metavar="NAME", scope="run", needs=(EP,),
               help="M3C2-EP: the field holding each point's scan-position id (LAS point source id, an extra "
                    "dimension, or scan_index for E57)"),
     Parameter("transform", "--transform", Text("a file (3x4)"), section="6.2", default=None, cli_type=str,
-              metavar="FILE", scope="run",
+              metavar="FILE", scope="run", needs=(EP,),
               help="M3C2-EP: the compared epoch's 3x4 transformation tfM, applied to it about the reduction "
                    "point unless --transform-applied"),
     Parameter("transform_applied", "--transform-applied", Flag(), section="6.2", default=False, cli_type=None,
-              scope="run", help="M3C2-EP: the compared cloud is given already transformed by --transform"),
+              scope="run", needs=(EP, TRANSFORM), help="M3C2-EP: the compared cloud is given already transformed by --transform"),
     Parameter("alignment_covariance", "--alignment-covariance", Text("a file (12x12)"), section="6.2",
-              default=None, cli_type=str, metavar="FILE", scope="run",
+              default=None, cli_type=str, metavar="FILE", scope="run", needs=(EP,),
               help="M3C2-EP: 12x12 covariance Cxx of the transformation's parameters (r11..r33, tx, ty, tz)"),
     Parameter("reduction_point", "--reduction-point", Text("X,Y,Z or a file"), section="6.2", default=None,
-              cli_type=str, metavar="X,Y,Z", scope="run",
+              cli_type=str, metavar="X,Y,Z", scope="run", needs=(EP, MOVED_OR_PROPAGATED),
               help="M3C2-EP: the point the transformation rotates about (default 0,0,0)"),
     # Vegetation removal before comparing (4.3; CANUPO: m3c2kit.classify, docs/classify.md)
     Parameter("classifier", "--classifier", Text("a classifier file"), section="4.3", default=None, cli_type=str,
