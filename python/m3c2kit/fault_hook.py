@@ -7,8 +7,15 @@ point without sleeping. The phases, each one call of :func:`checkpoint`:
   (``io.streaming.PointSource.chunks``; a tiled run is writing its spill files then);
 - ``computing``: the engine runs (``engine.compute``: at its first progress callback, inside the
   computation, or just before it when no callback is given, as for a tile);
+- ``staging``: an output's private folders exist (each locked), before anything is written in them
+  (``io.atomic.staged_outputs``, ``io.atomic.staged_directory``, a tiled run's spill folder:
+  ``run.tiled``); a test stops a real run there (``SIGSTOP``) to attack its folders;
 - ``writing``: every temporary of an output is written, before any is renamed onto its target
-  (``io.atomic.staged_outputs``).
+  (``io.atomic.staged_outputs``);
+- ``store-write``: a series step is about to write a store's chunks (store.append_batch: create,
+  add, import; analysis: smooth's and objects' new variables in the staging folder);
+- ``store-commit``: a series step is about to consolidate the store's metadata (store.commit:
+  a batch of epochs, a published variable).
 
 Unset (always, outside tests) it costs one environment lookup per phase; a malformed value does
 nothing. Each phase fires at most once per process.
@@ -21,7 +28,7 @@ import signal
 __all__ = ["ENV", "PHASES", "checkpoint"]
 
 ENV = "M3C2_TEST_SIGNAL_AT"
-PHASES = ("reading", "computing", "writing")
+PHASES = ("reading", "computing", "staging", "writing", "store-write", "store-commit")
 _fired: set[str] = set()
 
 

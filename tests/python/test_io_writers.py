@@ -250,8 +250,10 @@ def test_failed_write_keeps_the_previous_file(tmp_path):
 def test_atomic_output_replaces_and_sets_normal_permissions(tmp_path):
     path = tmp_path / "new.csv"
     with atomic_output(path) as tmp:
-        # In a private folder beside the target (0700), not carrying a name a glob there matches.
-        assert tmp.parent.parent == tmp_path and tmp.parent.name.startswith(".m3c2-tmp-")
+        # In a private folder beside the target (0700), reached through its held descriptor (the
+        # pinned /proc/self/fd path, io/private.py), not carrying a name a glob there matches.
+        private = [p for p in tmp_path.iterdir() if p.name.startswith(".m3c2-tmp-")]
+        assert len(private) == 1 and os.path.samefile(tmp.parent, private[0])
         assert stat.S_IMODE(tmp.parent.stat().st_mode) == 0o700 and not list(tmp_path.glob("*.csv"))
         tmp.write_text("1,2,3\n")
     assert path.read_text() == "1,2,3\n" and _leftovers(tmp_path) == ["new.csv"]

@@ -1,76 +1,43 @@
 """The one atomic writer of the package: every file any command writes (point tables, rasters, the
 report and its PNGs, analysis tables) goes through :func:`staged_outputs` (several files, all or
-nothing) or :func:`atomic_output` (one file).
+nothing) or :func:`atomic_output` (one file); a folder written whole (a new series store) goes
+through :func:`staged_directory`.
 
-Each temporary lives inside a PRIVATE folder created beside its target (``mkdtemp``, mode 0700,
-named ``.m3c2-tmp-<pid>-XXXXXXXX``): nobody else can enter it, so no one can swap the temporary for
-a symbolic link while a writer that insists on a path writes it (issue 15), its short name
-(``part`` plus the target's extension, which writers dispatching on it need) fits beside any legal
-output name, and no ``*.laz`` glob in the target's folder matches it. When the body returns, each
-temporary is opened without following links, given its final mode with ``fchmod`` (the replaced
-file's, else the umask's default) and fsynced through that descriptor, renamed onto its target,
-and the target's folder fsynced. A failure removes every private folder and leaves each target as
-it was. Private folders that a killed run left behind are removed by the next run writing there
-(:func:`remove_stale`): their pid is no longer alive.
+Each temporary lives inside a PRIVATE folder beside its target (io/private.py: ``.m3c2-tmp-<random>``,
+mode 0700, made and then reached only through descriptors, locked by this run for its whole life).
+Writers that insist on a path get ``/proc/self/fd/<folder's fd>/part<EXT>``: it resolves through the
+held descriptor, so renaming the folder away, or replacing it by one holding links, redirects nothing
+(issue 31); the short name (``part`` plus the target's extension, which writers dispatching on it
+need) fits beside any legal output name, and no ``*.laz`` glob in the target's folder matches it.
+When the body returns, each temporary is opened through the folder's descriptor without following a
+link, checked to be a regular file, given its final mode with ``fchmod`` (the replaced file's, else
+the umask's default) and fsynced, renamed onto its target from that descriptor to the target
+folder's, and the target's folder fsynced. A failure removes every private folder (through its
+descriptor) and leaves each target as it was. A private folder a killed run left behind is removed
+by the next run writing there once its lock is free (:func:`remove_stale`): proof that no process,
+in any container or on any NFS client, still writes in it.
 """
 from __future__ import annotations
 
+import errno
 import os
-import re
-import shutil
-import tempfile
+import stat
 import warnings
-from contextlib import contextmanager
+from contextlib import ExitStack, contextmanager
 from pathlib import Path
 from typing import Iterator
 
-from ..errors import CloudWriteError, M3C2Error
+from ..errors import CloudWriteError, M3C2Error, UsageError
 from ..fault_hook import checkpoint as fault_checkpoint
+from .private import (PRIVATE_PREFIX, PrivateFolder, pinned_directory, private_folder, public_name,
+                      remove_stale)
 
-__all__ = ["atomic_output", "staged_outputs", "private_folder", "remove_stale", "PRIVATE_PREFIX"]
-
-PRIVATE_PREFIX = ".m3c2-tmp-"
-_PRIVATE = re.compile(re.escape(PRIVATE_PREFIX) + r"(\d+)-")
+__all__ = ["atomic_output", "staged_outputs", "staged_directory", "pinned_directory", "private_folder",
+           "remove_stale", "public_name", "PRIVATE_PREFIX"]
 
 
 def _describe(err: OSError) -> str:
     return err.strerror or str(err)
-
-
-def _alive(pid: int) -> bool:
-    try:
-        os.kill(pid, 0)
-    except ProcessLookupError:
-        return False
-    except PermissionError:
-        return True  # someone else's live process
-    return True
-
-
-def remove_stale(directory: Path) -> None:
-    """Removes the private folders in `directory` whose run (pid in the name) is dead."""
-    try:
-        names = os.listdir(directory)
-    except OSError:
-        return
-    for name in names:
-        match = _PRIVATE.match(name)
-        if match and int(match.group(1)) != os.getpid() and not _alive(int(match.group(1))):
-            shutil.rmtree(Path(directory) / name, ignore_errors=True)
-
-
-def private_folder(directory: Path, target: Path | None = None) -> Path:
-    """A new folder only this process can enter (0700), beside `target`, in `directory`."""
-    label = target if target is not None else directory
-    remove_stale(directory)
-    try:
-        return Path(tempfile.mkdtemp(prefix=f"{PRIVATE_PREFIX}{os.getpid()}-", dir=directory))
-    except FileNotFoundError:
-        raise CloudWriteError(f"{label}: cannot write: directory {str(directory)!r} does not exist") from None
-    except NotADirectoryError:
-        raise CloudWriteError(f"{label}: cannot write: {str(directory)!r} is not a directory") from None
-    except OSError as e:
-        raise CloudWriteError(f"{label}: cannot write in {str(directory)!r}: {_describe(e)}") from None
 
 
 def _suffix(target: Path) -> str:
@@ -78,52 +45,58 @@ def _suffix(target: Path) -> str:
     return "".join(target.suffixes[-2:]) if name.endswith(".copc.laz") else target.suffix
 
 
-def _final_mode(target: Path) -> int:
-    # The replaced file's permissions, else those a plain open() would give (mkdtemp's are 0700).
+def _umask_mode(bits: int) -> int:
+    umask = os.umask(0)
+    os.umask(umask)
+    return bits & ~umask
+
+
+def _final_mode(folder: PrivateFolder, target: Path) -> int:
+    # The replaced file's permissions, else those a plain open() would give (the folder's are 0700).
     try:
-        return os.stat(target).st_mode & 0o7777
+        return os.stat(target.name, dir_fd=folder.parent_fd).st_mode & 0o7777
     except OSError:
-        umask = os.umask(0)
-        os.umask(umask)
-        return 0o666 & ~umask
+        return _umask_mode(0o666)
 
 
-def _seal(tmp: Path, target: Path) -> None:
-    """Final mode and fsync through one descriptor opened without following a link."""
-    fd = os.open(tmp, os.O_RDONLY | os.O_NOFOLLOW)
+def _seal(folder: PrivateFolder, name: str, target: Path) -> None:
+    """Final mode and fsync through one descriptor opened in the private folder without following
+    a link; only a regular file is ever renamed onto a target."""
     try:
-        os.fchmod(fd, _final_mode(target))
+        fd = os.open(name, os.O_RDONLY | os.O_NOFOLLOW | os.O_CLOEXEC, dir_fd=folder.fd)
+    except FileNotFoundError:
+        raise CloudWriteError(f"{target}: was not written") from None
+    try:
+        if not stat.S_ISREG(os.fstat(fd).st_mode):
+            raise CloudWriteError(f"{target}: was not written as a file")
+        os.fchmod(fd, _final_mode(folder, target))
         os.fsync(fd)
     finally:
         os.close(fd)
 
 
-def _fsync_dir(directory: Path) -> None:
+def _fsync_dir(fd: int) -> None:
     # Makes the rename itself durable; not every filesystem allows fsync on a directory.
-    try:
-        fd = os.open(directory, os.O_RDONLY | os.O_DIRECTORY)
-    except OSError:
-        return
     try:
         os.fsync(fd)
     except OSError:
         pass
-    finally:
-        os.close(fd)
 
 
-def _public(text: str, staged: dict[Path, Path], folders: list[Path]) -> str:
+def _public(text: str, staged: dict[Path, Path], folders: dict[Path, PrivateFolder]) -> str:
     """`text` with every temporary (and private folder) named by its target (and the target's
-    folder): a writer handed a temporary names it in its errors and warnings, the user never saw
-    it (issue 15: every message names the user's file)."""
+    folder), by its pinned path and by its name: a writer handed a temporary names it in its errors
+    and warnings, the user never saw it (issue 15: every message names the user's file)."""
     for target, tmp in staged.items():
-        text = text.replace(str(tmp), str(target))
-    for folder in folders:
-        text = text.replace(str(folder), str(folder.parent))
-    return text
+        folder = folders[target]
+        for shown in (tmp, folder.directory / folder.name / tmp.name):
+            text = text.replace(str(shown), str(target))
+    for folder in folders.values():
+        text = text.replace(str(folder.directory / folder.name), str(folder.directory))
+    return public_name(text)
 
 
-def _renamed(error: M3C2Error, staged: dict[Path, Path], folders: list[Path]) -> M3C2Error:
+def _renamed(error: M3C2Error, staged: dict[Path, Path], folders: dict[Path, PrivateFolder]) -> M3C2Error:
     text = str(error)
     public = _public(text, staged, folders)
     if public == text:
@@ -142,45 +115,43 @@ def staged_outputs(targets) -> Iterator[dict[Path, Path]]:
     is removed, no target is touched, and the exception propagates (an OSError as CloudWriteError
     naming the target). Every target's folder is checked before the body runs."""
     staged: dict[Path, Path] = {}
-    folders: list[Path] = []
+    folders: dict[Path, PrivateFolder] = {}
     caught: list = []
-    try:
-        for target in dict.fromkeys(Path(t) for t in targets):
-            if target.is_dir():
-                raise CloudWriteError(f"{target}: is a directory")
-            folder = private_folder(target.parent, target)
-            folders.append(folder)
-            staged[target] = folder / f"part{_suffix(target)}"
+    with ExitStack() as held:
         try:
-            with warnings.catch_warnings(record=True) as caught:
-                warnings.simplefilter("always")
-                yield staged
-        except M3C2Error as e:
-            renamed = _renamed(e, staged, folders)
-            if renamed is e:
-                raise
-            raise renamed from e.__cause__
-        finally:
-            for w in caught:  # shown as the caller's filters say, naming the targets
-                warnings.warn_explicit(_public(str(w.message), staged, folders), w.category, w.filename, w.lineno)
-        fault_checkpoint("writing")  # a testing aid (docs/errors.md, "Interruption"): temporaries complete
-        for target, tmp in staged.items():
-            if not tmp.exists():
-                raise CloudWriteError(f"{target}: was not written")
-            _seal(tmp, target)
-        for target, tmp in staged.items():
-            os.replace(tmp, target)
-            _fsync_dir(target.parent)
-    except OSError as e:
-        if isinstance(e, CloudWriteError):
-            raise
-        target = next((t for t, tmp in staged.items() if e.filename in (str(tmp), tmp)), None)
-        target = target or (next(iter(staged)) if len(staged) == 1 else None)
-        where = target or (_public(str(e.filename), staged, folders) if e.filename else "output")
-        raise CloudWriteError(f"{where}: {_describe(e)}") from e
-    finally:
-        for folder in folders:
-            shutil.rmtree(folder, ignore_errors=True)
+            for target in dict.fromkeys(Path(t) for t in targets):
+                if target.is_dir():
+                    raise CloudWriteError(f"{target}: is a directory")
+                folder = held.enter_context(private_folder(target.parent, target))
+                folders[target] = folder
+                staged[target] = folder.path / f"part{_suffix(target)}"
+            fault_checkpoint("staging")  # a testing aid (docs/errors.md, "Interruption"): folders made, nothing written
+            try:
+                with warnings.catch_warnings(record=True) as caught:
+                    warnings.simplefilter("always")
+                    yield staged
+            except M3C2Error as e:
+                renamed = _renamed(e, staged, folders)
+                if renamed is e:
+                    raise
+                raise renamed from e.__cause__
+            finally:
+                for w in caught:  # shown as the caller's filters say, naming the targets
+                    warnings.warn_explicit(_public(str(w.message), staged, folders), w.category, w.filename,
+                                           w.lineno)
+            fault_checkpoint("writing")  # a testing aid (docs/errors.md, "Interruption"): temporaries complete
+            for target, tmp in staged.items():
+                folders[target].check()
+                _seal(folders[target], tmp.name, target)
+            for target, tmp in staged.items():
+                folder = folders[target]
+                os.replace(tmp.name, target.name, src_dir_fd=folder.fd, dst_dir_fd=folder.parent_fd)
+                _fsync_dir(folder.parent_fd)
+        except OSError as e:
+            target = next((t for t, tmp in staged.items() if e.filename in (str(tmp), tmp, tmp.name)), None)
+            target = target or (next(iter(staged)) if len(staged) == 1 else None)
+            where = target or (_public(str(e.filename), staged, folders) if e.filename else "output")
+            raise CloudWriteError(f"{where}: {_describe(e)}") from e
 
 
 @contextmanager
@@ -189,3 +160,66 @@ def atomic_output(path: str | os.PathLike) -> Iterator[Path]:
     target = Path(path)
     with staged_outputs([target]) as staged:
         yield staged[target]
+
+
+def _occupied(target: Path) -> UsageError:
+    return UsageError(f"{target} exists and is not empty; choose another -o")
+
+
+def _refuse_occupied(target: Path) -> None:
+    """Before any work: `target` must be absent or an empty folder (a link, even to one, is not)."""
+    try:
+        st = os.lstat(target)
+    except FileNotFoundError:
+        return
+    except OSError as e:
+        raise CloudWriteError(f"{target}: {_describe(e)}") from None
+    if not stat.S_ISDIR(st.st_mode):
+        raise _occupied(target)
+    try:
+        with os.scandir(target) as entries:
+            occupied = next(entries, None) is not None
+    except OSError as e:
+        raise CloudWriteError(f"{target}: {_describe(e)}") from None
+    if occupied:
+        raise _occupied(target)
+
+
+def _publish(folder: PrivateFolder, target: Path) -> None:
+    """Renames the private folder onto `target` (absent or an empty folder: rename(2) replaces
+    one atomically), its lock file removed, its mode that of a plain mkdir."""
+    os.fchmod(folder.fd, _umask_mode(0o777))
+    folder.check()
+    folder.unlock()
+    # A folder is renamed by name (no call renames a descriptor): the name is checked to be ours
+    # just before and the target just after, so a swap in between is caught, never published.
+    folder.check_name()
+    try:
+        os.rename(folder.name, target.name, src_dir_fd=folder.parent_fd, dst_dir_fd=folder.parent_fd)
+    except OSError as e:
+        if e.errno in (errno.ENOTEMPTY, errno.EEXIST, errno.ENOTDIR, errno.EISDIR):
+            raise _occupied(target) from None
+        raise CloudWriteError(f"{target}: cannot create: {_describe(e)}") from None
+    folder.published(target.name)
+    _fsync_dir(folder.parent_fd)
+
+
+@contextmanager
+def staged_directory(target) -> Iterator[Path]:
+    """A folder that appears at `target` whole or not at all: refused at once (UsageError) when
+    `target` exists and is not an empty folder; else yields the pinned path of a private folder
+    beside it, renamed onto `target` when the body returns (mode 0777 less the umask). If the body
+    raises (also KeyboardInterrupt, SystemExit), the private folder is removed, `target` is left as
+    it was, and the exception propagates."""
+    target = Path(target)
+    _refuse_occupied(target)
+    with private_folder(target.parent, target) as folder:
+        fault_checkpoint("staging")  # a testing aid (docs/errors.md, "Interruption"): folder made, nothing written
+        try:
+            yield folder.path
+        except M3C2Error as e:
+            renamed = _renamed(e, {}, {target: folder})
+            if renamed is e:
+                raise
+            raise renamed from e.__cause__
+        _publish(folder, target)

@@ -24,9 +24,9 @@ the spill folder is removed whatever happens.
 from __future__ import annotations
 
 import os
-import shutil
 import tempfile
 import time
+from contextlib import ExitStack
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Callable
@@ -35,14 +35,15 @@ import numpy as np
 
 from .. import diagnostics, engine, uncertainty_inputs
 from ..errors import M3C2Error, UsageError
+from ..fault_hook import checkpoint as fault_checkpoint
 from ..io.arrays import bounds
 from ..io.atomic import private_folder
 from ..io.streaming import DEFAULT_CHUNK, PointSource
-from ..limits import check_tile_size, usable_length
+from ..limits import check_halo, check_tile_size, usable_length
 from ..settings import engine_params, orientation
 from ..settings.parsers import positive
 from . import dask as dask_run
-from .checks import as_points
+from .checks import as_points, check_all_fields, check_core_normals
 from .cores import streaming_subsample
 from .memory import (BASE_BYTES, BYTES_PER_CORE, BYTES_PER_POINT, choose_tile_size, density, parse_memory,
                      plan_memory, release_memory, rss_bytes)
@@ -78,6 +79,8 @@ def run_tiled(reference, compared, *, output=None, core=None, core_spacing=None,
     read_points = params.pop("read_points", None)
     given = dict(params, normal_scale=normal_scale, projection_scale=projection_scale, max_depth=max_depth)
     plan, h, hp, tile_size, limit = preflight(given, tile_size, memory_limit, read_points)
+    check_core_normals(plan.values, core_normals)
+    check_all_fields(output, all_fields)
     report.halo = h
     report.memory_limit = limit
 
@@ -90,25 +93,27 @@ def run_tiled(reference, compared, *, output=None, core=None, core_spacing=None,
                                                                                    drop_nonfinite=drop_nonfinite)
         cmp_src = compared if isinstance(compared, PointSource) else PointSource(compared, drop_nonfinite=drop_nonfinite)
         shared = uncertainty_inputs.shared_inputs(plan.values, ref_src.like(), cmp_src.like())
-        if own_dir:
-            parent = Path(output).resolve().parent if output is not None else None
-            work = private_folder(parent if parent is not None else Path(tempfile.gettempdir()))
-        else:
-            work = Path(work_dir)
-            work.mkdir(parents=True, exist_ok=True)
-        try:
+        with ExitStack() as held:
+            if own_dir:
+                parent = Path(output).resolve().parent if output is not None else None
+                work = held.enter_context(private_folder(parent if parent is not None else Path(tempfile.gettempdir())))
+                fault_checkpoint("staging")  # a testing aid (docs/errors.md, "Interruption"): spill folder made
+                # Dask workers (other processes) reach the folder only by its name; this process
+                # writes through the pinned path whatever happens (run/spill.py).
+                spills = SpillFolder(work.path, work.directory,
+                                     work.directory / work.name if client is not None else None)
+            else:
+                Path(work_dir).mkdir(parents=True, exist_ok=True)
+                spills = SpillFolder(Path(work_dir))
             options = TiledOptions(core=core, core_spacing=core_spacing, core_normals=core_normals,
                                    tile_size=tile_size, limit=limit, threads=threads, output=output,
                                    projected=projected, position=position,
                                    storage=Storage(field_names, float64, all_fields), drop_nonfinite=drop_nonfinite,
                                    return_result=return_result, chunk_size=chunk_size, retries=retries,
                                    task_fn=task_fn or compute_tile, log=log, read_points=read_points)
-            report = _run(plan, report, ref_src, cmp_src, SpillFolder(work), shared, h, hp, client, options)
+            report = _run(plan, report, ref_src, cmp_src, spills, shared, h, hp, client, options)
             report.seconds["total"] = time.perf_counter() - t_start
             return report
-        finally:
-            if own_dir:
-                shutil.rmtree(work, ignore_errors=True)
     finally:
         if own_client:
             client.close()
@@ -151,6 +156,7 @@ def preflight(params: dict, tile_size=None, memory_limit=None, read_points=None)
     if tile_size is None and memory_limit is None:
         raise UsageError("tiling needs --tile-size or --memory-limit")
     h = engine.neighbourhood_reach(engine_p)
+    check_halo(h)
     if tile_size is not None:
         tile_size = usable_length("--tile-size", tile_size)
         check_tile_size(tile_size, h)
