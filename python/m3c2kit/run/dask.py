@@ -1,8 +1,10 @@
 """Tiles as tasks on a Dask distributed cluster (docs/scaling.md): the connection, bounded in time
-and made before any work (a TCP probe of the scheduler's handshake, then the client), and the
-submission window that keeps at most two tasks per worker in flight."""
+and made before any work (a TCP probe of the scheduler's handshake, then the client), the
+submission window that keeps at most two tasks per worker in flight, and the waits for tasks,
+bounded too (ClusterWatch: a lost scheduler, or no worker alive, ends the run naming them)."""
 from __future__ import annotations
 
+import time
 import uuid
 
 from ..errors import M3C2Error
@@ -67,34 +69,111 @@ def _probe_scheduler(address: str, host: str, port: int) -> None:
 
 
 
+#: Seconds a run waits while no worker is alive before it gives up, naming the lost workers: the
+#: only worker of a cluster without a nanny died and nothing would ever compute its task (the run
+#: waited for ever). A worker restarted by its nanny, or a new one, joins well within it.
+DASK_NO_WORKER_TIMEOUT = 60.0
+#: Seconds between two looks at the scheduler's workers while no awaited task finishes.
+DASK_POLL_INTERVAL = 1.0
+
+
+class ClusterWatch:
+    """Waits for tasks on a Dask cluster with every wait bounded (issue 31): between polls of the
+    futures it asks the scheduler for its workers (the question bounded by DASK_CONNECT_TIMEOUT);
+    a scheduler that no longer answers, or futures cancelled by a lost connection (which gave
+    "TypeError: 'FutureCancelledError' object is not subscriptable"), and no worker alive for
+    DASK_NO_WORKER_TIMEOUT are M3C2Errors naming the scheduler, the lost workers and the task."""
+
+    def __init__(self, client, address: str | None = None):
+        self.client = client
+        self.address = address or getattr(client.scheduler, "address", "?")
+        self.seen: set[str] = set()  # the address of every worker seen alive in this run
+        self.none_since: float | None = None
+        self.workers = len(self._workers(lambda: "the run's tasks"))  # those alive as the run starts
+
+    def wait(self, futures, what) -> set:
+        """The futures of `futures` that are finished, once at least one is; `what()` names the
+        awaited task(s) in the errors."""
+        distributed = require("distributed", extra="dask", purpose="running on a Dask cluster (--dask-scheduler)")
+        futures = list(futures)
+        while True:
+            try:
+                with self.client.as_current():
+                    distributed.wait(futures, timeout=DASK_POLL_INTERVAL, return_when="FIRST_COMPLETED")
+            except Exception:  # noqa: BLE001 - a timeout, or cancelled futures: told apart below
+                pass
+            done = {f for f in futures if f.done()}
+            if any(f.cancelled() for f in done) or self.client.status not in ("running", "connecting"):
+                raise self.scheduler_lost(what())
+            if done:
+                return done
+            self._check_workers(what)
+
+    def scheduler_lost(self, what: str) -> M3C2Error:
+        return M3C2Error(f"--dask-scheduler {self.address}: the connection to the scheduler was lost (it stopped or "
+                         f"became unreachable); {what} not computed")
+
+    def _workers(self, what) -> dict:
+        """The scheduler's live workers (remembered in self.seen), asked within DASK_CONNECT_TIMEOUT."""
+        try:
+            identity = self.client.sync(self.client.scheduler.identity, n_workers=-1,
+                                        callback_timeout=DASK_CONNECT_TIMEOUT)
+            workers = dict(identity.get("workers", {}))
+        except Exception:  # noqa: BLE001 - no answer within the bound, or a closed connection
+            raise self.scheduler_lost(what()) from None
+        self.seen.update(workers)
+        return workers
+
+    def _check_workers(self, what) -> None:
+        if self._workers(what):
+            self.none_since = None
+            return
+        now = time.monotonic()
+        if self.none_since is None:
+            self.none_since = now
+        if now - self.none_since >= DASK_NO_WORKER_TIMEOUT:
+            lost = ", ".join(sorted(self.seen)) or "none had joined"
+            raise M3C2Error(f"--dask-scheduler {self.address}: no worker alive for {DASK_NO_WORKER_TIMEOUT:g} s "
+                            f"(lost workers: {lost}); {what()} not computed")
+
+
 def run_on_dask(client, tasks, task_fn, accept, *, retries: int, log, args=()) -> int:
     """Submits task_fn(task, *args) for every task to `client` (at most two per worker pending),
-    hands each result to accept() as it completes; returns the number of workers."""
-    distributed = require("distributed", extra="dask", purpose="running on a Dask cluster (--dask-scheduler)")
-    workers = max(1, len(client.scheduler_info().get("workers", {})))
+    hands each result to accept() as it completes; returns the number of workers. Every wait is
+    bounded (ClusterWatch)."""
+    watch = ClusterWatch(client)
+    workers = max(1, watch.workers)
     run_id = uuid.uuid4().hex[:8]
     window = max(2, 2 * workers)
     pending = iter(tasks)
     name = getattr(task_fn, "__name__", "tile")
-    futures = distributed.as_completed(with_results=True)
+    running: dict = {}  # future -> its task
 
     def submit_next() -> bool:
         task = next(pending, None)
         if task is None:
             return False
-        futures.add(client.submit(task_fn, task, *args, key=f"m3c2-{name}-{run_id}-{task.tile}",
-                                  retries=retries, pure=False))
+        running[client.submit(task_fn, task, *args, key=f"m3c2-{name}-{run_id}-{task.tile}",
+                              retries=retries, pure=False)] = task
         return True
+
+    def awaited() -> str:
+        tiles = sorted(t.tile for t in running.values())
+        shown = ", ".join(map(str, tiles[:5])) + (", ..." if len(tiles) > 5 else "")
+        return f"tile{'s' if len(tiles) > 1 else ''} {shown} of {len(tasks)}"
 
     for _ in range(window):
         if not submit_next():
             break
     done = 0
-    for future, out in futures:
-        accept(out)
-        future.release()
-        done += 1
-        if done % max(1, len(tasks) // 20) == 0:
-            log(f"tile {done}/{len(tasks)}")
-        submit_next()
+    while running:
+        for future in watch.wait(running, awaited):
+            out = future.result()  # a task's own error propagates, as before
+            del running[future]
+            accept(out)
+            future.release()
+            done += 1
+            if done % max(1, len(tasks) // 20) == 0:
+                log(f"tile {done}/{len(tasks)}")
+            submit_next()
     return workers

@@ -1,17 +1,29 @@
 """Analysis on a series store, chunk by chunk over the core points (docs/series.md): temporal
 median smoothing, change points, and 4D objects-by-change (Anders et al. 2021) written as a
-table and as a label per core point and epoch."""
+table and as a label per core point and epoch.
+
+A step that replaces a variable (smooth, objects' labels) holds the store's lock (series/step.py),
+writes the new variable whole in the store's staging folder, invisible to zarr and xarray, and
+then publishes it (:func:`publish`): a kill or a full disk while it computes or writes leaves the
+previous variable whole and in use; a kill inside the publication leaves the variable marked
+half-written (store.REWRITING), which every later step refuses, naming the step to rerun."""
 from __future__ import annotations
 
 import csv
+import os
+import shutil
 from pathlib import Path
 
 import numpy as np
 
-from ..errors import UsageError
+from .. import fault_hook
+from ..errors import M3C2Error, UsageError
 from ..io.arrays import bounds
 from ..io.atomic import staged_outputs
 from . import engine
+from . import integrity
+from .outputs import members_path
+from . import step
 from . import store as st
 
 SMOOTHED = "smoothed_distance"
@@ -26,36 +38,79 @@ def _core_chunks(group, name="distance"):
     return [(b, min(n, b + chunk)) for b in range(0, n, chunk)]
 
 
+def _variable_spec(group, dtype, fill, attrs: dict) -> dict:
+    """A (core, epoch) array's settings, shaped and chunked like `distance`."""
+    model = group["distance"]
+    return dict(shape=model.shape, chunks=model.chunks, dtype=dtype, fill_value=fill, compressors=st.codecs(),
+                dimension_names=("core", "epoch"), attributes=dict(attrs, coordinates="time"))
+
+
 def _new_variable(store: Path, name: str, dtype, fill, attrs: dict):
-    """A (core, epoch) array shaped and chunked like `distance` (replacing any earlier one)."""
+    """A (core, epoch) array in the group itself (replacing any earlier one), for a store nobody
+    sees yet (an import's private folder); a published store gets _staged_variable and publish."""
     xr, zarr = st.require_extra()
     group = zarr.open_group(str(store), mode="r+", use_consolidated=False)
-    model = group["distance"]
     if name in group:
         del group[name]
-    array = group.create_array(name, shape=model.shape, chunks=model.chunks, dtype=dtype, fill_value=fill,
-                               compressors=(st._compressor(),), dimension_names=("core", "epoch"),
-                               attributes=dict(attrs, coordinates="time"))
+    array = group.create_array(name, **_variable_spec(group, dtype, fill, attrs)).with_config(st.WRITE_CONFIG)
     return group, array
+
+
+def _staged_variable(folder: Path, group, name: str, dtype, fill, attrs: dict):
+    """A new array for `name` in the store's staging folder (integrity.STAGING), not yet in the store."""
+    _, zarr = st.require_extra()
+    path = Path(folder) / integrity.STAGING / name
+    shutil.rmtree(path, ignore_errors=True)
+    return zarr.create_array(store=str(path), zarr_format=3, config=st.WRITE_CONFIG,
+                             **_variable_spec(group, dtype, fill, attrs))
+
+
+def publish(folder: Path, name: str) -> None:
+    """Replaces the store's `name` by its staged array: marked (store.REWRITING) in one commit,
+    the folders swapped, the metadata consolidated, the mark cleared in a last commit. A kill
+    between the first and last commit leaves `name` marked half-written, never silently mixed."""
+    marked = st.rewriting(st.open_group(folder))
+    st.set_rewriting(folder, [*marked, name])
+    target, staged = Path(folder) / name, Path(folder) / integrity.STAGING / name
+    old = staged.with_name(name + ".old")
+    shutil.rmtree(old, ignore_errors=True)
+    if target.exists():
+        os.rename(target, old)
+    os.rename(staged, target)
+    st.commit(folder)
+    st.set_rewriting(folder, [m for m in marked if m != name])
+    shutil.rmtree(Path(folder) / integrity.STAGING, ignore_errors=True)  # the step's only: it holds the lock
+
+
+def _kept(store: Path, folder: Path, name: str) -> str:
+    """What an interrupted or failed step kept of `name`, from the store as it is now."""
+    try:
+        group = st.open_group(folder)
+    except M3C2Error:
+        return f"{store} is at its last commit"
+    if name in st.rewriting(group):
+        return f"{name} is marked half-written in {store}; rerun {integrity.rerun_command(group, name, store)}"
+    return f"{name} unchanged in {store}" if name in group else f"{store} unchanged (it has no {name})"
 
 
 def smooth(store: Path, window: int, threads: int = 0) -> int:
     """Writes `smoothed_distance`: the temporal median of `distance` over `window` epochs."""
     if window < 1:
         raise UsageError(f"--window must be >= 1 epoch, got {window}")
-    group = st.open_group(store)
-    epochs = group["distance"].shape[1]
-    if epochs == 0:
-        raise UsageError(f"{store} has no epoch to smooth")
-    _, zarr = st.require_extra()
-    out_group, out = _new_variable(store, SMOOTHED, np.float64, np.nan,
-                                   {"long_name": f"temporal median of distance over {window} epochs",
-                                    "window": int(window), "epochs": int(epochs)})
-    source = zarr.open_group(str(store), mode="r", use_consolidated=False)["distance"]
-    for begin, end in _core_chunks(group):
-        block = np.asarray(source[begin:end, :epochs])
-        out[begin:end, :epochs] = engine.temporal_median(block, window, threads)
-    zarr.consolidate_metadata(str(store))
+    store = Path(store)
+    with step.writing(store, "smooth", lambda folder: _kept(store, folder, SMOOTHED)) as folder:
+        group = st.open_group(folder)
+        epochs = group["distance"].shape[1]
+        if epochs == 0:
+            raise UsageError(f"{store} has no epoch to smooth")
+        out = _staged_variable(folder, group, SMOOTHED, np.float64, np.nan,
+                               {"long_name": f"temporal median of distance over {window} epochs",
+                                "window": int(window), "epochs": int(epochs)})
+        fault_hook.checkpoint("store-write")
+        for begin, end in _core_chunks(group):
+            block = st.read(store, group, "distance", (slice(begin, end), slice(0, epochs)))
+            out[begin:end, :epochs] = engine.temporal_median(block, window, threads)
+        publish(folder, SMOOTHED)
     return epochs
 
 
@@ -66,25 +121,31 @@ def smooth(store: Path, window: int, threads: int = 0) -> int:
 IN_MEMORY_LIMIT = 1 << 30
 
 
-def analysed_variable(store: Path, use: str = "auto") -> str:
-    """smoothed_distance when it covers every epoch (use auto or smoothed), else distance."""
+def analysed_variable(store: Path, use: str = "auto", shown: Path | None = None) -> str:
+    """smoothed_distance when it covers every epoch (use auto or smoothed), else distance. A
+    half-written smoothed_distance is refused, never replaced by distance behind the user's back.
+    `shown`: the store's path in messages (`store` may be a pinned path)."""
+    shown = store if shown is None else shown
     group = st.open_group(store)
     n = group["distance"].shape[1]
+    if use in ("auto", "smoothed"):
+        integrity.require_whole(group, [SMOOTHED], shown)
     if use in ("auto", "smoothed") and SMOOTHED in group and int(group[SMOOTHED].attrs.get("epochs", -1)) == n:
         return SMOOTHED
     if use == "smoothed":
-        raise UsageError(f"{store}: no smoothed_distance covering all {n} epochs; run m3c2 series smooth {store}")
+        raise UsageError(f"{shown}: no smoothed_distance covering all {n} epochs; run m3c2 series smooth {shown}")
     return "distance"
 
 
 def distances_for_analysis(store: Path, use: str = "auto", epochs: slice | None = None,
-                           in_memory_limit: int | None = None) -> tuple[np.ndarray, str]:
+                           in_memory_limit: int | None = None, shown: Path | None = None) -> tuple[np.ndarray, str]:
     """The (core, epoch) float64 series 4D-OBC runs on (analysed_variable), read one core chunk
     at a time; only that variable is read. Larger than `in_memory_limit` (IN_MEMORY_LIMIT) bytes,
     it is a numpy.memmap of an unlinked temporary file."""
+    shown = store if shown is None else shown
     group = st.open_group(store)
     n = group["distance"].shape[1]
-    name = analysed_variable(store, use)
+    name = analysed_variable(store, use, shown)
     sl = epochs or slice(0, n)
     shape = (group[name].shape[0], len(range(*sl.indices(n))))
     limit = IN_MEMORY_LIMIT if in_memory_limit is None else in_memory_limit
@@ -94,7 +155,7 @@ def distances_for_analysis(store: Path, use: str = "auto", epochs: slice | None 
     else:
         values = np.empty(shape)
     for begin, end in _core_chunks(group, name):
-        values[begin:end] = np.asarray(group[name][begin:end, sl]).astype(np.float64)
+        values[begin:end] = st.read(shown, group, name, (slice(begin, end), sl)).astype(np.float64)
     return values, name
 
 
@@ -102,25 +163,36 @@ def series_of(store: Path, core: int, use: str = "auto") -> tuple[np.ndarray, st
     """One core point's series of the analysed variable (reads its chunks only)."""
     group = st.open_group(store)
     name = analysed_variable(store, use)
+    integrity.require_present(store)
     n_core = group[name].shape[0]
     if not 0 <= core < n_core:
         raise UsageError(f"--core {core} is not a core point of {store} (0..{n_core - 1})")
-    return np.asarray(group[name][core, :]).astype(np.float64), name
+    return st.read(store, group, name, (core, slice(None))).astype(np.float64), name
 
 
 def objects(store: Path, output: Path, params, *, use="auto", threads=0, first_epoch=0, progress=None) -> dict:
     """4D-OBC on the store: the objects table at `output` (CSV), each object's core points at
     OUTPUT_members.csv, the label of each core point and epoch in the store's `object` variable."""
-    group = st.open_group(store)
-    n_epochs = group["distance"].shape[1]
-    values, name = distances_for_analysis(store, use, slice(first_epoch, n_epochs))
-    core = np.column_stack([np.asarray(group[a][:]) for a in "xyz"])
-    out = engine.objects_by_change(values, core, params, threads, progress)
-    out["first_epoch"] = first_epoch
-    out["variable"] = name
-    times = np.asarray(group["time"][:n_epochs])
-    write_tables(output, out, core, times, first_epoch)
-    write_labels(store, out, first_epoch, n_epochs)
+    store = Path(store)
+    tables = []  # the tables once written, for the message of a later failure
+
+    def kept(folder):
+        written = f"{output} and its members table written; " if tables else f"no objects table written; "
+        return written + _kept(store, folder, LABEL)
+
+    with step.writing(store, "objects", kept) as folder:
+        group = st.open_group(folder)
+        n_epochs = group["distance"].shape[1]
+        values, name = distances_for_analysis(folder, use, slice(first_epoch, n_epochs), shown=store)
+        core = np.column_stack([st.read(store, group, a) for a in "xyz"])
+        out = engine.objects_by_change(values, core, params, threads, progress)
+        out["first_epoch"] = first_epoch
+        out["variable"] = name
+        times = st.read(store, group, "time", slice(0, n_epochs))
+        write_labels(folder, out, first_epoch, n_epochs, staged=True)  # published after the tables
+        write_tables(output, out, core, times, first_epoch)
+        tables.append(output)
+        publish(folder, LABEL)
     return out
 
 
@@ -136,10 +208,10 @@ def _time_text(times, index):
 
 def write_tables(output: Path, out: dict, core: np.ndarray, times: np.ndarray, first_epoch: int) -> None:
     output = Path(output)
-    members_path = output.with_name(output.stem + "_members.csv")
+    members = members_path(output)
     # Both tables appear together, whole, or not at all (a failed or killed run leaves neither).
-    with staged_outputs([output, members_path]) as staged, \
-            open(staged[output], "w", newline="") as f, open(staged[members_path], "w", newline="") as g:
+    with staged_outputs([output, members]) as staged, \
+            open(staged[output], "w", newline="") as f, open(staged[members], "w", newline="") as g:
         w, m = csv.writer(f), csv.writer(g)
         w.writerow(["object", "seed_core", "start_epoch", "end_epoch", "start_time", "end_time", "threshold",
                     "seed_score", "core_points", "x_min", "y_min", "z_min", "x_max", "y_max", "z_max"])
@@ -171,11 +243,18 @@ def labels(out: dict, n_core: int, n_epochs: int, first_epoch: int, rows=None) -
     return lab
 
 
-def write_labels(store: Path, out: dict, first_epoch: int, n_epochs: int) -> None:
-    _, zarr = st.require_extra()
-    group, array = _new_variable(store, LABEL, np.int32, -1,
-                                 {"long_name": "4D object-by-change holding the core point at the epoch (-1: none)",
-                                  "epochs": int(n_epochs), "_FillValue": -1, "source_variable": out["variable"]})
+def write_labels(store: Path, out: dict, first_epoch: int, n_epochs: int, staged: bool = False) -> None:
+    """The `object` variable. `staged`: written to the staging folder of a store whose writing
+    step publishes it (publish); else into the group and committed (a store nobody sees yet)."""
+    attrs = {"long_name": "4D object-by-change holding the core point at the epoch (-1: none)",
+             "epochs": int(n_epochs), "_FillValue": -1, "source_variable": out["variable"]}
+    if staged:
+        group = st.open_group(store)
+        array = _staged_variable(store, group, LABEL, np.int32, -1, attrs)
+    else:
+        group, array = _new_variable(store, LABEL, np.int32, -1, attrs)
+    fault_hook.checkpoint("store-write")
     for begin, end in _core_chunks(group):
         array[begin:end, :n_epochs] = labels(out, array.shape[0], n_epochs, first_epoch, (begin, end))
-    zarr.consolidate_metadata(str(store))
+    if not staged:
+        st.commit(store)

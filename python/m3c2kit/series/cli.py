@@ -7,6 +7,7 @@
     m3c2 series objects STORE -o OBJECTS.csv                     4D objects-by-change
     m3c2 series report STORE -o REPORT.html                      time series and object plots
     m3c2 series import ARCHIVE.zip -o STORE                      a py4dgeo analysis archive
+    m3c2 series check STORE                                      is the store whole? (exit 1 naming each damage)
 
 The first word after `series` decides the form: one of the action words, or else the reference
 of a new store (a reference file literally named like an action is written ./add)."""
@@ -14,11 +15,12 @@ from __future__ import annotations
 
 import argparse
 import sys
+from contextlib import contextmanager
 from pathlib import Path
 
 from ..errors import UsageError
 
-ACTIONS = ("add", "smooth", "changepoints", "objects", "report", "import")
+ACTIONS = ("add", "smooth", "changepoints", "objects", "report", "import", "check")
 STORE_HELP = "the series store (a Zarr directory)"
 THREADS_HELP = "worker threads (default: every core); the results do not depend on it"
 SCALE_HELP = "D, the normal scale: a DIAMETER (one value, a list 'a,b' or 'MIN:MAX:STEP')"
@@ -66,7 +68,7 @@ def _run_options(p) -> None:
 def create_parser():
     p = _parser("m3c2 series", "Create a time-series store: core points and normals from REFERENCE once, then every "
                                "EPOCH compared with it (each equal to m3c2 compare REFERENCE EPOCH) and committed. "
-                               "Other forms: m3c2 series {add,smooth,changepoints,objects,report,import} ... "
+                               "Other forms: m3c2 series {add,smooth,changepoints,objects,report,import,check} ... "
                                "(docs/series.md).")
     p.add_argument("reference", type=Path, help="reference cloud")
     p.add_argument("epochs", nargs="+", help="epoch files, globs ('scans/*.laz'), or a list file of 'PATH, TIME' lines")
@@ -161,8 +163,16 @@ def import_parser():
     return p
 
 
+def check_parser():
+    p = _parser("m3c2 series check", "Verify a store: committed root metadata, each array's shape against the "
+                                     "commit, every chunk present and decoding (its checksum), no half-written "
+                                     "variable. Exit 0 when sound, 1 naming each damage; reads only.")
+    p.add_argument("store", type=Path, help=STORE_HELP)
+    return p
+
+
 PARSERS = {"add": add_parser, "smooth": smooth_parser, "changepoints": changepoints_parser,
-           "objects": objects_parser, "report": report_parser, "import": import_parser}
+           "objects": objects_parser, "report": report_parser, "import": import_parser, "check": check_parser}
 
 
 def series_parsers(sub) -> None:
@@ -170,7 +180,7 @@ def series_parsers(sub) -> None:
     p = sub.add_parser("series", help="M3C2 time series: a store of many epochs, 4D objects-by-change",
                        add_help=False, prefix_chars="\0",
                        usage="m3c2 series REFERENCE EPOCH... -o STORE | m3c2 series {add,smooth,changepoints,"
-                             "objects,report,import} ...")
+                             "objects,report,import,check} ...")
     p.add_argument("words", nargs=argparse.REMAINDER, help="REFERENCE EPOCH... -o STORE, or an action and its "
                                                            "arguments (m3c2 series ACTION --help)")
     p.set_defaults(run=run_series)
@@ -208,14 +218,20 @@ def _core_normals(args):
     return normals
 
 
-def _check_outputs(outputs: dict, inputs: dict, *, store: bool = False) -> None:
+def _check_outputs(outputs: dict, inputs: dict, *, store: bool = False, reads_store=None) -> None:
     """No output may be an input (m3c2kit.io.collisions), checked before any work, as for every
     command (docs/errors.md, "Output"). `store`: the outputs are stores (folders), so an existing
-    folder there is not refused as a folder."""
+    folder there is not refused as a folder. `reads_store`: a store the command reads; then the
+    store itself, every path inside it, its reference and its epochs' recorded sources are inputs
+    too (`report -o STORE/zarr.json` destroyed the store, `-o` the reference's path overwrote it)."""
     from ..io.collisions import check_outputs
     if store:
         outputs = {k: v for k, v in outputs.items() if v is not None and not Path(v).is_dir()}
-    check_outputs(outputs, inputs)
+    check_outputs(outputs, inputs)  # the inputs named on the command line first: no store needs opening
+    if reads_store is not None:
+        from .outputs import refuse_inside, store_inputs
+        refuse_inside(outputs, Path(reads_store))
+        check_outputs(outputs, store_inputs(Path(reads_store)))
 
 
 def _epoch_files(epochs) -> dict:
@@ -223,23 +239,41 @@ def _epoch_files(epochs) -> dict:
     return {f"epoch {e}": Path(e) for e in epochs if Path(e).is_file()}
 
 
+@contextmanager
+def _dask_client(args):
+    """A client of --dask-scheduler (None without it), connected before anything is read or created:
+    an address that never answers fails within run.dask.DASK_CONNECT_TIMEOUT, leaving no store."""
+    if getattr(args, "dask_scheduler", None) is None:
+        yield None
+        return
+    from ..run.dask import connect
+    client = connect(args.dask_scheduler)
+    try:
+        yield client
+    finally:
+        client.close()
+
+
 def _run_create(args) -> int:
     _check_outputs({"-o": args.output}, {"reference cloud": args.reference, **_epoch_files(args.epochs),
                                          "core points file": args.core, "core normals file": args.core_normals}, store=True)
     from . import run
-    added = run.create(args.reference, args.epochs, args.output, _settings(args), core_path=args.core,
-                       core_normals=_core_normals(args), threads=args.threads or 0, dask_scheduler=args.dask_scheduler,
-                       core_chunk=args.core_chunk, epoch_chunk=args.epoch_chunk, drop_nonfinite=args.drop_nonfinite,
-                       ignore_crs=args.ignore_crs, log=_log(args))
+    with _dask_client(args) as client:
+        added = run.create(args.reference, args.epochs, args.output, _settings(args), core_path=args.core,
+                           core_normals=_core_normals(args), threads=args.threads or 0,
+                           dask_scheduler=args.dask_scheduler, client=client, core_chunk=args.core_chunk,
+                           epoch_chunk=args.epoch_chunk, drop_nonfinite=args.drop_nonfinite,
+                           ignore_crs=args.ignore_crs, log=_log(args))
     _log(args)(f"{args.output}: {added} epoch(s)")
     return 0
 
 
 def _run_add(args) -> int:
     from . import run
-    added = run.add(args.store, args.epochs, given_settings=_settings(args), threads=args.threads or 0,
-                    dask_scheduler=args.dask_scheduler, drop_nonfinite=args.drop_nonfinite,
-                    ignore_crs=args.ignore_crs, log=_log(args))
+    with _dask_client(args) as client:
+        added = run.add(args.store, args.epochs, given_settings=_settings(args), threads=args.threads or 0,
+                        dask_scheduler=args.dask_scheduler, client=client, drop_nonfinite=args.drop_nonfinite,
+                        ignore_crs=args.ignore_crs, log=_log(args))
     _log(args)(f"{args.store}: {added} epoch(s) added")
     return 0
 
@@ -275,13 +309,29 @@ def objects_params(args):
 
 
 def _run_objects(args) -> int:
-    members = args.output.with_name(args.output.stem + "_members.csv")  # written beside -o
-    _check_outputs({"-o": args.output, "-o's members table": members}, {"store": args.store})
+    from .outputs import members_path
+    _check_outputs({"-o": args.output, "-o's members table": members_path(args.output)}, {"store": args.store},
+                   reads_store=args.store)
     from .analysis import objects
     out = objects(args.store, args.output, objects_params(args), use=args.use, threads=args.threads or 0)
     if not args.quiet:
         print(f"{args.output}: {len(out['object_seed'])} object(s) from {len(out['seed_core'])} seed(s) "
               f"on {out['variable']}; labels in {args.store} (variable object)")
+    return 0
+
+
+def _run_check(args) -> int:
+    from ..errors import printable
+    from .integrity import check
+    from .store import StoreError
+    found, damages = check(args.store)
+    for line in found:
+        print(printable(f"{args.store}: {line}"))
+    for line in damages:
+        print(printable(f"{args.store}: damaged: {line}"))
+    if damages:
+        raise StoreError(f"{args.store}: {len(damages)} damage(s) found, the first: {damages[0]}")
+    print(printable(f"{args.store}: sound"))
     return 0
 
 
@@ -302,8 +352,13 @@ def _run_changepoints(args) -> int:
 
 
 def _run_report(args) -> int:
-    _check_outputs({"-o": args.output}, {"store": args.store, "objects table": args.objects})
+    from .outputs import members_path
     from .report import write_report
+    tables = {"objects table": args.objects,
+              "objects' members table": members_path(args.objects) if args.objects is not None else None}
+    _check_outputs({"-o": args.output}, {"store": args.store, **tables}, reads_store=args.store)
+    from .integrity import require_present
+    require_present(args.store)  # a damaged store is refused, not drawn from fill values
     write_report(args.store, args.output, cores=args.core, objects_table=args.objects)
     print(f"wrote {args.output}")
     return 0

@@ -12,6 +12,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import UsageError
+from ..io.input_file import check_input_file, read_small_text
 from ..optional import require
 
 #: GPS time 0 (1980-01-06 UTC); LAS "adjusted standard GPS time" is GPS seconds - 1e9.
@@ -19,6 +20,10 @@ GPS_EPOCH = dt.datetime(1980, 1, 6)
 ADJUSTED_GPS_OFFSET = 1e9
 #: GPS time runs ahead of UTC by the leap seconds since 1980 (18 s since 2017-01-01).
 GPS_UTC_LEAP_SECONDS = 18
+
+
+#: The kind of small input a list file of epochs is (io.input_file.SMALL_FILE_LIMITS).
+LIST_FILE = "epoch list file"
 
 
 @dataclass(frozen=True)
@@ -38,13 +43,18 @@ def _parse_time(text: str, where: str) -> np.datetime64:
     return np.datetime64(value, "us")
 
 
+def _list_text(path: Path) -> str:
+    """A list file's text, read safely (a regular file, bounded: io.input_file)."""
+    return read_small_text(path, LIST_FILE, label=f"the epoch list {path}")
+
+
 def _is_list_file(path: Path) -> bool:
     """A text file whose every entry line starts with the path of an existing file."""
     if path.suffix.lower() not in (".txt", ".csv", ".list", ".lst", ".tsv") or not path.is_file():
         return False
     try:
-        lines = [l for l in path.read_text().splitlines() if l.strip() and not l.lstrip().startswith("#")]
-    except (UnicodeDecodeError, OSError):
+        lines = [l for l in _list_text(path).splitlines() if l.strip() and not l.lstrip().startswith("#")]
+    except UsageError:  # not text, or too large for a list: then it is an epoch file, read as one
         return False
     return bool(lines) and all((path.parent / _split(l)[0]).is_file() for l in lines[:50])
 
@@ -56,7 +66,7 @@ def _split(line: str) -> list[str]:
 
 def read_list_file(path: Path) -> list[Epoch]:
     out = []
-    for number, line in enumerate(path.read_text().splitlines(), 1):
+    for number, line in enumerate(_list_text(path).splitlines(), 1):
         if not line.strip() or line.lstrip().startswith("#"):
             continue
         parts = _split(line)
@@ -78,9 +88,10 @@ def resolve(arguments) -> list[Epoch]:
             out += [metadata_epoch(Path(m)) for m in matches]
         elif _is_list_file(path):
             out += read_list_file(path)
-        elif not path.is_file():
+        elif not (path.exists() or path.is_symlink()):
             raise UsageError(f"the epoch {arg} does not exist")
         else:
+            check_input_file(path, label=f"the epoch {arg}")  # a FIFO, device or folder: refused, never read
             out.append(metadata_epoch(path))
     if not out:
         raise UsageError("no epoch given")

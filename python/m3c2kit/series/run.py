@@ -11,6 +11,7 @@ import json
 import os
 import time
 import uuid
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -21,6 +22,8 @@ from ..io import read_cloud
 from ..optional import require
 from ..result import Result
 from . import epochs as epochs_mod
+from . import lock as lock_mod
+from . import step
 from . import store as st
 from .engine import Comparison
 
@@ -48,8 +51,9 @@ def epoch_columns(core: np.ndarray, raw: dict) -> dict:
 
 
 def _orient(settings: dict, reference) -> dict:
-    """As m3c2 compare: --orient, else the reference's scan positions, else +z."""
-    if "orient" not in settings:
+    """As m3c2 compare: --orient, else the reference's scan positions, else +z; none with
+    --normal-source core (the given normals are used as they are: settings.needs)."""
+    if "orient" not in settings and settings.get("normal_source") != "core":
         positions = getattr(reference, "scan_positions", None)
         settings = dict(settings, orient=positions.tolist() if positions is not None and len(positions) else "+z")
     return settings
@@ -69,14 +73,7 @@ def create(reference_path: Path, epoch_args, store: Path, settings: dict, *, cor
     """Creates STORE from the reference and adds the epochs; returns the epochs added."""
     st.require_extra()
     store = Path(store)
-    if (store / "zarr.json").exists():
-        try:
-            st.open_group(store)
-            raise UsageError(f"{store} already holds a series; add epochs with: m3c2 series add {store} EPOCH...")
-        except st.StoreError:
-            pass  # a store whose creation never committed: created again below
-    elif store.exists():
-        raise UsageError(f"{store} exists and is not a series store; choose another -o")
+    refuse_existing_output(store)
     resolved = epochs_mod.resolve(epoch_args)  # bad epoch names fail before any work
     reference = read_cloud(reference_path, drop_nonfinite=drop_nonfinite)
     core_cloud = read_cloud(core_path, drop_nonfinite=drop_nonfinite) if core_path is not None else None
@@ -100,11 +97,46 @@ def create(reference_path: Path, epoch_args, store: Path, settings: dict, *, cor
         "history": f"{dt.datetime.now(dt.timezone.utc).isoformat(timespec='seconds')} m3c2kit {_version()}: "
                    f"m3c2 series",
     }
-    st.create(store, core, comparison.normals(), attrs, core_chunk=core_chunk, epoch_chunk=epoch_chunk,
-              core_normals_input=core_normals)
-    return _add_epochs(store, resolved, comparison, core, reference, threads=threads, dask_scheduler=dask_scheduler,
-                       client=client, settings=settings, drop_nonfinite=drop_nonfinite, ignore_crs=ignore_crs,
-                       log=log, sort=True)
+    from ..io.atomic import staged_directory
+    # The empty store is built in a private folder and appears at -o whole, its lock already held
+    # (lockf locks the file, which the rename moves along), so no other writer comes in between;
+    # its epochs are then committed into it as `add` commits them, so a kill keeps those committed.
+    held = None
+    try:
+        with staged_directory(store) as folder:
+            st.create(Path(folder), core, comparison.normals(), attrs, core_chunk=core_chunk,
+                      epoch_chunk=epoch_chunk, core_normals_input=core_normals)
+            held = lock_mod.acquire(Path(folder), "create", store)
+    except BaseException:
+        if held is not None:
+            held.release()
+        raise
+    resume = f"resume with: m3c2 series add {store} EPOCH..."
+    planned = [len(resolved)]  # the epochs this run adds, once duplicates are known (for the messages)
+    with step.writing(store, "create", lambda f: step.committed_epochs_text(store, f, 0, planned[0], resume),
+                      held=held) as folder:
+        todo, index = _todo(store, folder, resolved, True, log)
+        planned[0] = len(todo)
+        return _add_epochs(folder, todo, index, comparison, core, reference, threads=threads,
+                           dask_scheduler=dask_scheduler, client=client, settings=settings,
+                           drop_nonfinite=drop_nonfinite, ignore_crs=ignore_crs, log=log, store=store)
+
+
+def refuse_existing_output(store: Path) -> None:
+    """Before any work: -o must be absent or an empty folder. Nothing there is ever deleted (a
+    foreign zarr.json and a README were, and a damaged store's advice to create it again deleted
+    its epochs)."""
+    if not (store.exists() or store.is_symlink()):
+        return
+    if (store / "zarr.json").is_file():
+        try:
+            st.open_group(store)
+        except st.StoreError:
+            raise UsageError(f"{store}: -o holds a Zarr store that is no committed m3c2 series; nothing in it is "
+                             f"touched: choose another -o (m3c2 series check {store} says what it holds)") from None
+        raise UsageError(f"{store} already holds a series; add epochs with: m3c2 series add {store} EPOCH...")
+    if store.is_symlink() or not store.is_dir() or any(os.scandir(store)):  # a link: io.atomic refuses it too
+        raise UsageError(f"{store}: -o exists and is not an empty folder; nothing in it is touched: choose another -o")
 
 
 def stored_settings(store: Path) -> dict:
@@ -126,7 +158,21 @@ def add(store: Path, epoch_args, *, given_settings=None, threads=0, dask_schedul
     """Appends the epochs not yet in STORE (a killed run resumes here); returns the epochs added."""
     xr, zarr = st.require_extra()
     store = Path(store)
-    attrs = st.attributes(store)
+    # The epochs committed when the lock is taken and those this run adds (for the messages);
+    # bad epoch names fail here, before the lock is taken.
+    plan = {"before": st.committed_epochs(store), "count": len(epochs_mod.resolve(epoch_args))}
+    kept = lambda folder: step.committed_epochs_text(store, folder, plan["before"], plan["count"],
+                                                     "rerun the same command to resume")
+    with step.writing(store, "add", kept) as folder:
+        return _add(store, folder, epoch_args, given_settings=given_settings, threads=threads,
+                    dask_scheduler=dask_scheduler, client=client, drop_nonfinite=drop_nonfinite,
+                    ignore_crs=ignore_crs, log=log, plan=plan)
+
+
+def _add(store: Path, folder: Path, epoch_args, *, given_settings, threads, dask_scheduler, client, drop_nonfinite,
+         ignore_crs, log, plan: dict) -> int:
+    """add() in the pinned, locked `folder`; `plan` gets the committed count and the epochs to add."""
+    attrs = st.attributes(folder)
     if attrs.get("imported_from"):
         raise UsageError(f"{store} was imported ({attrs['imported_from']}): its M3C2 parameters are unknown, so no "
                          f"epoch can be added that matches them; compute a new store with m3c2 series")
@@ -138,16 +184,17 @@ def add(store: Path, epoch_args, *, given_settings=None, threads=0, dask_schedul
     if file_digest(reference_path) != attrs["reference_sha256"]:
         raise M3C2Error(f"{store}: its reference {reference_path} changed since the store was created "
                         f"(SHA-256 differs); create a new store")
-    resolved = epochs_mod.resolve(epoch_args)
-    group = st.open_group(store)
-    core = np.column_stack([np.asarray(group[a][:]) for a in "xyz"])
-    normals_input = np.asarray(group["core_normals_input"][:]) if "core_normals_input" in group else None
+    todo, index = _todo(store, folder, epochs_mod.resolve(epoch_args), False, log)  # refusals before any work
+    plan.update(before=index, count=len(todo))
+    group = st.open_group(folder)
+    core = np.column_stack([st.read(store, group, a) for a in "xyz"])
+    normals_input = st.read(store, group, "core_normals_input") if "core_normals_input" in group else None
     reference = read_cloud(reference_path, drop_nonfinite=drop_nonfinite)
     comparison = Comparison(reference.xyz, np.ascontiguousarray(core), _engine_settings(settings), normals_input,
                             threads)
-    return _add_epochs(store, resolved, comparison, core, reference, threads=threads, dask_scheduler=dask_scheduler,
-                       client=client, settings=settings, drop_nonfinite=drop_nonfinite, ignore_crs=ignore_crs,
-                       log=log, sort=False)
+    return _add_epochs(folder, todo, index, comparison, core, reference, threads=threads,
+                       dask_scheduler=dask_scheduler, client=client, settings=settings, drop_nonfinite=drop_nonfinite,
+                       ignore_crs=ignore_crs, log=log, store=store)
 
 
 def _identity(path: Path) -> tuple[str, int, int]:
@@ -155,21 +202,49 @@ def _identity(path: Path) -> tuple[str, int, int]:
     return str(Path(path).resolve()), int(s.st_size), int(s.st_mtime_ns)
 
 
-def _todo(store: Path, resolved, sort: bool, log):
-    info = st.epoch_info(store)
-    done = {(s, int(z), int(m)) for s, z, m in zip(info["source"], info["source_size"], info["source_mtime_ns"])}
+@dataclass(frozen=True)
+class HashedEpoch(epochs_mod.Epoch):
+    """An epoch to add with the SHA-256 of its file's content (its identity in the store)."""
+    sha256: str = ""
+
+
+def _todo(store: Path, folder: Path, resolved, sort: bool, log):
+    """The epochs to add: not those whose content is an epoch of the store already (by SHA-256;
+    in a format 1 store, without hashes, by resolved path, size and modification time). A file
+    at a stored epoch's path whose content changed is refused: the stored epoch would no longer
+    be its file's, and a touched file is no new epoch (docs/series.md)."""
+    info = st.epoch_info(folder)
+    hashes = info.get("source_sha256")
     if sort and all(e.time is not None for e in resolved):
         resolved = sorted(resolved, key=lambda e: e.time)  # stable: equal times keep their order
-    todo, seen = [], set()
+    todo = []
+    if hashes is None:  # format 1
+        done = {(s, int(z), int(m)) for s, z, m in zip(info["source"], info["source_size"], info["source_mtime_ns"])}
+    else:
+        done = {str(h): k for k, h in reversed(list(enumerate(hashes)))}  # the first epoch of each content
+        at_path = {str(p): k for k, p in enumerate(info["source"])}
     for e in resolved:
-        ident = _identity(e.path)
-        if ident in done or ident in seen:
-            continue
-        seen.add(ident)
-        todo.append(e)
-    skipped = len(resolved) - len(todo)
-    if skipped:
-        log(f"{skipped} epoch(s) already in {store}: skipped")
+        digest = file_digest(e.path)
+        if hashes is None:
+            ident = _identity(e.path)
+            if ident in done:
+                log(f"{e.path}: already in {store} (same path, size and modification time): skipped")
+                continue
+            done.add(ident)
+        else:
+            if digest in done:
+                k = done[digest]
+                where = f"epoch {k} ({info['source'][k]})" if k >= 0 else "an earlier file of this command"
+                log(f"{e.path}: its content is already in {store} as {where}: skipped")
+                continue
+            path = str(Path(e.path).resolve())
+            if path in at_path:
+                k = at_path[path]
+                raise M3C2Error(f"{e.path}: its content changed since it was committed as epoch {k} of {store} "
+                                f"(SHA-256 differs): the store's epoch {k} holds the file's former content; a new "
+                                f"acquisition needs a file name of its own")
+            done[digest] = -1
+        todo.append(HashedEpoch(e.path, e.time, e.time_source, digest))
     known = info["time"][~np.isnat(info["time"])] if len(info["time"]) else np.array([], "datetime64[us]")
     last = known.max() if len(known) else None
     for e in todo:
@@ -184,17 +259,19 @@ def _todo(store: Path, resolved, sort: bool, log):
 def _info(epoch, points: int) -> dict:
     path, size, mtime = _identity(epoch.path)
     return {"time": epoch.time, "source": path, "source_size": size, "source_mtime_ns": mtime,
-            "time_source": epoch.time_source, "points": points}
+            "time_source": epoch.time_source, "points": points,
+            "source_sha256": getattr(epoch, "sha256", "") or file_digest(epoch.path)}
 
 
-def _add_epochs(store, resolved, comparison, core, reference, *, threads, dask_scheduler, client, settings,
-                drop_nonfinite, ignore_crs, log, sort) -> int:
-    todo, index = _todo(store, resolved, sort, log)
+def _add_epochs(folder, todo, index, comparison, core, reference, *, threads, dask_scheduler, client, settings,
+                drop_nonfinite, ignore_crs, log, store) -> int:
+    """Adds the epochs `todo` (_todo) from epoch `index` on into the store's pinned `folder`
+    (messages name `store`)."""
     if dask_scheduler is not None or client is not None:
         return _add_dask(store, todo, index, core, settings, threads, dask_scheduler, client, drop_nonfinite,
-                         ignore_crs, log)
+                         ignore_crs, log, folder=folder)
     from ..io.crs import check_crs
-    batch = Batch(store, index, len(core), log)
+    batch = Batch(folder, index, len(core), log)
     with batch:
         for epoch in todo:
             cloud = read_cloud(epoch.path, drop_nonfinite=drop_nonfinite)
@@ -243,7 +320,9 @@ class Batch:
     def commit(self) -> None:
         if not self.pending:
             return
-        st.append_batch(self.store, self.index, [(c, i) for c, i, _ in self.pending])
+        pending, self.pending = self.pending, []  # a failed commit is not tried again on the way out
+        st.append_batch(self.store, self.index, [(c, i) for c, i, _ in pending])
+        self.pending = pending
         for k, (_, _, path) in enumerate(self.pending):
             self.log(f"epoch {self.index + k}: {path} committed")
         self.index += len(self.pending)
@@ -272,20 +351,23 @@ def dask_epoch(store: str, reference: str, settings: dict, normals_input, epoch:
     return out
 
 
-def _add_dask(store, todo, index, core, settings, threads, address, client, drop_nonfinite, ignore_crs, log) -> int:
-    Client = require("distributed", extra="dask", purpose="running on a Dask cluster (--dask-scheduler)").Client
+def _add_dask(store, todo, index, core, settings, threads, address, client, drop_nonfinite, ignore_crs, log,
+              folder=None) -> int:
+    """The epochs as tasks on a Dask cluster, committed in epoch order (Batch). The connection and
+    every wait are bounded (run.dask.connect, ClusterWatch: a lost scheduler or no live worker is
+    an M3C2Error naming them); after any failure the store is at its last commit and the message
+    says which epochs of this run it holds."""
+    from ..run.dask import ClusterWatch, connect
     own = client is None
     if own:
-        try:
-            client = Client(address)
-        except Exception as e:  # noqa: BLE001 - any connection failure is the user's address
-            raise M3C2Error(f"--dask-scheduler {address}: cannot connect: {e}") from None
+        client = connect(address)  # the command line connects before the store is created
     try:
+        watch = ClusterWatch(client, address)
         group = st.open_group(store)
         normals_input = np.asarray(group["core_normals_input"][:]) if "core_normals_input" in group else None
         reference = st.attributes(store)["reference"]
         run_id = uuid.uuid4().hex[:8]
-        window = max(2, 2 * len(client.scheduler_info().get("workers", {})))
+        window = max(2, 2 * watch.workers)
         futures = []
         submitted = 0
 
@@ -299,15 +381,23 @@ def _add_dask(store, todo, index, core, settings, threads, address, client, drop
 
         while submitted < min(window, len(todo)):
             submit()
-        with Batch(store, index, len(core), log) as batch:
-            for k, epoch in enumerate(todo):  # committed in epoch order, whatever order they finish in
-                out = futures[k].result()
-                futures[k].release()
-                futures[k] = None
-                if submitted < len(todo):
-                    submit()
-                batch.add(out, _info(epoch, out["points"]), epoch.path)
+        batch = Batch(folder or store, index, len(core), log)  # folder: the store pinned by its writing step
+        try:
+            with batch:
+                for k, epoch in enumerate(todo):  # committed in epoch order, whatever order they finish in
+                    watch.wait([futures[k]], lambda: f"epoch {index + k} ({epoch.path})")
+                    out = futures[k].result()
+                    futures[k].release()
+                    futures[k] = None
+                    if submitted < len(todo):
+                        submit()
+                    batch.add(out, _info(epoch, out["points"]), epoch.path)
+        except M3C2Error as e:  # a lost scheduler or worker, a task's error: say what the store kept
+            kept = step.committed_epochs_text(store, folder or store, index, len(todo),
+                                              f"resume with: m3c2 series add {store} EPOCH...")
+            raise type(e)(f"{e}; {kept}") from None
         return len(todo)
     finally:
         if own:
             client.close()
+

@@ -12,7 +12,15 @@ chunk write of zarr's local store is a file replaced atomically), then committed
 the metadata: one atomic replace of the root ``zarr.json``, whose consolidated shapes are what
 xarray.open_zarr reads. A run killed before that leaves the store as it was at the last commit;
 the next run overwrites the uncommitted columns. A kill loses the computation of at most one
-batch, never an epoch of the store, and never adds one twice."""
+batch, never an epoch of the store, and never adds one twice.
+
+Integrity (format 2). Every chunk is written, also one holding only fill values (zarr's
+``write_empty_chunks``), so an absent chunk is damage, not NaN; every chunk carries a CRC-32C
+after its compression (zarr.codecs.Crc32cCodec), so a truncated or flipped chunk fails to decode
+instead of reading as other numbers. A decode error is a StoreError naming the array and the
+chunk (:func:`read`). Format 1 stores (no checksum, absent chunks legal) stay readable;
+series/integrity.py says what can be proven of them. Writers hold the store's lock
+(series/lock.py) and start from its last commit (integrity.recover)."""
 from __future__ import annotations
 
 import json
@@ -24,12 +32,18 @@ import numpy as np
 from ..errors import M3C2Error, UsageError
 
 FORMAT = "m3c2kit-series"
-FORMAT_VERSION = 1
+FORMAT_VERSION = 2
+#: The first format whose chunks are all written and checksummed (integrity.py relies on it).
+CHECKSUMMED_FROM = 2
 #: Per core point and epoch, as m3c2 compare's columns (result.COLUMNS).
 EPOCH_COLUMNS = ("distance", "lod", "significant", "n1", "n2", "sigma1", "sigma2", "status")
 CORE_COLUMNS = ("x", "y", "z", "nx", "ny", "nz", "normal_scale", "roughness")
-EPOCH_INFO = ("time", "source", "source_size", "source_mtime_ns", "time_source", "points")
-TEXT_INFO = ("source", "time_source")
+EPOCH_INFO = ("time", "source", "source_size", "source_mtime_ns", "time_source", "points", "source_sha256")
+TEXT_INFO = ("source", "time_source", "source_sha256")
+#: Root attribute: the variables a step is replacing (analysis.publish); set in a commit before
+#: the replacement and cleared in the commit after it, so a kill in between leaves them marked
+#: and every later step refuses them.
+REWRITING = "rewriting"
 #: Encoded integer columns: NaN in the compare table is this fill value in the store.
 INT_FILL = {"significant": (np.int8, -1), "n1": (np.uint32, 2**32 - 1), "n2": (np.uint32, 2**32 - 1)}
 TIME_UNITS = "microseconds since 1970-01-01T00:00:00"
@@ -49,12 +63,29 @@ def require_extra():
         raise UsageError(f"m3c2 series needs the optional extra 'series' ({e.name} is not installed): "
                          f"pip install 'm3c2kit[series]'") from None
     warnings.filterwarnings("ignore", message="Consolidated metadata is currently not part")
+    # The store's lock file and staging folder (series/lock.py, integrity.STAGING) are no Zarr nodes, by design.
+    warnings.filterwarnings("ignore", message=r"Object at \.m3c2-\S+ is not recognized as a component")
     return xarray, zarr
 
 
 def _compressor():
     from zarr.codecs import BloscCodec
     return BloscCodec(cname="zstd", clevel=5, shuffle="bitshuffle")
+
+
+def codecs() -> tuple:
+    """The bytes-to-bytes codecs of every array: compression, then a checksum of the result."""
+    from zarr.codecs import Crc32cCodec
+    return (_compressor(), Crc32cCodec())
+
+
+#: Zarr's per-array runtime setting (not stored in the metadata): every chunk is written.
+WRITE_CONFIG = {"write_empty_chunks": True}
+
+
+def writable(group, name: str):
+    """The array `name` of `group` (opened for writing) as the store writes: every chunk written."""
+    return group[name].with_config(WRITE_CONFIG)
 
 
 def create(path: Path, core: np.ndarray, normals: dict, attrs: dict, *, core_chunk: int, epoch_chunk: int,
@@ -73,8 +104,8 @@ def create(path: Path, core: np.ndarray, normals: dict, attrs: dict, *, core_chu
     empty = lambda dtype: (("core", "epoch"), np.empty((n, 0), dtype=dtype))
     for name in EPOCH_COLUMNS:
         data[name] = empty(INT_FILL[name][0] if name in INT_FILL else np.uint8 if name == "status" else np.float64)
-    data["source"] = ("epoch", np.array([], dtype=np.dtypes.StringDType()))
-    data["time_source"] = ("epoch", np.array([], dtype=np.dtypes.StringDType()))
+    for name in TEXT_INFO:
+        data[name] = ("epoch", np.array([], dtype=np.dtypes.StringDType()))
     for name in ("source_size", "source_mtime_ns", "points"):
         data[name] = ("epoch", np.array([], dtype=np.int64))
     ds = xr.Dataset(data, coords={"time": ("epoch", np.array([], dtype="datetime64[us]"))}, attrs=attrs)
@@ -82,16 +113,21 @@ def create(path: Path, core: np.ndarray, normals: dict, attrs: dict, *, core_chu
     ds["distance"].attrs.update(long_name="M3C2 distance along the normal", units="same as the coordinates")
     ds["lod"].attrs.update(long_name="level of detection")
     ds["status"].attrs.update(flag_values=list(range(6)), flag_meanings=" ".join(_status_names()))
-    comp = (_compressor(),)
+    comp = codecs()
     enc = {name: {"chunks": (cc, int(epoch_chunk)), "compressors": comp} for name in EPOCH_COLUMNS}
     for name, (dtype, fill) in INT_FILL.items():
         enc[name]["_FillValue"] = dtype(fill)
     for name in CORE_COLUMNS:
         enc[name] = {"chunks": (cc,), "compressors": comp}
-    enc["time"] = {"units": TIME_UNITS, "calendar": "proleptic_gregorian", "dtype": "int64", "chunks": (256,)}
-    for name in ("source", "time_source", "source_size", "source_mtime_ns", "points"):
-        enc[name] = {"chunks": (256,)}
-    ds.to_zarr(str(path), mode="w", encoding=enc, consolidated=True, zarr_format=3)
+    if core_normals_input is not None:
+        enc["core_normals_input"] = {"compressors": comp}
+    enc["time"] = {"units": TIME_UNITS, "calendar": "proleptic_gregorian", "dtype": "int64", "chunks": (256,),
+                   "compressors": comp}
+    for name in EPOCH_INFO[1:]:
+        enc[name] = {"chunks": (256,), "compressors": comp}
+    # "a": into the private folder, which holds its lock file ("w-" refuses a folder with any file)
+    # and is a pinned /proc/self/fd path ("w" would try to delete it)
+    ds.to_zarr(str(path), mode="a", encoding=enc, consolidated=True, zarr_format=3, write_empty_chunks=True)
 
 
 def _status_names():
@@ -103,11 +139,13 @@ def open_group(path: Path, mode="r"):
     """The store's root group as committed (consolidated metadata)."""
     _, zarr = require_extra()
     if not (Path(path) / "zarr.json").is_file():
-        raise StoreError(f"{path}: not a series store (no zarr.json); create one with m3c2 series REFERENCE EPOCH... -o {path}")
+        raise StoreError(f"{path}: not a series store (no zarr.json); a new store is made by "
+                         f"m3c2 series REFERENCE EPOCH... -o NEW_FOLDER")
     try:
         group = zarr.open_consolidated(str(path), mode=mode)
     except Exception as e:
-        raise StoreError(f"{path}: the store was never committed ({e}); create it again") from None
+        raise StoreError(f"{path}: no committed series store here (its root zarr.json holds no consolidated metadata: "
+                         f"{e}); m3c2 series check {path} lists what it holds") from None
     if group.attrs.get("format") != FORMAT:
         raise StoreError(f"{path}: not an m3c2kit series store (format {group.attrs.get('format')!r})")
     return group
@@ -122,12 +160,58 @@ def attributes(path: Path) -> dict:
 
 
 def epoch_info(path: Path) -> dict:
-    """Per committed epoch: source, size, mtime, time (datetime64[us]), time_source."""
+    """Per committed epoch: source, size, mtime, time (datetime64[us]), time_source, points and,
+    from format 2, source_sha256 (absent from a format 1 store)."""
     g = open_group(path)
     n = g["time"].shape[0]
-    info = {name: np.asarray(g[name][:n]) for name in EPOCH_INFO}
+    info = {name: np.asarray(read(path, g, name, slice(0, n))) for name in EPOCH_INFO if name in g}
     info["time"] = np.where(info["time"] == NAT, np.datetime64("NaT"), info["time"].astype("datetime64[us]"))
     return info
+
+
+def read(path: Path, group, name: str, selection=slice(None)) -> np.ndarray:
+    """group[name][selection], or a StoreError naming the array and the first chunk that does not
+    decode (a truncated, flipped or foreign chunk: never read as NaN)."""
+    array = group[name]
+    try:
+        return np.asarray(array[selection])
+    except Exception as e:  # noqa: BLE001 - zarr and its codecs raise many types for a bad chunk
+        key = bad_chunk(array) or "?"
+        raise StoreError(f"{path}: damaged: array {name} chunk {key} cannot be decoded ({e}); "
+                         f"m3c2 series check {path} lists every damage") from None
+
+
+def write(path: Path, array, name: str, selection, values) -> None:
+    """array[selection] = values; a chunk read back to be completed (a partial chunk) that does
+    not decode is a StoreError naming it, never overwritten by a mix. OSError (a full disk)
+    passes to the step, which says what the store kept."""
+    try:
+        array[selection] = values
+    except OSError:
+        raise
+    except Exception as e:  # noqa: BLE001 - as read()
+        key = bad_chunk(array) or "?"
+        raise StoreError(f"{path}: damaged: array {name} chunk {key} cannot be decoded ({e}); "
+                         f"m3c2 series check {path} lists every damage") from None
+
+
+def chunk_grid(shape, chunks):
+    """Every chunk's (key, selection) of an array: key as zarr's default v3 encoding names the file."""
+    import itertools
+    counts = [-(-s // c) if s else 0 for s, c in zip(shape, chunks)]
+    for index in itertools.product(*(range(n) for n in counts)):
+        key = "c/" + "/".join(map(str, index)) if index else "c"
+        yield key, tuple(slice(i * c, min(s, (i + 1) * c)) for i, c, s in zip(index, chunks, shape))
+
+
+def bad_chunk(array) -> str | None:
+    """The key of the first chunk of `array` that fails to decode, None when all do."""
+    for key, selection in chunk_grid(array.shape, array.chunks):
+        try:
+            array[selection]
+        except Exception:  # noqa: BLE001 - as read()
+            return key
+    return None
 
 
 def append(path: Path, index: int, columns: dict, info: dict) -> None:
@@ -140,26 +224,38 @@ def epoch_chunk(path: Path) -> int:
     return int(open_group(path)["distance"].chunks[1])
 
 
+#: Fill of the epochs a derived variable was not computed for (analysis.DERIVED), by dtype kind.
+DERIVED_FILL = {"f": np.nan, "i": -1}
+
+
 def append_batch(path: Path, index: int, batch: list) -> None:
     """Writes the epochs index, index + 1, ... of `batch` ((columns, info) pairs; index = the
     committed count) and commits them together (the module docstring): one resize and one block
     write per array, one consolidation. A block that starts and ends on chunk boundaries writes
-    whole chunks, never reading back what it replaces."""
+    whole chunks, never reading back what it replaces. A store of format 1 gets no hash column."""
     if not batch:
         return
+    from .. import fault_hook
     _, zarr = require_extra()
     group = zarr.open_group(str(path), mode="r+", use_consolidated=False)
     end = index + len(batch)
+    fault_hook.checkpoint("store-write")
     for name in EPOCH_COLUMNS:
-        array = group[name]
+        array = writable(group, name)
         if array.shape[1] != end:
             array.resize((array.shape[0], end))
-        array[:, index:end] = np.column_stack([encode(name, columns[name]) for columns, _ in batch])
+        write(path, array, name, (slice(None), slice(index, end)),
+              np.column_stack([encode(name, columns[name]) for columns, _ in batch]))
     for name in ("smoothed_distance", "object"):  # derived variables (analysis.DERIVED): not for these epochs
-        if name in group and group[name].shape[1] != end:
-            group[name].resize((group[name].shape[0], end))
+        if name in group:
+            array = writable(group, name)
+            if array.shape[1] != end:
+                array.resize((array.shape[0], end))
+            write(path, array, name, (slice(None), slice(index, end)), DERIVED_FILL[array.dtype.kind])
     for name in EPOCH_INFO:
-        array = group[name]
+        if name not in group:
+            continue  # source_sha256 in a format 1 store
+        array = writable(group, name)
         if array.shape[0] != end:
             array.resize((end,))
         values = []
@@ -168,8 +264,35 @@ def append_batch(path: Path, index: int, batch: list) -> None:
             if name == "time":
                 value = NAT if value is None or np.isnat(value) else np.datetime64(value, "us").astype(np.int64)
             values.append(value)
-        array[index:end] = np.asarray(values, dtype=np.dtypes.StringDType() if name in TEXT_INFO else np.int64)
+        write(path, array, name, slice(index, end),
+              np.asarray(values, dtype=np.dtypes.StringDType() if name in TEXT_INFO else np.int64))
+    commit(path)
+
+
+def commit(path: Path) -> None:
+    """Publishes what is written: consolidates the metadata (one atomic replace of the root
+    zarr.json)."""
+    from .. import fault_hook
+    _, zarr = require_extra()
+    fault_hook.checkpoint("store-commit")
     zarr.consolidate_metadata(str(path))
+
+
+def rewriting(group) -> list[str]:
+    """The variables marked as being replaced (REWRITING): half-written if their step is not running."""
+    return list(group.attrs.get(REWRITING) or [])
+
+
+def set_rewriting(path: Path, names) -> None:
+    """Commits the REWRITING mark alone: the root attributes are rewritten with the committed
+    (consolidated) metadata kept, in one atomic replace of the root zarr.json."""
+    _, zarr = require_extra()
+    group = zarr.open_consolidated(str(path), mode="r+")
+    names = sorted(set(names))
+    if names:
+        group.attrs[REWRITING] = names
+    elif REWRITING in group.attrs:
+        del group.attrs[REWRITING]
 
 
 def encode(name: str, values: np.ndarray) -> np.ndarray:

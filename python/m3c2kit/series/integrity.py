@@ -1,0 +1,182 @@
+"""Is a series store whole? `m3c2 series check STORE` (:func:`check`), the fast check every step
+runs on the arrays it reads (:func:`require_present`, :func:`require_whole`), and the recovery a
+writer runs under the lock before it writes (:func:`recover`).
+
+What can be proven. A format 2 store writes every chunk and checksums each (store.py), so
+`check` proves that the root metadata is committed and is an m3c2kit series, that each array's
+own metadata agrees with the committed shapes and the arrays agree on the core and epoch counts,
+that every chunk of the committed shape is present and decodes with its checksum, and that no
+variable is half-written (store.REWRITING). For a format 1 store, chunks have no checksum and an
+absent chunk is legal (it reads as the fill value), so `check` proves the metadata and that the
+present chunks decode, not that a chunk is missing or that its bytes are those written."""
+from __future__ import annotations
+
+import json
+import os
+import shutil
+from pathlib import Path
+
+from . import store as st
+from .store import StoreError
+
+#: The step that writes each derived variable: the command a half-written one is fixed by
+#: ({window}: the window of the committed smoothed_distance, when there is one).
+REWRITTEN_BY = {"smoothed_distance": "m3c2 series smooth {store}{window}",
+                "object": "m3c2 series objects {store} -o OBJECTS.csv"}
+
+
+def rerun_command(group, name: str, store: Path) -> str:
+    """The command that rewrites the half-written variable `name` of the store."""
+    window = ""
+    try:
+        if name in group and "window" in group[name].attrs:
+            window = f" --window {int(group[name].attrs['window'])}"
+    except (KeyError, TypeError, ValueError):
+        pass
+    return REWRITTEN_BY.get(name, "the step that writes it").format(store=store, window=window)
+#: A step's private folder inside the store for arrays being written (analysis.publish): no zarr.json, so
+#: neither zarr nor xarray sees it.
+STAGING = ".m3c2-staging"
+
+
+def own_shape(folder: Path, name: str) -> tuple | None:
+    """The shape array `name`'s own zarr.json says (past the commit after an interrupted run),
+    None when the file is missing or unreadable (damage)."""
+    try:
+        return tuple(json.loads((Path(folder) / name / "zarr.json").read_text())["shape"])
+    except (OSError, ValueError, KeyError, TypeError):
+        return None
+
+
+def _checksummed(group) -> bool:
+    return int(group.attrs.get("format_version", 1)) >= st.CHECKSUMMED_FROM
+
+
+def _chunk_files(folder: Path, name: str) -> set[str]:
+    root = Path(folder) / name
+    found = set()
+    for where, _, files in os.walk(root / "c"):
+        rel = Path(where).relative_to(root).as_posix()
+        found.update(f"{rel}/{f}" for f in files if not f.endswith(".partial"))
+    if (root / "c").is_file():
+        found.add("c")
+    return found
+
+
+def missing_chunks(folder: Path, group, name: str) -> list[str]:
+    """The chunk files of `name`'s committed shape that are absent (format 2: every chunk is written)."""
+    array = group[name]
+    present = _chunk_files(folder, name)
+    return [key for key, _ in st.chunk_grid(array.shape, array.chunks) if key not in present]
+
+
+def require_present(folder: Path, shown: Path | None = None) -> None:
+    """The fast check every step runs before it reads or writes: every committed array has its
+    zarr.json and (format 2) every chunk file of its committed shape; else a StoreError naming the
+    first damage (a partial copy never reads as NaN). Decoding is checked as chunks are read
+    (store.read); `m3c2 series check` does both for everything."""
+    shown = folder if shown is None else shown
+    group = st.open_group(folder)
+    checksummed = _checksummed(group)
+    for name in sorted(group.array_keys()):
+        if own_shape(folder, name) is None:
+            raise StoreError(f"{shown}: damaged: array {name} has no readable zarr.json (a partial copy?); "
+                             f"m3c2 series check {shown} lists every damage")
+        missing = missing_chunks(folder, group, name) if checksummed else []
+        if missing:
+            raise StoreError(f"{shown}: damaged: array {name} lacks chunk {missing[0]} ({len(missing)} chunk(s) "
+                             f"missing: a partial copy?); m3c2 series check {shown} lists every damage")
+
+
+def require_whole(group, names, shown: Path) -> None:
+    """A StoreError naming the step to rerun when one of `names` is marked half-written."""
+    for name in names:
+        if name in st.rewriting(group):
+            raise StoreError(f"{shown}: {name} is half-written (the step writing it was interrupted); "
+                             f"rerun {rerun_command(group, name, shown)}")
+
+
+def recover(folder: Path) -> list[str]:
+    """Brings the store at `folder` back to its last commit before a writer writes (under the
+    lock): arrays resized past their committed shape by an interrupted run are cut back (their
+    chunks beyond it removed), arrays never committed and the staging folder are removed.
+    Without it, the next commit (a consolidation) would publish an interrupted run's half.
+    Returns what it removed, for the log."""
+    _, zarr = st.require_extra()
+    committed = zarr.open_consolidated(str(folder), mode="r").metadata.consolidated_metadata.metadata
+    done = []
+    for entry in os.scandir(folder):
+        if entry.is_dir(follow_symlinks=False) and entry.name not in committed \
+                and (Path(entry.path) / "zarr.json").exists():
+            shutil.rmtree(entry.path)
+            done.append(f"uncommitted array {entry.name} removed")
+    own = zarr.open_group(str(folder), mode="r+", use_consolidated=False)
+    for name, meta in committed.items():
+        shape = own_shape(folder, name)
+        if shape is None or getattr(meta, "node_type", "array") != "array":
+            continue  # a marked or damaged variable: require_present and check name it
+        if shape != tuple(meta.shape):
+            own[name].resize(tuple(meta.shape))
+            done.append(f"array {name} cut back to its committed shape {tuple(meta.shape)}")
+    shutil.rmtree(Path(folder) / STAGING, ignore_errors=True)
+    return done
+
+
+def check(path: Path) -> tuple[list[str], list[str]]:
+    """(what was found, the damages) of the store at `path`; no damage: the store is sound."""
+    found: list[str] = []
+    damages: list[str] = []
+    path = Path(path)
+    try:
+        group = st.open_group(path)
+    except StoreError as e:
+        return found, [str(e)]
+    version = int(group.attrs.get("format_version", 1))
+    _, zarr = st.require_extra()
+    committed = zarr.open_consolidated(str(path), mode="r").metadata.consolidated_metadata.metadata
+    arrays = sorted(name for name, meta in committed.items() if getattr(meta, "node_type", "array") == "array")
+    n_core = group["x"].shape[0] if "x" in group else None
+    n_epoch = group["time"].shape[0] if "time" in group else None
+    found.append(f"format {st.FORMAT} version {version}: {n_core} core point(s), {n_epoch} epoch(s), "
+                 f"{len(arrays)} array(s)")
+    if version < st.CHECKSUMMED_FROM:
+        found.append(f"format version {version} stores no checksum and may omit chunks of fill values: "
+                     f"check proves its metadata and that its present chunks decode, not that none is missing "
+                     f"or altered")
+    for name in (*st.CORE_COLUMNS, *st.EPOCH_COLUMNS, *st.EPOCH_INFO):
+        if name not in committed and not (name == "source_sha256" and version < st.CHECKSUMMED_FROM):
+            damages.append(f"array {name}: missing from the committed metadata")
+    for name in st.rewriting(group):
+        damages.append(f"{name}: half-written by an interrupted step; rerun {rerun_command(group, name, path)}")
+    chunks = 0
+    for name in arrays:
+        array = group[name]
+        dims = array.metadata.dimension_names or ()
+        for axis, dim in enumerate(dims):
+            expected = {"core": n_core, "epoch": n_epoch}.get(dim)
+            if expected is not None and array.shape[axis] != expected:
+                damages.append(f"array {name}: {array.shape[axis]} along {dim}, the store has {expected}")
+        shape = own_shape(path, name)
+        if shape is None:
+            damages.append(f"array {name}: its zarr.json is missing or unreadable")
+            continue
+        if len(shape) != len(array.shape) or any(o < c for o, c in zip(shape, array.shape)):
+            damages.append(f"array {name}: its zarr.json says shape {shape}, the commit {tuple(array.shape)}")
+        elif shape != tuple(array.shape):
+            found.append(f"array {name}: columns past the commit {tuple(array.shape)} from an interrupted run "
+                         f"(not part of the store; the next writing step removes them)")
+        present = _chunk_files(path, name)
+        for key, selection in st.chunk_grid(array.shape, array.chunks):
+            chunks += 1
+            if version >= st.CHECKSUMMED_FROM and key not in present:
+                damages.append(f"array {name} chunk {key}: missing")
+                continue
+            try:
+                array[selection]
+            except Exception as e:  # noqa: BLE001 - any decode failure is damage
+                damages.append(f"array {name} chunk {key}: cannot be decoded ({e})")
+    found.append(f"{chunks} chunk(s) {'present and ' if version >= st.CHECKSUMMED_FROM else ''}read")
+    if (path / STAGING).exists():
+        found.append(f"{STAGING}: arrays of an interrupted step (not part of the store; the next writing step "
+                     f"removes them)")
+    return found, damages

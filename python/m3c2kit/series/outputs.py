@@ -1,0 +1,58 @@
+"""The rule that no output is an input, for the files the series steps write beside a store
+(`series report -o`, `series objects -o` and its members table; docs/errors.md, issue 31): a
+store stands for more files than its folder. `report -o STORE/zarr.json` destroyed the store,
+`report -o ref.las` overwrote its reference (its path is in the store's attributes)."""
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+from ..errors import UsageError
+from . import store as st
+
+
+def members_path(table: Path) -> Path:
+    """The members table `m3c2 series objects -o TABLE` writes beside TABLE."""
+    return Path(table).with_name(Path(table).stem + "_members.csv")
+
+
+def store_inputs(store: Path) -> dict:
+    """The files a store stands for, labelled: its reference and its epochs' sources, as recorded."""
+    attrs = st.attributes(store)  # a clear StoreError for what is not a committed store
+    found = {"store's reference": attrs.get("reference") or None}
+    for k, source in enumerate(st.epoch_info(store)["source"]):
+        found[f"store's epoch {k} source"] = str(source) or None
+    return found
+
+
+def refuse_inside(outputs: dict, store: Path) -> None:
+    """A UsageError for an output (label -> path) that is the store, lies inside it (through any
+    link), or is a hard link to one of its files: replacing it would damage the store."""
+    root = os.path.realpath(store)
+    linked = None  # (device, inode) of the store's files, listed only for an output with hard links
+    for label, path in outputs.items():
+        if path is None:
+            continue
+        real = os.path.realpath(path)
+        inside = real == root or real.startswith(root.rstrip(os.sep) + os.sep)
+        if not inside:
+            try:
+                info = os.stat(path)
+            except OSError:
+                info = None
+            if info is not None and info.st_nlink > 1:
+                if linked is None:
+                    linked = {(s.st_dev, s.st_ino) for s in _stats_below(root)}
+                inside = (info.st_dev, info.st_ino) in linked
+        if inside:
+            raise UsageError(f"{label} {os.fspath(path)!r} is inside the series store {os.fspath(store)!r} (or a link "
+                             f"to one of its files): writing it would damage the store; choose another output path")
+
+
+def _stats_below(root: str):
+    for folder, _, names in os.walk(root):
+        for name in names:
+            try:
+                yield os.stat(os.path.join(folder, name), follow_symlinks=False)
+            except OSError:
+                continue
