@@ -2,7 +2,10 @@
 from __future__ import annotations
 
 import importlib.util
+import os
+import shutil
 import signal
+import subprocess
 import sys
 from pathlib import Path
 
@@ -36,3 +39,26 @@ def autzen_pair() -> Path:
     """The autzen-bmx pair with CloudCompare's and PDAL's outputs, copied into the repository
     (tests/data/pairs/autzen-bmx, PROVENANCE.md there): tests that need only it run from a clone."""
     return REPO / "tests" / "data" / "pairs" / "autzen-bmx"
+
+
+@pytest.fixture
+def small_disk(tmp_path):
+    """make(size) -> a folder on a real full-able disk: a tmpfs of `size` (e.g. "256k"), unmounted
+    afterwards (root in a container that allows mount; the test is skipped with the reason elsewhere)."""
+    mounted = []
+
+    def make(size: str) -> Path:
+        if os.geteuid() != 0 or shutil.which("mount") is None:
+            pytest.skip("mounting a small tmpfs needs root and mount(8)")
+        d = tmp_path / f"disk-{size}"
+        d.mkdir()
+        proc = subprocess.run(["mount", "-t", "tmpfs", "-o", f"size={size}", "tmpfs", str(d)],
+                              capture_output=True, text=True)
+        if proc.returncode != 0:
+            pytest.skip(f"this container does not allow mounting a tmpfs ({proc.stderr.strip()})")
+        mounted.append(d)
+        return d
+
+    yield make
+    for d in mounted:
+        subprocess.run(["umount", str(d)], capture_output=True)

@@ -125,6 +125,11 @@ def swap_private_folders(folder: Path, target: Path) -> list[str]:
 def resume(proc) -> tuple[int, str]:
     """SIGCONT to a stopped run; its exit status and stderr once it ends."""
     os.kill(proc.pid, signal.SIGCONT)
+    return finish(proc)
+
+
+def finish(proc) -> tuple[int, str]:
+    """A run's exit status and stderr once it ends (killed after 300 s)."""
     try:
         _, err = proc.communicate(timeout=300)
     finally:

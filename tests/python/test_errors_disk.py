@@ -54,29 +54,6 @@ def grid_pair(tmp_path):
     return d
 
 
-@pytest.fixture
-def small_disk(tmp_path):
-    """make(size) -> a folder on a tmpfs of `size` (e.g. "256k"), unmounted afterwards."""
-    mounted = []
-
-    def make(size: str) -> Path:
-        if os.geteuid() != 0 or shutil.which("mount") is None:
-            pytest.skip("mounting a small tmpfs needs root and mount(8); the RLIMIT_FSIZE variant runs instead")
-        d = tmp_path / f"disk-{size}"
-        d.mkdir()
-        proc = subprocess.run(["mount", "-t", "tmpfs", "-o", f"size={size}", "tmpfs", str(d)],
-                              capture_output=True, text=True)
-        if proc.returncode != 0:
-            pytest.skip(f"this container does not allow mounting a tmpfs ({proc.stderr.strip()}); "
-                        f"the RLIMIT_FSIZE variant runs instead")
-        mounted.append(d)
-        return d
-
-    yield make
-    for d in mounted:
-        subprocess.run(["umount", str(d)], capture_output=True)
-
-
 def run(capsys, *argv):
     code = main([str(a) for a in argv])
     out = capsys.readouterr()

@@ -30,6 +30,7 @@ from pathlib import Path
 
 import pytest
 from child_env import child_env
+from hostile import finish
 
 DATA = Path(__file__).resolve().parents[1] / "data" / "pairs" / "autzen-bmx"
 PHASES = ("reading", "computing", "writing")
@@ -83,16 +84,6 @@ def start(out: Path, mode: str, cwd: Path, signal_at: str | None = None) -> subp
             str(DATA / "autzen-bmx-2023.las"), "-o", str(out), *ARGS, *MODES[mode]]
     return subprocess.Popen(argv, cwd=cwd, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
                             preexec_fn=_no_core_dump)
-
-
-def finish(proc: subprocess.Popen) -> tuple[int, str]:
-    try:
-        _, err = proc.communicate(timeout=300)
-    finally:
-        if proc.poll() is None:
-            proc.kill()
-            proc.wait()
-    return proc.returncode, err
 
 
 def left_in(folder: Path) -> list[str]:

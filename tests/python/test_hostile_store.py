@@ -243,29 +243,18 @@ def test_two_adds_started_together_end_with_every_epoch_once(world, tmp_path):
 
 
 @pytest.fixture
-def full_disk(tmp_path):
-    """make(store) -> a copy of `store` on a small tmpfs with (almost) no space left."""
-    mounted = []
+def full_disk(small_disk):
+    """make(store) -> a copy of `store` on a small tmpfs (conftest.small_disk) with (almost) no space left."""
 
     def make(store: Path) -> Path:
-        if os.geteuid() != 0 or shutil.which("mount") is None:
-            pytest.skip("mounting a small tmpfs needs root and mount(8)")
-        d = tmp_path / "disk"
-        d.mkdir()
-        proc = subprocess.run(["mount", "-t", "tmpfs", "-o", "size=4m", "tmpfs", str(d)], capture_output=True,
-                              text=True)
-        if proc.returncode != 0:
-            pytest.skip(f"this container does not allow mounting a tmpfs ({proc.stderr.strip()})")
-        mounted.append(d)
+        d = small_disk("4m")
         shutil.copytree(store, d / store.name)
         free = shutil.disk_usage(d).free
         with open(d / "filler", "wb") as f:
             f.write(b"\0" * max(0, free - 8192))
         return d / store.name
 
-    yield make
-    for d in mounted:
-        subprocess.run(["umount", str(d)], capture_output=True)
+    return make
 
 
 def test_a_full_disk_leaves_every_step_at_its_last_commit(world, tmp_path, capsys, full_disk):
