@@ -357,3 +357,25 @@ def test_smoothed_distances_are_imported(tmp_path):
     out = tmp_path / "st.zarr"
     assert main(["series", "import", str(archive), "-o", str(out)]) == 0
     assert np.array_equal(xr.open_zarr(out)["smoothed_distance"].values, smoothed, equal_nan=True)
+
+
+# red team (issue 31, item 3): an output inside ANY series store, not only the one the command reads
+
+
+def test_a_new_store_or_import_inside_another_store_is_refused(series, capsys, tmp_path):
+    """`series REF EPOCH -o STORE/new` and `import -o STORE/new` wrote a store inside an archive
+    they do not read, without its lock; also through a link to the store."""
+    folder, store, paths, _ = series
+    (tmp_path / "link").symlink_to(store)
+    archive = tmp_path / "a.zip"
+    archive.write_bytes(zipped(good_members()))
+    before = tree(store)
+    for argv in (["series", str(paths[0]), str(paths[1]), "-o", str(store / "nested.zarr"), *PARAMS],
+                 ["series", "import", str(archive), "-o", str(tmp_path / "link" / "distance" / "imported")]):
+        err = refused(capsys, argv)
+        assert "is inside the series store" in err and str(store) in err, err
+    assert tree(store) == before
+    assert main(["series", "import", str(archive), "-o", str(tmp_path / "beside.zarr")]) == 0  # outside: fine
+    err = refused(capsys, ["series", "report", str(tmp_path / "beside.zarr"), "-o", str(store / "r.html")])
+    assert "is inside the series store" in err and str(store) in err, err  # a store the command does not read
+    assert tree(store) == before

@@ -331,3 +331,144 @@ def test_a_special_epoch_or_list_file_is_refused_without_blocking(kind, base, tm
     assert "does not exist" not in err
     assert tree(store) == before
 
+
+
+# ----------------------------------------------------------------------------------------------
+# red team (issue 31, item 3): variants found after the first implementation
+
+
+def test_an_epoch_edited_between_its_hash_and_its_read_is_not_committed(base, epochs, tmp_path, capsys, monkeypatch):
+    """The SHA-256 is taken before the file is read: an edit in between (size and mtime kept)
+    would store one content's hash with another content's distances."""
+    from m3c2kit.series import run as run_mod
+    store = copy(base, tmp_path)
+    edited = tmp_path / "late.npy"
+    shutil.copy(epochs[9], edited)
+    real = run_mod.read_cloud
+
+    def edit_then_read(path, **kw):
+        if Path(path) == edited:
+            before = os.stat(edited)
+            data = bytearray(edited.read_bytes())
+            data[-1] ^= 0x01  # the last coordinate's lowest bit: same size, still a valid file
+            edited.write_bytes(bytes(data))
+            os.utime(edited, ns=(before.st_atime_ns, before.st_mtime_ns))
+        return real(path, **kw)
+
+    monkeypatch.setattr(run_mod, "read_cloud", edit_then_read)
+    code, out, err = run(capsys, "series", "add", store, epochs[8], edited)
+    assert code == 1 and f"{edited}: changed while this run read it" in err
+    assert f"; epoch 7 committed in {store}, 1 not added" in err  # the failure says what was kept
+    assert st.committed_epochs(store) == 8  # epochs[8], read before, is kept; the edited file is not
+    assert run(capsys, "series", "check", store)[0] == 0
+
+
+def _root_edit(edit):
+    def damage(store: Path):
+        root = json.loads((store / "zarr.json").read_text())
+        edit(root, root["consolidated_metadata"]["metadata"], root["attributes"])
+        (store / "zarr.json").write_text(json.dumps(root))
+    return damage
+
+
+def _root_text(cut):
+    def damage(store: Path):
+        (store / "zarr.json").write_text(cut((store / "zarr.json").read_text()))
+    return damage
+
+
+#: Root zarr.json files that are valid JSON of another shape (or no JSON): each gave a traceback
+#: (KeyError, ValueError, TypeError) or let smooth/add run on arrays of mismatched lengths.
+ROOT_DAMAGE = {
+    "array-missing": (_root_edit(lambda r, m, a: m.pop("time")), "array time: missing from the committed metadata"),
+    "length-mismatch": (_root_edit(lambda r, m, a: m["lod"]["shape"].__setitem__(1, 6)),
+                        "array lod: 6 along epoch, the store has 7"),
+    "dimensions-swapped": (_root_edit(lambda r, m, a: m["lod"].__setitem__("dimension_names", ["epoch", "core"])),
+                           "array lod: dimensions"),
+    "parameters-not-json": (_root_edit(lambda r, m, a: a.__setitem__("parameters", "{bad")),
+                            "root attribute parameters: not a JSON object"),
+    "reference-missing": (_root_edit(lambda r, m, a: a.pop("reference")), "root attribute reference: missing"),
+    "rewriting-not-a-list": (_root_edit(lambda r, m, a: a.__setitem__("rewriting", 5)),
+                             "root attribute rewriting: not a list"),
+    "newer-format": (_root_edit(lambda r, m, a: a.__setitem__("format_version", 9)), "format version 9 of"),
+    "version-not-a-number": (_root_edit(lambda r, m, a: a.__setitem__("format_version", "x")), "format version 'x'"),
+    "root-a-json-list": (_root_text(lambda t: "[1, 2]"), "holds no Zarr group (a JSON list"),
+    "root-truncated": (_root_text(lambda t: t[:100]), "is not valid JSON"),
+}
+
+
+@pytest.mark.parametrize("variant", sorted(ROOT_DAMAGE))
+def test_a_root_zarr_json_of_another_shape_is_named_and_refused(variant, base, epochs, tmp_path, capsys):
+    damage, named = ROOT_DAMAGE[variant]
+    store = copy(base, tmp_path)
+    damage(store)
+    before = tree(store)
+    code, out, err = run(capsys, "series", "check", store)
+    assert code == 1 and named in out + err
+    for argv in (["smooth", store, "--window", "3"], ["add", store, epochs[8]],
+                 ["report", store, "-o", tmp_path / "r.html"]):
+        code, _, err = run(capsys, "series", *argv)
+        assert code == 1 and err.startswith(f"m3c2: error: {store}: ") and named in err, (argv, err)
+    assert tree(store) == before and not (tmp_path / "r.html").exists()
+
+
+@pytest.mark.parametrize("plant", ["symlink", "hardlink", "fifo"])
+def test_a_link_planted_as_the_lock_file_is_never_written_through(plant, base, tmp_path, capsys):
+    """The writer truncates and rewrites its lock file (the holder's text): `.m3c2-lock ->
+    /root/victim`, planted by anyone who may write in the store's folder, emptied the victim."""
+    store = copy(base, tmp_path)
+    victim = tmp_path / "victim.txt"
+    victim.write_text("precious\n")
+    (store / LOCK_NAME).unlink()
+    {"symlink": lambda p: p.symlink_to(victim), "hardlink": lambda p: os.link(victim, p),
+     "fifo": os.mkfifo}[plant](store / LOCK_NAME)
+    before = tree(store)
+    code, _, err = run(capsys, "series", "smooth", store, "--window", "3")
+    assert code == 1 and err.startswith(f"m3c2: error: {store}: its lock file {LOCK_NAME} is ") and "never makes" in err
+    assert victim.read_text() == "precious\n" and tree(store) == before
+
+
+def test_a_second_writer_in_the_same_process_is_refused(base, tmp_path, capsys):
+    """POSIX locks are the process's: a second writing step in one process (two API calls, two
+    threads) was granted the lock, and its release dropped the first writer's lock too."""
+    from m3c2kit.series import lock
+    store = copy(base, tmp_path)
+    held = lock.acquire(store, "test-holder")
+    try:
+        code, _, err = run(capsys, "series", "smooth", store, "--window", "3")
+        assert code == 1 and "another writing step of this process" in err and "step test-holder" in err
+        holder = subprocess.run([sys.executable, "-c", HOLDER, str(store)], capture_output=True, text=True, timeout=60)
+        assert holder.returncode != 0 and "test-holder" in holder.stderr  # the first lock still holds
+    finally:
+        held.release()
+    assert run(capsys, "series", "smooth", store, "--window", "3")[0] == 0
+
+
+@pytest.mark.parametrize("action", ["smooth", "objects"])
+def test_a_link_planted_as_the_staging_folder_is_never_followed(action, base, tmp_path, capsys):
+    """`STORE/.m3c2-staging -> /elsewhere`: rmtree refuses a link, so the step wrote its new
+    variable through it and moved the store's previous one into the link's target."""
+    store = copy(base, tmp_path)
+    assert run(capsys, "series", "smooth", store, "--window", "3")[0] == 0  # a previous variable to move
+    assert run(capsys, "series", "objects", store, "-o", tmp_path / "first.csv", *OBJECTS)[0] == 0
+    elsewhere = tmp_path / "elsewhere"
+    elsewhere.mkdir()
+    (elsewhere / "notes.txt").write_text("keep\n")
+    (store / ".m3c2-staging").symlink_to(elsewhere)
+    argv = (["smooth", store, "--window", "5"] if action == "smooth"
+            else ["objects", store, "-o", tmp_path / "second.csv", *OBJECTS])
+    assert run(capsys, "series", *argv)[0] == 0
+    assert sorted(p.name for p in elsewhere.iterdir()) == ["notes.txt"]
+    assert not (store / ".m3c2-staging").exists() and not (store / ".m3c2-staging").is_symlink()
+    assert run(capsys, "series", "check", store)[0] == 0
+    if action == "smooth":
+        assert xr.open_zarr(store)["smoothed_distance"].attrs["window"] == 5
+
+
+@pytest.mark.parametrize("argv", [["--core-chunk", "0"], ["--epoch-chunk", "-1"], ["--threads", "-2"],
+                                  ["--core-chunk", "9" * 30]])
+def test_a_chunk_or_thread_count_out_of_range_is_a_usage_error(argv, epochs, tmp_path, capsys):
+    out = tmp_path / "s.zarr"
+    code, _, err = run(capsys, "series", epochs[0], epochs[1], "-o", out, *PARAMS, *argv, "--quiet")
+    assert code == 2 and argv[0] in err and "must be an integer from" in err, err
+    assert not out.exists()

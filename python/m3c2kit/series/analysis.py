@@ -59,8 +59,7 @@ def _new_variable(store: Path, name: str, dtype, fill, attrs: dict):
 def _staged_variable(folder: Path, group, name: str, dtype, fill, attrs: dict):
     """A new array for `name` in the store's staging folder (integrity.STAGING), not yet in the store."""
     _, zarr = st.require_extra()
-    path = Path(folder) / integrity.STAGING / name
-    shutil.rmtree(path, ignore_errors=True)
+    path = integrity.make_staging(folder) / name
     return zarr.create_array(store=str(path), zarr_format=3, config=st.WRITE_CONFIG,
                              **_variable_spec(group, dtype, fill, attrs))
 
@@ -71,7 +70,7 @@ def publish(folder: Path, name: str) -> None:
     between the first and last commit leaves `name` marked half-written, never silently mixed."""
     marked = st.rewriting(st.open_group(folder))
     st.set_rewriting(folder, [*marked, name])
-    target, staged = Path(folder) / name, Path(folder) / integrity.STAGING / name
+    target, staged = Path(folder) / name, integrity.staged_name(folder, name)  # pinned: never through a link
     old = staged.with_name(name + ".old")
     shutil.rmtree(old, ignore_errors=True)
     if target.exists():
@@ -79,7 +78,7 @@ def publish(folder: Path, name: str) -> None:
     os.rename(staged, target)
     st.commit(folder)
     st.set_rewriting(folder, [m for m in marked if m != name])
-    shutil.rmtree(Path(folder) / integrity.STAGING, ignore_errors=True)  # the step's only: it holds the lock
+    integrity.remove_staging(folder)  # the step's only: it holds the lock
 
 
 def _kept(store: Path, folder: Path, name: str) -> str:

@@ -18,6 +18,7 @@ import sys
 from contextlib import contextmanager
 from pathlib import Path
 
+from ..cli_integers import COUNT_MAX, THREADS_MAX, integer
 from ..errors import UsageError
 
 ACTIONS = ("add", "smooth", "changepoints", "objects", "report", "import", "check")
@@ -29,6 +30,8 @@ SCALE_HELP = "D, the normal scale: a DIAMETER (one value, a list 'a,b' or 'MIN:M
 #: nor the output options, which concern one pair's files.
 SERIES_SCOPES = ("engine", "alias")
 SERIES_RUN_PARAMETERS = ("core_spacing", "compat")
+#: The largest core point index an option takes (numpy's int64 indices).
+INDEX_MAX = 2**63 - 1
 
 
 def _parser(prog: str, description: str):
@@ -56,7 +59,8 @@ def _compare_options(p, required: bool, core_group=None) -> None:
 
 
 def _run_options(p) -> None:
-    p.add_argument("--threads", type=int, help="threads (default all); results are identical for any count")
+    p.add_argument("--threads", type=integer(0, THREADS_MAX),
+                   help="threads (default all); results are identical for any count")
     p.add_argument("--dask-scheduler", metavar="ADDRESS",
                    help="compare the epochs as tasks on this Dask distributed scheduler (same store bit for bit); "
                         "every worker must read the reference, the epochs and the store")
@@ -77,8 +81,9 @@ def create_parser():
     core.add_argument("--core", type=Path, help="core points file (default: every reference point)")
     p.add_argument("--core-normals", type=Path, help="with --normal-source core: nx,ny,nz per core point")
     _compare_options(p, required=True, core_group=core)
-    p.add_argument("--core-chunk", type=int, default=16384, help="core points per chunk (default 16384)")
-    p.add_argument("--epoch-chunk", type=int, default=8, help="epochs per chunk (default 8)")
+    p.add_argument("--core-chunk", type=integer(1, COUNT_MAX), default=16384,
+                   help="core points per chunk (default 16384)")
+    p.add_argument("--epoch-chunk", type=integer(1, COUNT_MAX), default=8, help="epochs per chunk (default 8)")
     _run_options(p)
     return p
 
@@ -97,8 +102,9 @@ def smooth_parser():
     p = _parser("m3c2 series smooth", "Temporal median of distance over WINDOW epochs, written to the store as "
                                       "smoothed_distance (Anders et al. 2021, 2.2), chunk by chunk.")
     p.add_argument("store", type=Path, help=STORE_HELP)
-    p.add_argument("--window", type=int, default=24, help="epochs in the median window, centred (default 24)")
-    p.add_argument("--threads", type=int, help=THREADS_HELP)
+    p.add_argument("--window", type=integer(1, COUNT_MAX), default=24,
+                   help="epochs in the median window, centred (default 24)")
+    p.add_argument("--threads", type=integer(0, THREADS_MAX), help=THREADS_HELP)
     return p
 
 
@@ -131,7 +137,7 @@ def objects_parser():
                    help="py4dgeo's DTW: whole series from the first epoch (default: the seed's epochs, the paper's)")
     p.add_argument("--use", choices=("auto", "smoothed", "raw"), default="auto",
                    help="series to segment: smoothed_distance when present (auto), or distance (raw)")
-    p.add_argument("--threads", type=int, help=THREADS_HELP)
+    p.add_argument("--threads", type=integer(0, THREADS_MAX), help=THREADS_HELP)
     p.add_argument("--quiet", action="store_true", help="no progress lines")
     return p
 
@@ -139,7 +145,8 @@ def objects_parser():
 def changepoints_parser():
     p = _parser("m3c2 series changepoints", "Change points of core points' series (the detection 4D-OBC's seeds use).")
     p.add_argument("store", type=Path, help=STORE_HELP)
-    p.add_argument("--core", type=int, action="append", required=True, help="core point index (repeatable)")
+    p.add_argument("--core", type=integer(0, INDEX_MAX), action="append", required=True,
+                   help="core point index (repeatable)")
     _objects_options(p)
     p.add_argument("--use", choices=("auto", "smoothed", "raw"), default="auto",
                    help="series to use: smoothed_distance when present (auto), or distance (raw)")
@@ -151,7 +158,8 @@ def report_parser():
                                       "extents and their series (after m3c2 series objects).")
     p.add_argument("store", type=Path, help=STORE_HELP)
     p.add_argument("-o", "--output", type=Path, required=True, help="the report (HTML)")
-    p.add_argument("--core", type=int, action="append", help="core point to plot (repeatable; default: a few)")
+    p.add_argument("--core", type=integer(0, INDEX_MAX), action="append",
+                   help="core point to plot (repeatable; default: a few)")
     p.add_argument("--objects", type=Path, help="objects table of m3c2 series objects (default: none)")
     return p
 
@@ -228,6 +236,8 @@ def _check_outputs(outputs: dict, inputs: dict, *, store: bool = False, reads_st
     if store:
         outputs = {k: v for k, v in outputs.items() if v is not None and not Path(v).is_dir()}
     check_outputs(outputs, inputs)  # the inputs named on the command line first: no store needs opening
+    from .outputs import refuse_inside_any_store
+    refuse_inside_any_store(outputs)  # no output inside any series store, read by this command or not
     if reads_store is not None:
         from .outputs import refuse_inside, store_inputs
         refuse_inside(outputs, Path(reads_store))

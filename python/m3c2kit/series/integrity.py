@@ -14,6 +14,7 @@ from __future__ import annotations
 import json
 import os
 import shutil
+import stat
 from pathlib import Path
 
 from . import store as st
@@ -37,6 +38,45 @@ def rerun_command(group, name: str, store: Path) -> str:
 #: A step's private folder inside the store for arrays being written (analysis.publish): no zarr.json, so
 #: neither zarr nor xarray sees it.
 STAGING = ".m3c2-staging"
+
+_STAGED: dict[str, int] = {}  # a store folder -> the descriptor of the staging folder its step made
+
+
+def remove_staging(folder: Path) -> None:
+    """Removes the staging folder of a step (or an interrupted one's). A link planted at its name
+    is removed, never followed: rmtree refuses a link, so a step wrote its arrays through it and
+    moved the store's previous variable into the link's target."""
+    fd = _STAGED.pop(os.fspath(folder), None)
+    if fd is not None:
+        os.close(fd)
+    path = Path(folder) / STAGING
+    try:
+        kind = os.lstat(path).st_mode
+    except FileNotFoundError:
+        return
+    if stat.S_ISDIR(kind):
+        shutil.rmtree(path, ignore_errors=True)
+    else:
+        os.unlink(path)
+
+
+def make_staging(folder: Path) -> Path:
+    """The step's staging folder, made anew (0700) and pinned: the path returned resolves through a
+    descriptor (io.private.PINNABLE), so a folder or link swapped in under its name afterwards
+    receives nothing. staged_name() is the name of an array in it for a rename."""
+    from ..io.private import PINNABLE
+    remove_staging(folder)
+    path = Path(folder) / STAGING
+    os.mkdir(path, 0o700)  # exclusive: one planted in between is an error, never used
+    fd = os.open(path, os.O_RDONLY | os.O_DIRECTORY | os.O_NOFOLLOW | os.O_CLOEXEC)
+    _STAGED[os.fspath(folder)] = fd
+    return Path(f"/proc/self/fd/{fd}") if PINNABLE else path
+
+
+def staged_name(folder: Path, name: str) -> Path:
+    """The staged array `name` of make_staging(folder), by the pinned path while it is held."""
+    fd = _STAGED.get(os.fspath(folder))
+    return Path(f"/proc/self/fd/{fd}" if fd is not None else Path(folder) / STAGING) / name
 
 
 def own_shape(folder: Path, name: str) -> tuple | None:
@@ -118,7 +158,7 @@ def recover(folder: Path) -> list[str]:
         if shape != tuple(meta.shape):
             own[name].resize(tuple(meta.shape))
             done.append(f"array {name} cut back to its committed shape {tuple(meta.shape)}")
-    shutil.rmtree(Path(folder) / STAGING, ignore_errors=True)
+    remove_staging(folder)
     return done
 
 
@@ -128,9 +168,12 @@ def check(path: Path) -> tuple[list[str], list[str]]:
     damages: list[str] = []
     path = Path(path)
     try:
-        group = st.open_group(path)
+        group = st.open_group(path, whole=False)
     except StoreError as e:
-        return found, [str(e)]
+        return found, [str(e).removeprefix(f"{path}: ")]  # the command's lines name the store already
+    damages.extend(st.committed_problems(group))
+    if damages:
+        return found, damages  # the root metadata is no whole store: its arrays cannot be checked against it
     version = int(group.attrs.get("format_version", 1))
     _, zarr = st.require_extra()
     committed = zarr.open_consolidated(str(path), mode="r").metadata.consolidated_metadata.metadata
@@ -143,19 +186,11 @@ def check(path: Path) -> tuple[list[str], list[str]]:
         found.append(f"format version {version} stores no checksum and may omit chunks of fill values: "
                      f"check proves its metadata and that its present chunks decode, not that none is missing "
                      f"or altered")
-    for name in (*st.CORE_COLUMNS, *st.EPOCH_COLUMNS, *st.EPOCH_INFO):
-        if name not in committed and not (name == "source_sha256" and version < st.CHECKSUMMED_FROM):
-            damages.append(f"array {name}: missing from the committed metadata")
     for name in st.rewriting(group):
         damages.append(f"{name}: half-written by an interrupted step; rerun {rerun_command(group, name, path)}")
     chunks = 0
     for name in arrays:
         array = group[name]
-        dims = array.metadata.dimension_names or ()
-        for axis, dim in enumerate(dims):
-            expected = {"core": n_core, "epoch": n_epoch}.get(dim)
-            if expected is not None and array.shape[axis] != expected:
-                damages.append(f"array {name}: {array.shape[axis]} along {dim}, the store has {expected}")
         shape = own_shape(path, name)
         if shape is None:
             damages.append(f"array {name}: its zarr.json is missing or unreadable")

@@ -15,23 +15,32 @@ import errno
 import fcntl
 import os
 import socket
+import stat
 import sys
+import threading
 from pathlib import Path
 
 from .store import StoreError
 
 LOCK_NAME = ".m3c2-lock"
+#: (st_dev, st_ino) of the lock files this process holds -> their holder text. POSIX locks are the
+#: process's: a second acquire in this process (two API calls, two threads) would be granted, and
+#: its release, closing a descriptor of the file, would drop the first writer's lock too.
+_HELD: dict[tuple[int, int], str] = {}
+_HELD_GUARD = threading.Lock()
 
 
 class StoreLock:
     """The lock held on a store (acquire()); release() or leaving the `with` block lets it go."""
 
-    def __init__(self, fd: int):
-        self.fd = fd
+    def __init__(self, fd: int, key: tuple[int, int]):
+        self.fd, self.key = fd, key
 
     def release(self) -> None:
         if self.fd < 0:
             return
+        with _HELD_GUARD:
+            _HELD.pop(self.key, None)
         try:
             os.ftruncate(self.fd, 0)  # no holder any more: a stale text would mislead a reader
         except OSError:
@@ -58,10 +67,33 @@ def acquire(folder: Path, step: str, shown: Path | None = None) -> StoreLock:
     store's path in messages (`folder` may be a pinned /proc/self/fd path)."""
     shown = folder if shown is None else shown
     path = Path(folder) / LOCK_NAME
+    with _HELD_GUARD:
+        return _acquire(path, step, shown)
+
+
+def _acquire(path: Path, step: str, shown) -> StoreLock:
     try:
-        fd = os.open(path, os.O_RDWR | os.O_CREAT | os.O_CLOEXEC, 0o644)
+        existing = os.stat(path, follow_symlinks=False)
+    except OSError:
+        existing = None
+    if existing is not None and (existing.st_dev, existing.st_ino) in _HELD:  # never opened: see _HELD
+        raise StoreError(f"{shown}: another writing step of this process is writing this store "
+                         f"({_HELD[existing.st_dev, existing.st_ino]}); run {step} again when it has finished")
+    planted = (f"{shown}: its lock file {LOCK_NAME} is {{}}, which m3c2 never makes: nothing was written "
+               f"through it; move it away (it holds no data of the store) and run {step} again")
+    try:
+        # O_NOFOLLOW, O_NONBLOCK and the fstat below: the holder text truncates and rewrites the
+        # file, so a link planted at its name (`.m3c2-lock -> /root/victim`) emptied its target.
+        fd = os.open(path, os.O_RDWR | os.O_CREAT | os.O_NOFOLLOW | os.O_NONBLOCK | os.O_CLOEXEC, 0o644)
     except OSError as e:
+        if e.errno == errno.ELOOP:
+            raise StoreError(planted.format("a symbolic link")) from None
         raise StoreError(f"{shown}: cannot open its lock file {LOCK_NAME}: {e.strerror}") from None
+    info = os.fstat(fd)
+    if not stat.S_ISREG(info.st_mode) or info.st_nlink != 1:
+        os.close(fd)
+        raise StoreError(planted.format("not a regular file" if not stat.S_ISREG(info.st_mode)
+                                        else f"a hard link to another file ({info.st_nlink} names)"))
     try:
         fcntl.lockf(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
     except OSError as e:
@@ -71,13 +103,14 @@ def acquire(folder: Path, step: str, shown: Path | None = None) -> StoreLock:
             raise StoreError(f"{shown}: another m3c2 is writing this store ({holder or 'holder unknown'}); "
                              f"run {step} again when it has finished") from None
         raise StoreError(f"{shown}: cannot lock the store: {e.strerror}") from None
+    text = holder_text(step)
     try:
-        text = holder_text(step).encode("utf-8", "replace")
         os.ftruncate(fd, 0)
-        os.pwrite(fd, text, 0)
+        os.pwrite(fd, text.encode("utf-8", "replace"), 0)
     except OSError:
         pass  # a full disk: the lock holds all the same, its holder text is only for messages
-    return StoreLock(fd)
+    _HELD[info.st_dev, info.st_ino] = text
+    return StoreLock(fd, (info.st_dev, info.st_ino))
 
 
 def _read(fd: int) -> str:

@@ -4,6 +4,7 @@ store stands for more files than its folder. `report -o STORE/zarr.json` destroy
 `report -o ref.las` overwrote its reference (its path is in the store's attributes)."""
 from __future__ import annotations
 
+import json
 import os
 from pathlib import Path
 
@@ -47,6 +48,32 @@ def refuse_inside(outputs: dict, store: Path) -> None:
         if inside:
             raise UsageError(f"{label} {os.fspath(path)!r} is inside the series store {os.fspath(store)!r} (or a link "
                              f"to one of its files): writing it would damage the store; choose another output path")
+
+
+def enclosing_store(path: Path) -> Path | None:
+    """The series store that holds `path` (through any link), or None. Read from its root
+    zarr.json's attributes alone: a damaged store protects its folder too."""
+    real = Path(os.path.realpath(path))
+    for folder in (real, *real.parents):
+        root = folder / "zarr.json"
+        if not root.is_file():  # is_file: a FIFO planted as zarr.json is never opened
+            continue
+        try:
+            attributes = json.loads(root.read_bytes()).get("attributes") or {}
+        except (OSError, ValueError, AttributeError):
+            continue  # no JSON object: another tool's file, not a series store
+        if isinstance(attributes, dict) and attributes.get("format") == st.FORMAT:
+            return folder
+    return None
+
+
+def refuse_inside_any_store(outputs: dict) -> None:
+    """refuse_inside for the store that holds an output, whatever store the command reads:
+    `series REF EPOCH -o STORE/new` and `import -o STORE/new` wrote a store inside another."""
+    for label, path in outputs.items():
+        store = enclosing_store(path) if path is not None else None
+        if store is not None:
+            refuse_inside({label: path}, store)
 
 
 def _stats_below(root: str):

@@ -44,6 +44,22 @@ def file_digest(path: Path) -> str:
     return h.hexdigest()
 
 
+def file_state(path: Path) -> tuple:
+    """What a write to the file changes: device, inode, size, modification and change time. The
+    change time cannot be set back (touch restores a modification time), so an edit between the
+    hash of an epoch and its read, even one keeping size and mtime, is seen (require_unchanged)."""
+    s = os.stat(path)
+    return s.st_dev, s.st_ino, s.st_size, s.st_mtime_ns, s.st_ctime_ns
+
+
+def require_unchanged(epoch) -> None:
+    """After an epoch is read: its file is the one hashed (HashedEpoch.state), or an M3C2Error;
+    else the store would keep one content's SHA-256 with another content's distances."""
+    if getattr(epoch, "state", ()) and file_state(epoch.path) != epoch.state:
+        raise M3C2Error(f"{epoch.path}: changed while this run read it (its size, inode or times differ from when "
+                        f"its SHA-256 was taken); it is not added: rerun when the file is written whole")
+
+
 def epoch_columns(core: np.ndarray, raw: dict) -> dict:
     """The store's per-epoch columns: those of m3c2 compare's table (Result.columns)."""
     table = Result.from_engine(core, raw, {}).columns()
@@ -206,6 +222,7 @@ def _identity(path: Path) -> tuple[str, int, int]:
 class HashedEpoch(epochs_mod.Epoch):
     """An epoch to add with the SHA-256 of its file's content (its identity in the store)."""
     sha256: str = ""
+    state: tuple = ()  # file_state when the hash was taken
 
 
 def _todo(store: Path, folder: Path, resolved, sort: bool, log):
@@ -224,6 +241,7 @@ def _todo(store: Path, folder: Path, resolved, sort: bool, log):
         done = {str(h): k for k, h in reversed(list(enumerate(hashes)))}  # the first epoch of each content
         at_path = {str(p): k for k, p in enumerate(info["source"])}
     for e in resolved:
+        state = file_state(e.path)  # before the hash: a write during it changes the state too
         digest = file_digest(e.path)
         if hashes is None:
             ident = _identity(e.path)
@@ -244,7 +262,7 @@ def _todo(store: Path, folder: Path, resolved, sort: bool, log):
                                 f"(SHA-256 differs): the store's epoch {k} holds the file's former content; a new "
                                 f"acquisition needs a file name of its own")
             done[digest] = -1
-        todo.append(HashedEpoch(e.path, e.time, e.time_source, digest))
+        todo.append(HashedEpoch(e.path, e.time, e.time_source, digest, state))
     known = info["time"][~np.isnat(info["time"])] if len(info["time"]) else np.array([], "datetime64[us]")
     last = known.max() if len(known) else None
     for e in todo:
@@ -272,14 +290,28 @@ def _add_epochs(folder, todo, index, comparison, core, reference, *, threads, da
                          ignore_crs, log, folder=folder)
     from ..io.crs import check_crs
     batch = Batch(folder, index, len(core), log)
-    with batch:
-        for epoch in todo:
-            cloud = read_cloud(epoch.path, drop_nonfinite=drop_nonfinite)
-            check_crs(reference, cloud, None, ignore=ignore_crs)
-            raw = comparison.compare(cloud.xyz, cloud, threads)
-            batch.add(epoch_columns(core, raw), _info(epoch, len(cloud)), epoch.path)
-            del cloud, raw
+    try:
+        with batch:
+            for epoch in todo:
+                cloud = read_cloud(epoch.path, drop_nonfinite=drop_nonfinite)
+                require_unchanged(epoch)
+                check_crs(reference, cloud, None, ignore=ignore_crs)
+                raw = comparison.compare(cloud.xyz, cloud, threads)
+                batch.add(epoch_columns(core, raw), _info(epoch, len(cloud)), epoch.path)
+                del cloud, raw
+    except M3C2Error as e:  # a bad or changed epoch file, a CRS mismatch: the epochs before it are committed
+        raise _with_kept(e, store, folder, index, len(todo)) from None
     return len(todo)
+
+
+def _with_kept(error: M3C2Error, store, folder, index: int, planned: int) -> M3C2Error:
+    """`error` with what the store kept of this run (step.committed_epochs_text): the message
+    of an epoch that failed after others were committed said nothing of them. An interruption is
+    left to step.guarded, which says the same."""
+    if step.is_interruption(error):
+        return error
+    kept = step.committed_epochs_text(store, folder, index, planned, f"resume with: m3c2 series add {store} EPOCH...")
+    return type(error)(f"{error}; {kept}")
 
 
 class Batch:
@@ -391,11 +423,10 @@ def _add_dask(store, todo, index, core, settings, threads, address, client, drop
                     futures[k] = None
                     if submitted < len(todo):
                         submit()
+                    require_unchanged(epoch)  # the worker read it before its result came back
                     batch.add(out, _info(epoch, out["points"]), epoch.path)
         except M3C2Error as e:  # a lost scheduler or worker, a task's error: say what the store kept
-            kept = step.committed_epochs_text(store, folder or store, index, len(todo),
-                                              f"resume with: m3c2 series add {store} EPOCH...")
-            raise type(e)(f"{e}; {kept}") from None
+            raise _with_kept(e, store, folder or store, index, len(todo)) from None
         return len(todo)
     finally:
         if own:

@@ -8,7 +8,6 @@ from __future__ import annotations
 
 import os
 import re
-import shutil
 import sys
 from contextlib import contextmanager
 from pathlib import Path
@@ -36,7 +35,7 @@ def _interrupted_type() -> type:
     return getattr(sys.modules.get("m3c2kit.cli"), "Interrupted", M3C2Error)
 
 
-def _is_interruption(error: BaseException) -> bool:
+def is_interruption(error: BaseException) -> bool:
     kind = _interrupted_type()
     return isinstance(error, KeyboardInterrupt) or (kind is not M3C2Error and isinstance(error, kind))
 
@@ -56,7 +55,7 @@ def guarded(shown: Path, kept: Callable[[], str]):
     except OSError as e:
         raise StoreError(f"{shown}: cannot write: {e.strerror or e}; {kept()}") from None
     except BaseException as e:
-        if _is_interruption(e):
+        if is_interruption(e):
             raise _interrupted_type()(f"interrupted by {_signal_name(e)}: {kept()}") from None
         raise
 
@@ -82,7 +81,7 @@ def writing(store: Path, step: str, kept: Callable[[Path], str], *, held: "lock_
                         yield folder
                     except BaseException:
                         # The step's unpublished arrays: never part of the store (analysis.publish).
-                        shutil.rmtree(folder / integrity.STAGING, ignore_errors=True)
+                        integrity.remove_staging(folder)
                         raise
     except M3C2Error as e:
         raise _public(e, os.fspath(where[0]), store) from None

@@ -135,8 +135,9 @@ def _status_names():
     return STATUS_NAMES
 
 
-def open_group(path: Path, mode="r"):
-    """The store's root group as committed (consolidated metadata)."""
+def open_group(path: Path, mode="r", *, whole: bool = True):
+    """The store's root group as committed (consolidated metadata). `whole`: also refuse root
+    metadata that is no whole series store (committed_problems; `series check` lists them all)."""
     _, zarr = require_extra()
     if not (Path(path) / "zarr.json").is_file():
         raise StoreError(f"{path}: not a series store (no zarr.json); a new store is made by "
@@ -144,11 +145,81 @@ def open_group(path: Path, mode="r"):
     try:
         group = zarr.open_consolidated(str(path), mode=mode)
     except Exception as e:
-        raise StoreError(f"{path}: no committed series store here (its root zarr.json holds no consolidated metadata: "
-                         f"{e}); m3c2 series check {path} lists what it holds") from None
+        raise StoreError(f"{path}: no committed series store here (its root zarr.json {_root_problem(path, e)}); "
+                         f"m3c2 series check {path} lists what it holds") from None
     if group.attrs.get("format") != FORMAT:
         raise StoreError(f"{path}: not an m3c2kit series store (format {group.attrs.get('format')!r})")
+    version = group.attrs.get("format_version", 1)
+    if type(version) is not int or not 1 <= version <= FORMAT_VERSION:
+        raise StoreError(f"{path}: format version {version!r} of {FORMAT} is not one this m3c2kit reads (1 to "
+                         f"{FORMAT_VERSION}); a newer m3c2kit may read it, nothing in it is touched")
+    problems = committed_problems(group) if whole else []
+    if problems:
+        more = f" (and {len(problems) - 1} more)" if len(problems) > 1 else ""
+        raise StoreError(f"{path}: damaged: {problems[0]}{more}; m3c2 series check {path} lists every damage")
     return group
+
+
+def _root_problem(path: Path, error: Exception) -> str:
+    """Why zarr could not open the root zarr.json, in the user's terms (not zarr's or Python's)."""
+    try:
+        root = json.loads((Path(path) / "zarr.json").read_bytes())
+    except ValueError as e:
+        return f"is not valid JSON ({e}: truncated or overwritten?)"
+    except OSError as e:
+        return f"cannot be read ({e.strerror})"
+    if not isinstance(root, dict) or root.get("node_type") != "group":
+        return f"holds no Zarr group (a JSON {type(root).__name__} of another shape)"
+    return "holds no consolidated metadata" if "consolidated_metadata" not in root else f"is not readable ({error})"
+
+
+#: The dimensions of every array the store must hold (format 2 adds source_sha256).
+REQUIRED_DIMS = {**{name: ("core",) for name in CORE_COLUMNS}, **{name: ("core", "epoch") for name in EPOCH_COLUMNS},
+                 **{name: ("epoch",) for name in EPOCH_INFO}}
+#: Root attributes every step relies on, all text (parameters a JSON object).
+REQUIRED_TEXT_ATTRIBUTES = ("parameters", "reference", "reference_sha256")
+
+
+def committed_problems(group) -> list[str]:
+    """What makes the committed root metadata no whole series store: a required array missing or
+    of other dimensions, an array's length along core or epoch not the store's, a required root
+    attribute absent or of another type. Valid JSON of another shape was read as a store and
+    failed later with tracebacks, or its steps ran on arrays of mismatched lengths."""
+    version = group.attrs.get("format_version", 1)
+    committed = group.metadata.consolidated_metadata.metadata
+    arrays = {name: meta for name, meta in committed.items() if getattr(meta, "node_type", "") == "array"}
+    problems = []
+    for name, dims in REQUIRED_DIMS.items():
+        if name == "source_sha256" and version < CHECKSUMMED_FROM:
+            continue
+        if name not in arrays:
+            problems.append(f"array {name}: missing from the committed metadata")
+        elif tuple(arrays[name].dimension_names or ()) != dims:
+            problems.append(f"array {name}: dimensions {arrays[name].dimension_names}, expected {dims}")
+    length = {"core": arrays["x"].shape[0] if "x" in arrays and len(arrays["x"].shape) == 1 else None,
+              "epoch": arrays["time"].shape[0] if "time" in arrays and len(arrays["time"].shape) == 1 else None}
+    for name, meta in sorted(arrays.items()):
+        dims = tuple(meta.dimension_names or ())
+        if len(dims) != len(meta.shape):
+            continue  # no or partial names: reported above when the array is required
+        for axis, dim in enumerate(dims):
+            if length.get(dim) is not None and meta.shape[axis] != length[dim]:
+                problems.append(f"array {name}: {meta.shape[axis]} along {dim}, the store has {length[dim]}")
+    attrs = group.attrs
+    for name in REQUIRED_TEXT_ATTRIBUTES:
+        if not isinstance(attrs.get(name), str):
+            problems.append(f"root attribute {name}: {'missing' if name not in attrs else 'not text'}")
+    if isinstance(attrs.get("parameters"), str):
+        try:
+            parameters = json.loads(attrs["parameters"])
+        except ValueError:
+            parameters = None
+        if not isinstance(parameters, dict):
+            problems.append("root attribute parameters: not a JSON object of M3C2 parameters")
+    marked = attrs.get(REWRITING)
+    if marked is not None and not (isinstance(marked, list) and all(isinstance(m, str) for m in marked)):
+        problems.append(f"root attribute {REWRITING}: not a list of variable names ({marked!r})")
+    return problems
 
 
 def committed_epochs(path: Path) -> int:
