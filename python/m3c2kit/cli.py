@@ -21,6 +21,7 @@ from .io import crs as crs_mod
 from .io import laspy_local, laz_threads
 from .io.collisions import check_outputs
 from .io.describe import describe, describe_text
+from .io.files import add_drop_nonfinite_option
 from .io.input_file import os_error_message
 from .report.outputs import CompareOutputs, write_compare_outputs
 from .run.checks import check_all_fields, check_core_normals
@@ -54,7 +55,7 @@ def _compare_parser(sub) -> None:
                                                      "(default: the core file's normal fields)")
     p.add_argument("--params", type=Path, help="CloudCompare qM3C2 parameter file; command-line options win")
     p.add_argument("--projected", action="store_true", help="also write the projected positions x1..z2")
-    p.add_argument("--drop-nonfinite", action="store_true", help="drop points with NaN/Inf coordinates")
+    add_drop_nonfinite_option(p)
     p.add_argument("--ignore-crs", action="store_true",
                    help="compare clouds whose CRS or units differ, or of which only one has a CRS, or in degrees "
                         "(default: an error naming them)")
@@ -108,6 +109,7 @@ def _normals_parser(sub) -> None:
                    help="output: .csv .txt .ply .las .laz (nx, ny, nz, normal_scale, roughness, count, status)")
     p.add_argument("--core", type=Path, help="core points (default: every point)")
     add_table_options(p, "normals")
+    add_drop_nonfinite_option(p)
     _verbosity_options(p)
     add_progress_option(p)
     p.set_defaults(run=run_normals)
@@ -119,6 +121,7 @@ def _subsample_parser(sub) -> None:
     p.add_argument("-o", "--output", type=Path, required=True,
                    help="the kept points with their attributes: .csv .txt .ply .las .laz")
     p.add_argument("--spacing", type=float, required=True, help="minimum distance between kept points")
+    add_drop_nonfinite_option(p)
     p.set_defaults(run=run_subsample)
 
 
@@ -296,7 +299,7 @@ def run_compare(args) -> int:
     check_outputs(_compare_outputs(args), _inputs(args, settings))  # before any work (docs/errors.md)
     phases = phases_for(args)  # -q with --progress refused here, in every mode
     if args.tile_size is not None or args.memory_limit is not None or args.dask_scheduler is not None:
-        if getattr(args, "crs", None):
+        if getattr(args, "crs", None) is not None:  # an empty --crs '' was dropped silently
             raise UsageError("--crs is not available with --tile-size, --memory-limit or --dask-scheduler; "
                              "give the inputs a CRS (e.g. convert them to LAS with one) or run in memory")
         return run_compare_tiled(args, settings, grid=cell)  # out-of-core / Dask (docs/scaling.md)
@@ -308,7 +311,7 @@ def run_compare(args) -> int:
         step(2, len(files))
         core_cloud = _read(args.core, args) if args.core is not None else None
         step(len(files), len(files))
-    if getattr(args, "crs", None):
+    if getattr(args, "crs", None) is not None:  # '' too: refused as no CRS, not ignored
         assign_crs(args.crs, reference, compared, core_cloud)
     check_same_crs(reference, compared, core_cloud, ignore=getattr(args, "ignore_crs", False),
                    allow_angular=getattr(args, "allow_angular", False))  # docs/errors.md

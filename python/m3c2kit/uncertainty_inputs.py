@@ -265,7 +265,8 @@ def transform_matrix(value) -> np.ndarray:
     if not np.all(np.isfinite(m)):
         raise UsageError(f"{where}: non-finite value")
     r = m[:, :3]
-    off = float(np.max(np.abs(r.T @ r - np.eye(3))))
+    with np.errstate(over="ignore", invalid="ignore"):  # entries near 1e308: R^T R overflows, refused below
+        off = float(np.max(np.abs(r.T @ r - np.eye(3))))
     if not off <= ROTATION_TOLERANCE:
         raise UsageError(f"{where}: the 3x3 part is not a rotation (R^T R differs from the identity by {off:.3g}, "
                          f"more than {ROTATION_TOLERANCE:g}: a scale or shear); M3C2-EP takes a rigid-body "
@@ -294,6 +295,8 @@ def alignment_covariance(value) -> np.ndarray:
         i = int(np.argmax(np.diag(c) < 0))
         raise UsageError(f"{where}: negative variance {c[i, i]:.6g} on the diagonal (row {i + 1})")
     eig = np.linalg.eigvalsh(c)
+    if not np.all(np.isfinite(eig)):  # values near 1e308: the eigenvalues overflow, and NaN passed the test below
+        raise UsageError(f"{where}: the covariance's values are too large: its eigenvalues overflow the float range")
     if eig[0] < -COVARIANCE_TOLERANCE * max(eig[-1], 0.0):
         raise UsageError(f"{where}: the covariance is not positive semidefinite: eigenvalue {eig[0]:.6g} (the "
                          f"largest is {eig[-1]:.6g}; at most {COVARIANCE_TOLERANCE:g} of it below 0 is rounding)")

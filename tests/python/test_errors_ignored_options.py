@@ -391,3 +391,97 @@ def test_scan_position_listed_twice_or_fractional_is_refused(tmp_path):
     table = np.array([[1.5, 0, 0, 0, 0.005, 0, 0.0003, 0.0004]])
     with pytest.raises(UsageError, match="ids must be integers"):
         ui.shared_inputs({"uncertainty": "ep", "scan_positions": table}, None, None)
+
+
+# --- The analysis commands: options that would change nothing, impossible values -----------------
+
+@pytest.mark.parametrize("flags, named, needs", [
+    (["--model-knn", "10"], "--model-knn", "--model plane"),  # C2C has no local model: k unused
+    (["--model", "none", "--rule", "model"], "--rule", "--model plane"),
+    (["--model-radius", "0.5"], "--model-radius", "--model plane"),
+    (["--model", "plane", "--model-radius", "0.5", "--model-knn", "8"], "--model-knn", "--model-radius chooses"),
+], ids=str)
+def test_c2c_refuses_model_options_without_the_model_they_tune(clouds, capsys, flags, named, needs):
+    ref, cmp_, d = clouds
+    code = main(["c2c", str(ref), str(cmp_), "-o", str(d / "c2c.csv"), *flags])
+    err = capsys.readouterr().err
+    assert code == 2 and err.startswith(f"m3c2: error: {named} {NOTHING}") and needs in err, err
+    assert not (d / "c2c.csv").exists()
+    from m3c2kit.analysis import c2c  # the API refuses the same
+    keywords = {"--model-knn": "model_neighbours", "--rule": "rule", "--model-radius": "model_radius"}
+    given = {keywords[f]: (v if f == "--rule" else float(v)) for f, v in zip(flags[::2], flags[1::2]) if f in keywords}
+    with pytest.raises(UsageError, match=f"{named} {NOTHING}"):
+        c2c(np.zeros((3, 3)), np.zeros((3, 3)), model=dict(zip(flags[::2], flags[1::2])).get("--model", "none"),
+            **given)
+
+
+def test_c2c_model_options_where_they_act_are_accepted(clouds, capsys):
+    ref, cmp_, d = clouds
+    assert main(["c2c", str(ref), str(cmp_), "-o", str(d / "a.csv"), "--model", "plane", "--model-knn", "8",
+                 "--rule", "model", "-q"]) == 0, capsys.readouterr().err
+    assert main(["c2c", str(ref), str(cmp_), "-o", str(d / "b.csv"), "-q"]) == 0, capsys.readouterr().err
+
+
+def test_simplify_refuses_a_normal_scale_with_vertical_normals(clouds, capsys):
+    ref, _, d = clouds
+    code = main(["simplify", str(ref), "--projection-scale", "0.5", "--vertical", "--normal-scale", "1", "-o",
+                 str(d / "s.csv")])
+    err = capsys.readouterr().err
+    assert code == 2 and err.startswith(f"m3c2: error: --normal-scale {NOTHING}") and "--vertical" in err, err
+    assert not (d / "s.csv").exists()
+    # a d whose default D = 2 d overflows names the option given, not the --normal-scale left out
+    code = main(["simplify", str(ref), "--projection-scale", "1e308", "-o", str(d / "s.csv")])
+    err = capsys.readouterr().err
+    assert code == 2 and err.startswith("m3c2: error: --projection-scale 1e+308 is too large"), err
+
+
+@pytest.mark.parametrize("l0", ["nan", "-1", "inf", "0"])
+def test_roughness_refuses_an_impossible_l0(clouds, capsys, l0):
+    ref, _, d = clouds
+    code = main(["roughness", str(ref), "--normal-scale", "0.5,1", "--l0", l0, "-o", str(d / "r.csv")])
+    err = capsys.readouterr().err
+    assert code == 2 and err.startswith("m3c2: error: --l0 must be finite and > 0"), err
+    assert not (d / "r.csv").exists()
+    # named before the cloud is read (a missing one here) and the scales computed
+    code = main(["roughness", str(d / "missing.xyz"), "--normal-scale", "0.5,1", "--l0", l0, "-o", str(d / "r.csv")])
+    assert code == 2 and "--l0 must be finite and > 0" in capsys.readouterr().err
+    from m3c2kit.analysis import fit_scaling  # the API: sigma(l0) was NaN or 0
+    with pytest.raises(UsageError, match="--l0 must be finite and > 0"):
+        fit_scaling([0.5, 1.0], [0.01, 0.02], l0=float(l0))
+
+
+def test_matrices_past_the_float_range_are_refused_without_a_numpy_warning(tmp_path):
+    import warnings
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", RuntimeWarning)  # "overflow encountered in matmul" reached stderr
+        with pytest.raises(UsageError, match="is not a rotation"):
+            ui.transform_matrix(np.column_stack([1e308 * np.eye(3), [0, 0, 0]]))
+        # every eigenvalue overflows (NaN passed the semidefinite test): the LODs were all NaN, exit 0
+        path = _write(tmp_path / "huge.csv", np.full((12, 12), 1e308))
+        with pytest.raises(UsageError, match=f"--alignment-covariance {path}: .* eigenvalues overflow"):
+            ui.alignment_covariance(path)
+
+
+@pytest.mark.parametrize("argv, words", [
+    (["compare", "REF", "CMP", "-o", "OUT", *BASE, "--crs", ""], "--crs ''"),  # no CRS assigned, exit 0
+    (["classify", "train", "REF", "--label-field", "z", "--label-values", "", "-o", "OUT.json"],
+     "--label-values is empty: give KEY=VALUE items separated by commas"),  # every value a label
+    (["classify", "train", "REF=a", "CMP=b", "--scales", "", "-o", "OUT.json"], "--scales is empty"),  # the defaults
+], ids=["--crs", "--label-values", "--scales"])
+def test_an_option_given_an_empty_value_is_refused_not_dropped(clouds, capsys, argv, words):
+    ref, cmp_, d = clouds
+    names = {"REF": str(ref), "CMP": str(cmp_), "REF=a": f"{ref}=a", "CMP=b": f"{cmp_}=b", "OUT": str(d / "o.csv"),
+             "OUT.json": str(d / "o.json")}
+    code = main([names.get(a, a) for a in argv])
+    err = capsys.readouterr().err
+    assert code == 2 and words in err and err.count("\n") == 1, err
+    assert not (d / "o.csv").exists() and not (d / "o.json").exists()
+
+
+def test_an_empty_class_map_is_refused_not_dropped():
+    from m3c2kit.classify.cli import class_codes
+    from types import SimpleNamespace
+    for spec in ("", " , "):
+        with pytest.raises(UsageError, match="--class-map is empty"):
+            class_codes(SimpleNamespace(labels=["2", "5"]), spec)
+    assert class_codes(SimpleNamespace(labels=["2", "5"]), None) == {"2": 2, "5": 5}

@@ -12,6 +12,7 @@ import json
 import os
 import signal
 import socket
+import stat
 import warnings
 from contextlib import contextmanager
 from pathlib import Path
@@ -398,3 +399,155 @@ def test_degenerate_inputs_raise_no_runtime_warning(argv, data, tmp_path, capsys
         code, err = run([names.get(a, a) for a in argv], capsys)
     assert code == 0, err
     assert "RuntimeWarning" not in err and "Traceback" not in err
+
+
+# ------------------------------------------------------------- figures and advice that hold
+
+@pytest.mark.parametrize("argv", [
+    ["roughness", "A", "--normal-scale", "0.5,1", "-o", "O", "--plot", "P"],
+    ["calibrate", "A", "--projection-scales", "0.5,1", "-o", "O", "--plot", "P"],
+    ["classify", "train", "A=ground", "B=vegetation", "-o", "O.json", "--plot", "P"],
+], ids=lambda a: a[0] if a[0] != "classify" else "classify train")
+@pytest.mark.parametrize("name", ["plot.txt", "plot.foo"])
+def test_a_figure_format_matplotlib_cannot_write_is_refused_before_any_output(argv, name, data, tmp_path, capsys):
+    # A traceback (matplotlib's ValueError) after -o was written, before.
+    pytest.importorskip("matplotlib")
+    plot = tmp_path / name
+    names = {"A": data / "a.xyz", "A=ground": f"{data / 'a.xyz'}=ground", "B=vegetation": f"{data / 'b.xyz'}=vegetation",
+             "O": tmp_path / "o.csv", "O.json": tmp_path / "o.json", "P": plot}
+    code, err = run([names.get(a, a) for a in argv], capsys)
+    suffix = name.split(".")[1]
+    assert one_line(err).startswith(f"--plot {plot}: cannot draw '.{suffix}' figures (supported: ")
+    assert code == 2
+    assert list(tmp_path.iterdir()) == []  # neither -o nor the figure
+
+
+@pytest.mark.parametrize("argv", [
+    ["roughness", "NAN", "--normal-scale", "0.5,1", "-o", "O"],
+    ["calibrate", "NAN", "--projection-scales", "0.5,1", "--bootstrap", "0", "-o", "O"],
+    ["c2c", "NAN", "B", "-o", "O"],
+    ["simplify", "NAN", "--projection-scale", "0.5", "-o", "O"],
+    ["suggest", "NAN", "B", "--sample", "20"],
+    ["normals", "NAN", "--normal-scale", "0.5", "-o", "O"],
+    ["subsample", "NAN", "--spacing", "0.1", "-o", "O"],
+], ids=lambda a: a[0])
+def test_every_command_offers_the_drop_nonfinite_its_error_advises(argv, data, tmp_path, capsys):
+    # The reader's message advises --drop-nonfinite: commands without it made the advice a usage error.
+    rng = np.random.default_rng(11)  # a rough plane dense enough for suggest
+    xyz = np.column_stack([rng.uniform(0, 4, (400, 2)), rng.normal(0, 0.01, 400)])
+    np.savetxt(tmp_path / "b.xyz", xyz + [0, 0, 0.05])
+    xyz[[3, 17]] = np.nan
+    np.savetxt(tmp_path / "nan.xyz", xyz)
+    names = {"NAN": tmp_path / "nan.xyz", "B": tmp_path / "b.xyz", "O": tmp_path / "o.csv"}
+    argv = [names.get(a, a) for a in argv]
+    code, err = run(argv, capsys)
+    assert code == 1 and one_line(err).endswith("use --drop-nonfinite to drop them")
+    code, err = run([*argv, "--drop-nonfinite"], capsys)
+    assert code == 0, err
+
+
+def test_a_spacing_multiple_of_a_cloud_without_spacing_says_so(tmp_path, capsys):
+    # One repeated point has no median spacing: '3x' (the default) was called "a non-positive spacing".
+    np.savetxt(tmp_path / "same.xyz", np.ones((20, 3)))
+    code, err = run(["calibrate", tmp_path / "same.xyz", "--projection-scales", "0.5,1", "-o", tmp_path / "o.csv"],
+                    capsys)
+    assert code == 2
+    assert one_line(err) == ("--spacings: '3x' is a multiple of the median point spacing, which the cloud does not "
+                             "have (fewer than two distinct points); give a length")
+
+
+@pytest.mark.parametrize("kind", ["fifo", "link to a fifo"])
+@pytest.mark.parametrize("argv", [
+    ["compare", "A", "B", "-o", "S.csv", *SCALES],
+    ["subsample", "A", "--spacing", "0.1", "-o", "S.xyz"],
+    ["roughness", "A", "--normal-scale", "0.5,1", "-o", "S.csv"],
+    ["roughness", "A", "--normal-scale", "0.5,1", "-o", "O", "--plot", "S.png"],
+    ["classify", "train", "A=ground", "B=vegetation", "-o", "S.json"],
+], ids=lambda a: " ".join(a[:2]) + (" --plot" if "--plot" in a else ""))
+def test_an_output_never_replaces_a_special_file(argv, kind, data, tmp_path, capsys):
+    # The output is renamed onto its name: as root, `-o /dev/null` replaced the device node with a
+    # regular file (exit 0). A FIFO stands for the device here (the test must not risk /dev/null).
+    special_name = next(a for a in argv if a.startswith("S."))
+    fifo = tmp_path / f"fifo{Path(special_name).suffix}"
+    os.mkfifo(fifo)
+    target = fifo
+    if kind != "fifo":
+        target = tmp_path / f"link{fifo.suffix}"
+        target.symlink_to(fifo)
+    names = {"A": data / "a.xyz", "B": data / "b.xyz", "A=ground": f"{data / 'a.xyz'}=ground",
+             "B=vegetation": f"{data / 'b.xyz'}=vegetation", "O": tmp_path / "o.csv", special_name: target}
+    code, err = run([names.get(a, a) for a in argv], capsys)
+    assert one_line(err) == (f"{target}: not a regular file (a device, FIFO or socket); an output replaces only a "
+                             f"regular file: choose another output path")
+    assert code == 1
+    assert os.path.islink(target) == (kind != "fifo") and stat.S_ISFIFO(os.stat(fifo).st_mode)
+    assert not (tmp_path / "o.csv").exists()
+
+
+HUGE = "9" * 23  # past numpy's int64: an OverflowError traceback before
+
+
+@pytest.mark.parametrize("flags, label, words", [
+    (["--class-map", f"1={HUGE}"], "1", f"--class-map: the code {HUGE} of class '1' is out of range: codes are "
+                                        f"integers from -2147483648 to 2147483647"),
+    ([], HUGE, f"--class-map: the code {HUGE} of class '{HUGE}' is out of range: codes are integers from "
+               f"-2147483648 to 2147483647"),  # a forged classifier's integer label is its own code
+    (["--class-map", "1=3,1=4"], "1", "--class-map: 1 is given twice (1=3 and 1=4); give each once"),  # last won
+    (["--unclassified", HUGE], "1", f"argument --unclassified: must be an integer from -2147483648 to 2147483647, "
+                                    f"got {HUGE}"),
+], ids=["class-map code", "integer label", "class-map key twice", "unclassified"])
+def test_class_codes_out_of_range_or_given_twice_are_usage_errors(flags, label, words, data, tmp_path, capsys):
+    path = tmp_path / "clf.json"
+    path.write_text(_forge(lambda d: (d.update(labels=[label, "2"]), d["classifiers"][0].update(class1=label))))
+    code, err = run(["classify", "apply", data / "a.xyz", "--classifier", path, "-o", tmp_path / "o.csv", *flags],
+                    capsys)
+    assert code == 2 and err.splitlines()[-1] == f"m3c2: error: {words}", err
+    assert "Traceback" not in err and not (tmp_path / "o.csv").exists()
+
+
+@pytest.mark.parametrize("call, words", [
+    (lambda a: m3c2kit.analysis.roughness_by_scale(a, a, "x"), "diameters must be a number, got 'x'"),
+    (lambda a: m3c2kit.analysis.roughness_by_scale(a, a, [0.5], min_points=1.5), "min_points must be an integer"),
+    (lambda a: m3c2kit.analysis.c2c(a, a, model="plane", model_neighbours="x"), "model_neighbours must be an integer"),
+    (lambda a: m3c2kit.analysis.c2c(a, a, model="plane", model_neighbours=2.5), "model_neighbours must be an integer"),
+    (lambda a: m3c2kit.analysis.suggest(a, a, sample=0), "sample must be an integer >= 1, got 0"),
+    (lambda a: m3c2kit.analysis.suggest(a, a, sample=-1), "sample must be an integer >= 1, got -1"),
+], ids=["diameters a string", "min_points 1.5", "model_neighbours a string", "model_neighbours 2.5", "sample 0",
+        "sample -1"])
+def test_the_analysis_api_names_a_wrong_argument(call, words):
+    # numpy's or int()'s ValueError, a RuntimeWarning ("Mean of empty slice"), or a silent int(2.5) before.
+    import m3c2kit.analysis  # noqa: F401 (the package's analysis functions)
+    rng = np.random.default_rng(5)
+    points = np.column_stack([rng.uniform(0, 4, (200, 2)), rng.normal(0, 0.01, 200)])
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", RuntimeWarning)
+        with pytest.raises(UsageError, match=words):
+            call(points)
+
+
+@pytest.mark.parametrize("prefix", ["", ".", "/", ".."])
+def test_a_report_png_prefix_naming_a_folder_is_a_usage_error(prefix, data, tmp_path, capsys):
+    # pathlib's "has an empty name" ValueError, a traceback, before.
+    code, err = run(["compare", data / "a.xyz", data / "b.xyz", "-o", tmp_path / "o.csv", *SCALES, "--report-png",
+                     prefix], capsys)
+    shown = prefix or "."  # argparse's Path('') is '.'
+    assert one_line(err).startswith(f"--report-png {shown!r} names a folder, not a prefix: give e.g. ")
+    assert code == 2 and list(tmp_path.iterdir()) == []
+
+
+@pytest.mark.parametrize("link", [False, True])
+def test_the_api_writers_never_replace_a_special_file(link, tmp_path):
+    # The command line checks its outputs first (io.collisions); the API's writers reach the atomic
+    # writer directly, which refuses them too: write_cloud_table('fifo.csv', ...) replaced the FIFO.
+    from m3c2kit.errors import CloudWriteError
+    from m3c2kit.io import write_cloud_table
+    fifo = tmp_path / "fifo.csv"
+    os.mkfifo(fifo)
+    target = fifo
+    if link:
+        target = tmp_path / "link.csv"
+        target.symlink_to(fifo)
+    with pytest.raises(CloudWriteError, match="not a regular file"):
+        write_cloud_table(target, np.zeros((2, 3)), {"distance": np.zeros(2)})
+    assert stat.S_ISFIFO(os.stat(fifo).st_mode) and os.path.islink(target) == link
+    assert sorted(p.name for p in tmp_path.iterdir()) == sorted({"fifo.csv", target.name})

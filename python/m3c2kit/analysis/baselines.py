@@ -19,18 +19,38 @@ from ..errors import UsageError
 
 MODELS = ("none", "plane")
 RULES = ("closer", "model")
+MODEL_NEIGHBOURS = 6  # the plane's k nearest reference points when no model_radius is given
+RULE = "closer"
 
 
-def c2c(reference, compared, *, model: str = "none", model_radius: float | None = None, model_neighbours: int = 6,
-        rule: str = "closer", threads: int = 0, progress=None) -> dict[str, np.ndarray]:
+def c2c(reference, compared, *, model: str = "none", model_radius: float | None = None,
+        model_neighbours: int | None = None, rule: str | None = None, threads: int = 0,
+        progress=None) -> dict[str, np.ndarray]:
     """Keys: distance (C2C), nearest (index into reference), model_distance (NaN without a
-    plane), hf_distance (C2C_HF; = distance where there is no plane), model_count."""
+    plane), hf_distance (C2C_HF; = distance where there is no plane), model_count.
+    model_neighbours defaults to MODEL_NEIGHBOURS, rule to RULE; both act only with a plane."""
+    options = model_options(model, model_radius, model_neighbours, rule)
+    ref, cmp_ = as_points("reference", reference), as_points("compared", compared)
+    return engine.c2c(ref, cmp_, **options, threads=threads, progress=progress)  # engine checks the integers
+
+
+def model_options(model: str, model_radius: float | None, model_neighbours: int | None, rule: str | None) -> dict:
+    """The engine's model arguments, defaults filled in; UsageError for a bad value and for an
+    option that would change nothing (refused, never ignored: docs/errors.md, issue 31 item 5).
+    The command line calls it before reading its clouds."""
     if model not in MODELS:
         raise UsageError(f"--model must be one of {', '.join(MODELS)}, got {model!r}")
-    if rule not in RULES:
+    if rule is not None and rule not in RULES:
         raise UsageError(f"--rule must be one of {', '.join(RULES)}, got {rule!r}")
     if model_radius is not None and not (np.isfinite(model_radius) and model_radius > 0):
         raise UsageError(f"--model-radius must be finite and > 0, got {model_radius!r}")
-    ref, cmp_ = as_points("reference", reference), as_points("compared", compared)
-    return engine.c2c(ref, cmp_, model=model, model_radius=float(model_radius or 0.0),
-                      model_neighbours=int(model_neighbours), rule=rule, threads=int(threads), progress=progress)
+    if model == "none":
+        for flag, value in (("--model-radius", model_radius), ("--model-knn", model_neighbours), ("--rule", rule)):
+            if value is not None:
+                raise UsageError(f"{flag} would change nothing in this run: it applies only with --model plane")
+    elif model_radius is not None and model_neighbours is not None:
+        raise UsageError("--model-knn would change nothing in this run: --model-radius chooses the plane's "
+                         "neighbours instead; give one of them")
+    return dict(model=model, model_radius=float(model_radius or 0.0),
+                model_neighbours=MODEL_NEIGHBOURS if model_neighbours is None else model_neighbours,  # engine checks it
+                rule=RULE if rule is None else rule)

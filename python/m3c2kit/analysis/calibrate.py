@@ -40,8 +40,11 @@ def resolve_spacing(spec, spacing: float) -> float:
         value = float(text[:-1]) * spacing if text.endswith("x") else float(text)
     except ValueError:
         raise UsageError(f"--spacings: {spec!r} is not 'raw', a number or a multiple of the point spacing 'Nx'") from None
+    if text.endswith("x") and not (math.isfinite(spacing) and spacing > 0):
+        raise UsageError(f"--spacings: {spec!r} is a multiple of the median point spacing, which the cloud does "
+                         f"not have (fewer than two distinct points); give a length")
     if not (math.isfinite(value) and value > 0):
-        raise UsageError(f"--spacings: {spec!r} gives a non-positive spacing")
+        raise UsageError(f"--spacings: {spec!r} gives a spacing that is not finite and > 0 ({value:g})")
     return value
 
 

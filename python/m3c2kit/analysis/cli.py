@@ -9,26 +9,27 @@ from pathlib import Path
 import numpy as np
 
 from ..cli_integers import COUNT_MAX, SEED_MAX, THREADS_MAX, integer
-from ..errors import UsageError
 from ..io import read_cloud, write_cloud_table
+from ..io.files import add_drop_nonfinite_option
 from ..cli_parser import phases_for
 from ..io.collisions import check_outputs
+from ..settings.parsers import positive
 from importlib import import_module
 
 # The package exports functions named like these modules, so `from . import calibrate` would give
 # the function: import the modules by name.
 roughness_mod, calibrate_mod, simplify_mod, suggest_mod = (
     import_module(f"{__package__}.{name}") for name in ("roughness", "calibrate", "simplify", "suggest"))
-from .baselines import c2c
-from .common import scales, value_range, write_csv
+from .baselines import MODEL_NEIGHBOURS, RULE, RULES, c2c, model_options
+from .common import figure_format, scales, value_range, write_csv
 
 D_HELP = "D, the normal scale: a DIAMETER"
 d_HELP = "d, the projection scale: the cylinder's DIAMETER"
 THREADS_HELP = "worker threads (0: every core; the results do not depend on it)"
 
 
-def _read(path: Path):
-    return read_cloud(path)
+def _read(path: Path, args):
+    return read_cloud(path, drop_nonfinite=args.drop_nonfinite)
 
 
 def _core_options(p, what="cloud") -> None:
@@ -45,12 +46,14 @@ def _check_outputs(args) -> None:
               "compared cloud": getattr(args, "compared", None), "core points file": getattr(args, "core", None),
               "orientation file": orient if orient and os.path.isfile(orient) else None}
     check_outputs({"-o": getattr(args, "output", None), "--plot": getattr(args, "plot", None)}, inputs)
+    if getattr(args, "plot", None) is not None:
+        figure_format(args.plot)
 
 
 def _core_points(args, cloud_xyz, default_all=True):
     from .. import api
     if args.core is not None:
-        return _read(args.core).xyz
+        return _read(args.core, args).xyz
     if args.core_spacing is not None:
         return api.core_points_for(cloud_xyz, None, args.core_spacing)
     return cloud_xyz if default_all else None
@@ -74,6 +77,7 @@ def analysis_parsers(sub) -> None:
     p.add_argument("--threads", type=integer(0, THREADS_MAX), default=0, help=THREADS_HELP)
     p.add_argument("-q", "--quiet", action="store_true",
                    help="no progress bar or summary (warnings and errors still go to stderr)")
+    add_drop_nonfinite_option(p)
     p.set_defaults(run=run_roughness)
 
     p = sub.add_parser("calibrate", help="LOD95 calibration on subsampled copies of one cloud (5.2.1-5.2.2, Figs. 8-9)",
@@ -99,6 +103,7 @@ def analysis_parsers(sub) -> None:
     p.add_argument("-o", "--output", type=Path, required=True, help="CSV table")
     p.add_argument("--plot", type=Path, help="plot of the calibration (PNG, PDF, SVG)")
     p.add_argument("--threads", type=integer(0, THREADS_MAX), default=0, help=THREADS_HELP)
+    add_drop_nonfinite_option(p)
     p.set_defaults(run=run_calibrate)
 
     p = sub.add_parser("c2c", help="closest-point baselines C2C and C2C_HF (section 3.4)",
@@ -112,13 +117,15 @@ def analysis_parsers(sub) -> None:
     p.add_argument("--model", choices=["none", "plane"], default="none",
                    help="local model: none (C2C) or plane (also C2C_HF)")
     p.add_argument("--model-radius", type=float, help="model neighbours within this radius of the closest point")
-    p.add_argument("--model-knn", type=integer(1, COUNT_MAX), default=6, help="else its k nearest reference points (default 6)")
-    p.add_argument("--rule", choices=["closer", "model"], default="closer",
-                   help="closer: min(C2C, plane) as CloudCompare >= 2.5 (default); model: the plane distance as "
-                        "CloudCompare 2.3")
+    p.add_argument("--model-knn", type=integer(1, COUNT_MAX),
+                   help=f"else its k nearest reference points (default {MODEL_NEIGHBOURS})")
+    p.add_argument("--rule", choices=RULES,
+                   help=f"with --model plane: closer: min(C2C, plane) as CloudCompare >= 2.5; model: the plane "
+                        f"distance as CloudCompare 2.3 (default {RULE})")
     p.add_argument("--threads", type=integer(0, THREADS_MAX), default=0, help=THREADS_HELP)
     p.add_argument("-q", "--quiet", action="store_true",
                    help="no progress bar or summary (warnings and errors still go to stderr)")
+    add_drop_nonfinite_option(p)
     p.set_defaults(run=run_c2c)
 
     p = sub.add_parser("simplify", help="self-comparison: local averaging or outlier removal (section 6.3)",
@@ -138,6 +145,7 @@ def analysis_parsers(sub) -> None:
     p.add_argument("--threads", type=integer(0, THREADS_MAX), default=0, help=THREADS_HELP)
     p.add_argument("-q", "--quiet", action="store_true",
                    help="no progress bar or summary (warnings and errors still go to stderr)")
+    add_drop_nonfinite_option(p)
     p.set_defaults(run=run_simplify)
 
     p = sub.add_parser("suggest", help="suggest D, d and the max depth for a pair of clouds",
@@ -149,12 +157,14 @@ def analysis_parsers(sub) -> None:
     p.add_argument("--sample", type=integer(1, COUNT_MAX), default=2000, help="sampled core points (default 2000)")
     p.add_argument("--seed", type=integer(0, SEED_MAX), default=0, help="seed of the core-point sample")
     p.add_argument("--threads", type=integer(0, THREADS_MAX), default=0, help=THREADS_HELP)
+    add_drop_nonfinite_option(p)
     p.set_defaults(run=run_suggest)
 
 
 def run_roughness(args) -> int:
     _check_outputs(args)
-    cloud = _read(args.cloud)
+    positive("--l0", args.l0)  # checked again by fit_scaling; here before the scales are computed
+    cloud = _read(args.cloud, args)
     diameters = scales("--normal-scale", args.normal_scale)
     core = _core_points(args, cloud.xyz)
     with phases_for(args).phase("roughness") as step:
@@ -173,10 +183,10 @@ def run_roughness(args) -> int:
 
 def run_calibrate(args) -> int:
     _check_outputs(args)
-    cloud = _read(args.cloud)
+    cloud = _read(args.cloud, args)
     ds = scales("--projection-scales", args.projection_scales)
     spacings = [s for s in args.spacings.split(",") if s.strip()]
-    core = _read(args.core).xyz if args.core is not None else None
+    core = _read(args.core, args).xyz if args.core is not None else None
     res = calibrate_mod.calibrate(cloud.xyz, ds, spacings=spacings, normal_scale=args.normal_scale, core=core,
                                   core_spacing=args.core_spacing, max_core=args.max_core, seed=args.seed,
                                   max_depth=args.max_depth, bootstrap=args.bootstrap, min_points=args.min_points,
@@ -192,9 +202,8 @@ def run_calibrate(args) -> int:
 
 def run_c2c(args) -> int:
     _check_outputs(args)
-    reference, compared = _read(args.reference), _read(args.compared)
-    if args.model == "none" and args.model_radius is not None:
-        raise UsageError("--model-radius needs --model plane")
+    model_options(args.model, args.model_radius, args.model_knn, args.rule)  # refused before reading
+    reference, compared = _read(args.reference, args), _read(args.compared, args)
     queries = _core_points(args, compared.xyz)
     with phases_for(args).phase("C2C") as step:
         r = c2c(reference.xyz, queries, model=args.model, model_radius=args.model_radius,
@@ -214,8 +223,8 @@ def run_c2c(args) -> int:
 
 def run_simplify(args) -> int:
     _check_outputs(args)
-    cloud = _read(args.cloud)
-    core = _read(args.core).xyz if args.core is not None else None
+    cloud = _read(args.cloud, args)
+    core = _read(args.core, args).xyz if args.core is not None else None
     with phases_for(args).phase("simplify") as step:
         points, fields = simplify_mod.simplify(cloud.xyz, core, projection_scale=args.projection_scale,
                                                normal_scale=args.normal_scale, core_spacing=args.core_spacing,
@@ -232,7 +241,7 @@ def run_simplify(args) -> int:
 
 
 def run_suggest(args) -> int:
-    reference, compared = _read(args.reference), _read(args.compared)
+    reference, compared = _read(args.reference, args), _read(args.compared, args)
     res = suggest_mod.suggest(reference, compared, sample=args.sample, seed=args.seed, threads=args.threads)
     for line in suggest_mod.report_lines(res) + suggest_mod.proposal_lines(res, shlex.quote(str(args.reference)),
                                                                           shlex.quote(str(args.compared))):

@@ -118,11 +118,23 @@ def median_spacing(points: np.ndarray, sample: int = 2000, seed: int = 0) -> flo
     return float(np.median(d)) if d.size else math.nan
 
 
+def figure_format(path, *, option: str = "--plot", extra: str = "report") -> str:
+    """The format a figure is written to `path` in: its extension's, PNG without one. Checked
+    before any work by every command that draws (a format matplotlib cannot write failed with a
+    traceback after the command's other outputs were written); a missing matplotlib too."""
+    backend_bases = require("matplotlib.backend_bases", extra=extra, purpose=f"drawing {option}")
+    supported = backend_bases.FigureCanvasBase.get_supported_filetypes()
+    fmt = Path(path).suffix.lstrip(".").lower() or "png"
+    if fmt not in supported:
+        raise UsageError(f"{option} {path}: cannot draw '.{fmt}' figures "
+                         f"(supported: {' '.join('.' + f for f in sorted(supported))})")
+    return fmt
+
+
 def save_figure(fig, path) -> None:
     """Saves a matplotlib figure atomically (format from the extension)."""
-    path = Path(path)
-    with atomic_output(path) as tmp:
-        fig.savefig(tmp, dpi=120, format=path.suffix.lstrip(".") or "png")
+    with atomic_output(Path(path)) as tmp:
+        fig.savefig(tmp, dpi=120, format=figure_format(path))
 
 
 def pyplot():

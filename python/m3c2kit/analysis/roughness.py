@@ -17,7 +17,8 @@ import numpy as np
 from .. import engine
 from ..api import as_points
 from ..errors import UsageError
-from .common import format_table, loglog_fit, pyplot, readable_log_axis, save_figure
+from ..settings.parsers import positive
+from .common import format_table, loglog_fit, pyplot, readable_log_axis, save_figure, scales
 
 L0 = 0.5
 #: sigma(D) at or below this share of D is zero to the engine's precision (docs/algorithm.md#3.3:
@@ -32,8 +33,9 @@ def roughness_by_scale(cloud, core, diameters, *, variance: str = "sample", min_
     pts, core_pts = as_points("cloud", cloud), as_points("core", core)
     if variance not in ("sample", "population"):
         raise UsageError(f"variance must be sample or population, got {variance!r}")
-    return engine.roughness_by_scale(pts, core_pts, [float(d) for d in diameters], variance, int(min_points),
-                                     threads=int(threads), progress=progress)
+    # The engine checks the integers (int() truncated 1.5 and raised ValueError on a string).
+    return engine.roughness_by_scale(pts, core_pts, list(scales("diameters", diameters)), variance, min_points,
+                                     threads=threads, progress=progress)
 
 
 def roughness_table(sigma: np.ndarray, diameters) -> dict[str, np.ndarray]:
@@ -55,6 +57,7 @@ def fit_scaling(diameters, mean_sigma, fit_range: tuple[float, float] | None = N
     """Eq. (3): beta (the Hurst exponent) with its standard error, sigma(l0), over the scales
     D in fit_range (inclusive; all scales if None). Keys: beta, beta_se, sigma_l0, sigma_l0_factor
     (multiplicative standard error), r2, n_scales, d_min, d_max, l0."""
+    l0 = positive("--l0", l0)  # a NaN, negative or infinite l0 gave NaN or 0 for sigma(l0), exit 0
     d = np.asarray(diameters, float)
     m = np.asarray(mean_sigma, float)
     sel = np.ones(len(d), bool) if fit_range is None else (d >= fit_range[0] * (1 - 1e-12)) & (d <= fit_range[1] * (1 + 1e-12))

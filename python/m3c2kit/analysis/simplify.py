@@ -30,9 +30,17 @@ def simplify(cloud, core=None, *, projection_scale: float, normal_scale=None, co
     params = dict(projection_scale=d, max_depth=float(max_depth) if max_depth is not None else d, median=median,
                   orient=orient, min_points=1, threads=threads, progress=progress, core_spacing=core_spacing)
     if vertical:
+        if normal_scale is not None:  # refused, never ignored (docs/errors.md, issue 31 item 5)
+            raise UsageError("--normal-scale would change nothing in this run: --vertical imposes vertical "
+                             "normals; leave one of them out")
         params["normal_source"] = "vertical"
-    else:
-        params["normal_scale"] = normal_scale if normal_scale is not None else 2 * d
+    elif normal_scale is not None:
+        params["normal_scale"] = normal_scale
+    elif math.isfinite(2 * d):
+        params["normal_scale"] = 2 * d
+    else:  # the default would name --normal-scale, which the user did not give
+        raise UsageError(f"--projection-scale {projection_scale!r} is too large: the default --normal-scale "
+                         f"2 d is not finite; give --normal-scale")
     result = api.compare(pts, pts, core, **params)
     projected = result.projected(1)
     keep = np.isfinite(projected).all(axis=1)

@@ -23,7 +23,7 @@ import math
 import numpy as np
 
 from .. import api
-from ..errors import M3C2Error
+from ..errors import M3C2Error, UsageError
 from ..io.arrays import bounds
 from .common import format_table, median_spacing, sample_indices
 from .roughness import roughness_by_scale
@@ -59,6 +59,9 @@ def _require_a_surface(role: str, source, points: np.ndarray) -> None:
 
 
 def suggest(reference, compared, *, sample: int = 2000, seed: int = 0, threads: int = 0) -> dict:
+    if isinstance(sample, bool) or not isinstance(sample, (int, np.integer)) or sample < 1:
+        # 0 sampled nothing (numpy's "Mean of empty slice"), -1 raised numpy's ValueError
+        raise UsageError(f"sample must be an integer >= 1, got {sample!r}")
     ref, cmp_ = api.as_points("reference", reference), api.as_points("compared", compared)
     _require_a_surface("reference", reference, ref)
     _require_a_surface("compared", compared, cmp_)

@@ -8,10 +8,12 @@ from pathlib import Path
 
 import numpy as np
 
+from ..analysis.common import figure_format
 from ..cli_integers import COUNT_MAX, SEED_MAX, THREADS_MAX, integer
 from ..errors import UsageError
 from ..io import read_cloud, write_cloud_table
 from ..io.collisions import check_outputs
+from ..io.files import add_drop_nonfinite_option
 from ..settings.parsers import normal_scales
 from .apply import classify
 from .labels import labels_from_field, labels_from_polygons, parse_mapping, parse_sample, read_polygons
@@ -54,6 +56,7 @@ def classify_parsers(sub) -> None:
     t.add_argument("--threads", type=integer(0, THREADS_MAX), default=0, help=THREADS_HELP)
     t.add_argument("-q", "--quiet", action="store_true",
                    help="no progress bar or summary (warnings and errors still go to stderr)")
+    add_drop_nonfinite_option(t)
     t.set_defaults(run=run_train)
 
     a = csub.add_parser("apply", help="classify every point of a cloud",
@@ -68,11 +71,12 @@ def classify_parsers(sub) -> None:
                                                                      "(default classification)")
     a.add_argument("--class-map", help="LABEL=CODE,... codes written for the classifier's labels (default: "
                                        "integer labels are their own codes)")
-    a.add_argument("--unclassified", type=int, default=0,
+    a.add_argument("--unclassified", type=integer(CODE_MIN, CODE_MAX), default=0,
                    help="code of points without features (too few neighbours at the largest scale; default 0)")
     a.add_argument("--threads", type=integer(0, THREADS_MAX), default=0, help=THREADS_HELP)
     a.add_argument("-q", "--quiet", action="store_true",
                    help="no progress bar or summary (warnings and errors still go to stderr)")
+    add_drop_nonfinite_option(a)
     a.set_defaults(run=run_apply)
 
 
@@ -98,7 +102,7 @@ def _samples(args):
     out = []
     for text in args.samples:
         path, label = parse_sample(text)
-        cloud = read_cloud(path)
+        cloud = read_cloud(path, drop_nonfinite=args.drop_nonfinite)
         if label is not None:
             out.append((path, cloud.xyz, label))
         elif polygons is not None:
@@ -113,6 +117,8 @@ def _samples(args):
 def _check_outputs(args, inputs: dict) -> None:
     """No output (-o, --plot) may be an input (m3c2kit.io.collisions), checked before any work."""
     check_outputs({"-o": args.output, "--plot": getattr(args, "plot", None)}, inputs)
+    if getattr(args, "plot", None) is not None:
+        figure_format(args.plot, extra="classify")
 
 
 def run_train(args) -> int:
@@ -125,7 +131,7 @@ def run_train(args) -> int:
     if args.max_per_class < 0:
         raise UsageError(f"--max-per-class must be >= 0, got {args.max_per_class}")
     samples = _samples(args)
-    scales = normal_scales(args.scales, "--scales") if args.scales else default_scales(samples[0][1])
+    scales = normal_scales(args.scales, "--scales") if args.scales is not None else default_scales(samples[0][1])
     clf, X, y = train_with_samples([(xyz, labels) for _, xyz, labels in samples], scales,
                                    min_points=args.min_points, threads=args.threads,
                                    max_per_class=args.max_per_class or None, seed=args.seed)
@@ -149,6 +155,11 @@ def run_train(args) -> int:
     return 0
 
 
+#: The class codes apply writes (--class-map, --unclassified): 32-bit integers, far beyond any class
+#: scheme (LAS: 0 to 255); a larger one overflowed numpy's int64 with a traceback.
+CODE_MIN, CODE_MAX = -2**31, 2**31 - 1
+
+
 def class_codes(clf, spec: str | None) -> dict[str, int]:
     mapping = parse_mapping(spec, "--class-map")
     unknown = [k for k in mapping if k not in clf.labels]
@@ -162,6 +173,9 @@ def class_codes(clf, spec: str | None) -> dict[str, int]:
             codes[label] = int(text)
         except ValueError:
             raise UsageError(f"class {label!r} has no integer code: give --class-map {label}=CODE") from None
+        if not CODE_MIN <= codes[label] <= CODE_MAX:
+            raise UsageError(f"--class-map: the code {text} of class {label!r} is out of range: codes are integers from "
+                             f"{CODE_MIN} to {CODE_MAX}")
     return codes
 
 
@@ -169,7 +183,7 @@ def run_apply(args) -> int:
     _check_outputs(args, {"input cloud": args.cloud, "classifier file": args.classifier})
     clf = read_classifier(args.classifier)
     codes = class_codes(clf, args.class_map)
-    cloud = read_cloud(args.cloud)
+    cloud = read_cloud(args.cloud, drop_nonfinite=args.drop_nonfinite)
     p = classify(clf, cloud.xyz, threads=args.threads)
     table = np.array([codes[c] for c in clf.labels] + [args.unclassified], dtype=np.int64)
     code = table[p.index]

@@ -28,9 +28,9 @@ def parse_sample(text: str) -> tuple[Path, str | None]:
 
 
 def parse_mapping(spec: str | None, option: str) -> dict[str, str]:
-    """'a=b,c=d' -> {'a': 'b', 'c': 'd'}."""
+    """'a=b,c=d' -> {'a': 'b', 'c': 'd'}; None (the option not given) -> {}."""
     out: dict[str, str] = {}
-    if not spec:
+    if spec is None:
         return out
     for item in spec.split(","):
         if not item.strip():
@@ -40,7 +40,11 @@ def parse_mapping(spec: str | None, option: str) -> dict[str, str]:
         k, v = (s.strip() for s in item.split("=", 1))
         if not k or not v:
             raise UsageError(f"{option}: empty key or value in {item!r}")
+        if k in out:  # the last one silently won before
+            raise UsageError(f"{option}: {k} is given twice ({k}={out[k]} and {k}={v}); give each once")
         out[k] = v
+    if not out:  # '' or ',' was the same as no option, silently
+        raise UsageError(f"{option} is empty: give KEY=VALUE items separated by commas")
     return out
 
 

@@ -5,6 +5,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..analysis.common import figure_format
 from ..errors import UsageError
 from ..io.atomic import atomic_output
 from .model import Classifier
@@ -50,5 +51,5 @@ def plot_training(clf: Classifier, X: np.ndarray, y: np.ndarray, path: Path, see
     fig.suptitle("CANUPO training samples, scales " + ", ".join(f"{s:g}" for s in clf.scales))
     fig.tight_layout()
     with atomic_output(path) as tmp:
-        fig.savefig(tmp, format=Path(path).suffix.lstrip(".").lower() or "png", dpi=110)
+        fig.savefig(tmp, format=figure_format(path, extra="classify"), dpi=110)
     plt.close(fig)

@@ -29,6 +29,7 @@ from typing import Iterator
 
 from ..errors import CloudWriteError, M3C2Error, UsageError
 from ..fault_hook import checkpoint as fault_checkpoint
+from .collisions import refuse_special
 from .private import (PRIVATE_PREFIX, PrivateFolder, pinned_directory, private_folder, public_name,
                       remove_stale)
 
@@ -122,6 +123,7 @@ def staged_outputs(targets) -> Iterator[dict[Path, Path]]:
             for target in dict.fromkeys(Path(t) for t in targets):
                 if target.is_dir():
                     raise CloudWriteError(f"{target}: is a directory")
+                refuse_special(target)  # the API's writers too: a FIFO or device is never replaced
                 folder = held.enter_context(private_folder(target.parent, target))
                 folders[target] = folder
                 staged[target] = folder.path / f"part{_suffix(target)}"

@@ -11,7 +11,7 @@ from typing import Mapping
 from ..errors import CloudWriteError, UsageError
 from .input_file import os_problem
 
-__all__ = ["check_outputs"]
+__all__ = ["check_outputs", "refuse_special"]
 
 
 def _identity(path) -> tuple[int, int] | None:
@@ -48,7 +48,22 @@ def check_outputs(outputs: Mapping[str, object], inputs: Mapping[str, object]) -
                                  f"another output path")
         if os.path.isdir(path):
             raise CloudWriteError(f"{os.fspath(path)}: is a directory")
+        refuse_special(path)
         _refuse_read_only(label, path)
+
+
+def refuse_special(path) -> None:
+    # An output is renamed onto its name: run as root, `-o /dev/null` replaced the device node
+    # with a regular file (and `-o FIFO` the FIFO); a link to one (/dev/stdout) names what the
+    # user meant to write to, which a rename would not reach either.
+    for look in (os.lstat, os.stat):
+        try:
+            mode = look(path).st_mode
+        except (OSError, ValueError):
+            continue
+        if not (stat.S_ISREG(mode) or stat.S_ISLNK(mode) or stat.S_ISDIR(mode)):
+            raise CloudWriteError(f"{os.fspath(path)}: not a regular file (a device, FIFO or socket); an output "
+                                  f"replaces only a regular file: choose another output path")
 
 
 def _refuse_name_too_long(path) -> None:

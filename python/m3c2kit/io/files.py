@@ -75,6 +75,16 @@ def _check_read_memory(path: Path, fmt, available: int | None = None) -> None:
                              f"(--tile-size) or thin the file first")
 
 
+#: read_cloud's drop_nonfinite on the command line: its error advises this flag, so every command
+#: that reads clouds offers it (before, roughness, c2c, classify, ... advised a flag they lacked).
+DROP_NONFINITE_FLAG = "--drop-nonfinite"
+
+
+def add_drop_nonfinite_option(parser) -> None:
+    """Adds DROP_NONFINITE_FLAG (``args.drop_nonfinite``) to an argparse parser."""
+    parser.add_argument(DROP_NONFINITE_FLAG, action="store_true", help="drop points with NaN/Inf coordinates")
+
+
 def read_cloud(path: str | os.PathLike, *, columns: tuple[int, int, int] | None = None,
                drop_nonfinite: bool = False) -> Cloud:
     """Reads any supported point-cloud file (see ``SUPPORTED_READ``) into a :class:`Cloud`.
@@ -101,7 +111,7 @@ def read_cloud(path: str | os.PathLike, *, columns: tuple[int, int, int] | None 
     if bad:
         if not drop_nonfinite:
             raise CloudReadError(f"{path}: {bad} of {len(cloud)} points have non-finite (NaN or "
-                                 f"infinite) coordinates; use --drop-nonfinite to drop them")
+                                 f"infinite) coordinates; use {DROP_NONFINITE_FLAG} to drop them")
         if bad == len(cloud):
             raise CloudReadError(f"{path}: contains no points with finite coordinates "
                                  f"({bad} non-finite)")

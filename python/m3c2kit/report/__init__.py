@@ -25,7 +25,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..errors import CloudWriteError
+from ..errors import CloudWriteError, UsageError
 from ..result import STATUS_NAMES, Result
 from ..lod_rates import expectation_text, run_expectation
 from ..summary import normal_accuracy
@@ -51,7 +51,11 @@ class Report:
 
 def png_paths(prefix: str | os.PathLike) -> dict[str, Path]:
     """<prefix>_<figure>.png for each figure (prefix may name a directory: figs/run1)."""
+    text = os.fspath(prefix)
     prefix = Path(prefix)
+    if prefix.name in ("", ".."):  # '', '.', '/', '..': no name to prefix (pathlib's ValueError, a traceback)
+        raise UsageError(f"--report-png {text!r} names a folder, not a prefix: give e.g. {os.path.join(text, 'run1')!r} "
+                         f"for {os.path.join(text, 'run1')}_distance.png, ...")
     return {key: prefix.with_name(f"{prefix.name}_{key}.png") for key in FIGURES}
 
 
