@@ -472,3 +472,10 @@ def test_a_chunk_or_thread_count_out_of_range_is_a_usage_error(argv, epochs, tmp
     code, _, err = run(capsys, "series", epochs[0], epochs[1], "-o", out, *PARAMS, *argv, "--quiet")
     assert code == 2 and argv[0] in err and "must be an integer from" in err, err
     assert not out.exists()
+
+
+def test_a_zarr_older_than_the_extra_asks_is_named(monkeypatch):
+    from m3c2kit.errors import UsageError
+    monkeypatch.delattr(zarr.Array, "with_config")
+    with pytest.raises(UsageError, match=r"needs zarr >= 3\.1\.6 \(installed: .*pip install -U 'm3c2kit\[series\]'"):
+        st.require_extra()

@@ -62,6 +62,9 @@ def require_extra():
     except ImportError as e:
         raise UsageError(f"m3c2 series needs the optional extra 'series' ({e.name} is not installed): "
                          f"pip install 'm3c2kit[series]'") from None
+    if not hasattr(zarr.Array, "with_config"):  # writable(): Zarr 3.1.6 (pyproject.toml's extra says so)
+        raise UsageError(f"m3c2 series needs zarr >= 3.1.6 (installed: {zarr.__version__}): "
+                         f"pip install -U 'm3c2kit[series]'")
     warnings.filterwarnings("ignore", message="Consolidated metadata is currently not part")
     # The store's lock file and staging folder (series/lock.py, integrity.STAGING) are no Zarr nodes, by design.
     warnings.filterwarnings("ignore", message=r"Object at \.m3c2-\S+ is not recognized as a component")
