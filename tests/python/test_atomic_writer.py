@@ -221,7 +221,7 @@ def test_staged_directory_refuses_an_occupied_target_before_its_body(tmp_path, k
     with pytest.raises(UsageError) as caught:
         with staged_directory(target):
             ran.append(True)
-    assert str(caught.value) == f"{target} exists and is not empty; choose another -o"
+    assert str(caught.value) == f"{target} exists and is not empty; nothing in it is touched: choose another -o"
     assert not ran and sorted(p.name for p in tmp_path.rglob("*")) == before
 
 
@@ -233,7 +233,7 @@ def test_staged_directory_replaces_an_empty_folder_and_refuses_one_filled_meanwh
     assert (empty / "x").read_text() == "x"
     late = tmp_path / "late"
     late.mkdir()
-    with pytest.raises(UsageError, match="late exists and is not empty; choose another -o"):
+    with pytest.raises(UsageError, match="late exists and is not empty; nothing in it is touched: choose another -o"):
         with staged_directory(late) as folder:
             (folder / "x").write_text("mine")
             (late / "theirs").write_text("theirs")  # someone else writes there while the body runs

@@ -30,15 +30,11 @@ from typing import Iterator
 from ..errors import CloudWriteError, M3C2Error, UsageError
 from ..fault_hook import checkpoint as fault_checkpoint
 from .collisions import refuse_special
-from .private import (PRIVATE_PREFIX, PrivateFolder, pinned_directory, private_folder, public_name,
-                      remove_stale)
+from .private import (PRIVATE_PREFIX, PrivateFolder, describe, pinned_directory, private_folder, public_name,
+                      remove_stale, renamed)
 
 __all__ = ["atomic_output", "staged_outputs", "staged_directory", "pinned_directory", "private_folder",
-           "remove_stale", "public_name", "PRIVATE_PREFIX"]
-
-
-def _describe(err: OSError) -> str:
-    return err.strerror or str(err)
+           "remove_stale", "public_name", "refuse_occupied", "PRIVATE_PREFIX"]
 
 
 def _suffix(target: Path) -> str:
@@ -97,17 +93,6 @@ def _public(text: str, staged: dict[Path, Path], folders: dict[Path, PrivateFold
     return public_name(text)
 
 
-def _renamed(error: M3C2Error, staged: dict[Path, Path], folders: dict[Path, PrivateFolder]) -> M3C2Error:
-    text = str(error)
-    public = _public(text, staged, folders)
-    if public == text:
-        return error
-    try:
-        return type(error)(public)
-    except TypeError:  # a subclass with another constructor: keep it as it is
-        return error
-
-
 @contextmanager
 def staged_outputs(targets) -> Iterator[dict[Path, Path]]:
     """All-or-nothing output of several files: yields {target: temporary path}, each temporary in a
@@ -133,10 +118,10 @@ def staged_outputs(targets) -> Iterator[dict[Path, Path]]:
                     warnings.simplefilter("always")
                     yield staged
             except M3C2Error as e:
-                renamed = _renamed(e, staged, folders)
-                if renamed is e:
+                public = renamed(e, lambda text: _public(text, staged, folders))
+                if public is e:
                     raise
-                raise renamed from e.__cause__
+                raise public from e.__cause__
             finally:
                 for w in caught:  # shown as the caller's filters say, naming the targets
                     warnings.warn_explicit(_public(str(w.message), staged, folders), w.category, w.filename,
@@ -153,7 +138,7 @@ def staged_outputs(targets) -> Iterator[dict[Path, Path]]:
             target = next((t for t, tmp in staged.items() if e.filename in (str(tmp), tmp, tmp.name)), None)
             target = target or (next(iter(staged)) if len(staged) == 1 else None)
             where = target or (_public(str(e.filename), staged, folders) if e.filename else "output")
-            raise CloudWriteError(f"{where}: {_describe(e)}") from e
+            raise CloudWriteError(f"{where}: {describe(e)}") from e
 
 
 @contextmanager
@@ -165,24 +150,24 @@ def atomic_output(path: str | os.PathLike) -> Iterator[Path]:
 
 
 def _occupied(target: Path) -> UsageError:
-    return UsageError(f"{target} exists and is not empty; choose another -o")
+    return UsageError(f"{target} exists and is not empty; nothing in it is touched: choose another -o")
 
 
-def _refuse_occupied(target: Path) -> None:
+def refuse_occupied(target: Path) -> None:
     """Before any work: `target` must be absent or an empty folder (a link, even to one, is not)."""
     try:
         st = os.lstat(target)
     except FileNotFoundError:
         return
     except OSError as e:
-        raise CloudWriteError(f"{target}: {_describe(e)}") from None
+        raise CloudWriteError(f"{target}: {describe(e)}") from None
     if not stat.S_ISDIR(st.st_mode):
         raise _occupied(target)
     try:
         with os.scandir(target) as entries:
             occupied = next(entries, None) is not None
     except OSError as e:
-        raise CloudWriteError(f"{target}: {_describe(e)}") from None
+        raise CloudWriteError(f"{target}: {describe(e)}") from None
     if occupied:
         raise _occupied(target)
 
@@ -201,7 +186,7 @@ def _publish(folder: PrivateFolder, target: Path) -> None:
     except OSError as e:
         if e.errno in (errno.ENOTEMPTY, errno.EEXIST, errno.ENOTDIR, errno.EISDIR):
             raise _occupied(target) from None
-        raise CloudWriteError(f"{target}: cannot create: {_describe(e)}") from None
+        raise CloudWriteError(f"{target}: cannot create: {describe(e)}") from None
     folder.published(target.name)
     _fsync_dir(folder.parent_fd)
 
@@ -214,14 +199,14 @@ def staged_directory(target) -> Iterator[Path]:
     raises (also KeyboardInterrupt, SystemExit), the private folder is removed, `target` is left as
     it was, and the exception propagates."""
     target = Path(target)
-    _refuse_occupied(target)
+    refuse_occupied(target)
     with private_folder(target.parent, target) as folder:
         fault_checkpoint("staging")  # a testing aid (docs/errors.md, "Interruption"): folder made, nothing written
         try:
             yield folder.path
         except M3C2Error as e:
-            renamed = _renamed(e, {}, {target: folder})
-            if renamed is e:
+            public = renamed(e, lambda text: _public(text, {}, {target: folder}))
+            if public is e:
                 raise
-            raise renamed from e.__cause__
+            raise public from e.__cause__
         _publish(folder, target)

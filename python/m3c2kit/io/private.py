@@ -34,7 +34,7 @@ from typing import Iterator
 from ..errors import CloudWriteError, M3C2Error
 
 __all__ = ["PRIVATE_PREFIX", "LOCK_NAME", "PINNABLE", "PrivateFolder", "private_folder", "pinned_directory",
-           "remove_stale", "remove_tree", "public_name"]
+           "remove_stale", "remove_tree", "public_name", "renamed", "describe"]
 
 PRIVATE_PREFIX = ".m3c2-tmp-"
 LOCK_NAME = ".m3c2-tmp-lock"
@@ -63,9 +63,10 @@ def public_name(text: str) -> str:
     return re.sub(f"(?:{pattern})(?!\\d)", lambda m: _SHOWN[m.group(0)], text)
 
 
-def _renamed(error: M3C2Error) -> M3C2Error:
-    """`error` with public_name's renaming (itself when nothing changes or its class cannot be rebuilt)."""
-    text = public_name(str(error))
+def renamed(error: M3C2Error, public=public_name) -> M3C2Error:
+    """`error` with its text passed through `public` (public_name: pinned paths as the user's names);
+    itself when nothing changes or its class cannot be rebuilt from a text."""
+    text = public(str(error))
     if text == str(error):
         return error
     try:
@@ -74,7 +75,7 @@ def _renamed(error: M3C2Error) -> M3C2Error:
         return error
 
 
-def _describe(err: OSError) -> str:
+def describe(err: OSError) -> str:
     return err.strerror or str(err)
 
 
@@ -182,7 +183,7 @@ class PrivateFolder:
             try:
                 self.lock_fd = self._lock()
             except OSError as e:
-                raise CloudWriteError(f"{label}: cannot write in {str(self.directory)!r}: {_describe(e)}") from None
+                raise CloudWriteError(f"{label}: cannot write in {str(self.directory)!r}: {describe(e)}") from None
         except BaseException:
             self.close(remove=True)
             raise
@@ -199,7 +200,7 @@ class PrivateFolder:
         except NotADirectoryError:
             raise CloudWriteError(f"{self.label}: cannot write: {str(self.directory)!r} is not a directory") from None
         except OSError as e:
-            raise CloudWriteError(f"{self.label}: cannot write in {str(self.directory)!r}: {_describe(e)}") from None
+            raise CloudWriteError(f"{self.label}: cannot write in {str(self.directory)!r}: {describe(e)}") from None
 
     def _make(self) -> str:
         for _ in range(100):
@@ -211,7 +212,7 @@ class PrivateFolder:
                 continue
             except OSError as e:
                 raise CloudWriteError(f"{self.label}: cannot write in {str(self.directory)!r}: "
-                                      f"{_describe(e)}") from None
+                                      f"{describe(e)}") from None
         raise CloudWriteError(f"{self.label}: cannot write in {str(self.directory)!r}: no free name for a "
                               f"private work folder")
 
@@ -308,7 +309,7 @@ def pinned_directory(path) -> Iterator[Path]:
     except NotADirectoryError:
         raise CloudWriteError(f"{shown}: is not a directory") from None
     except OSError as e:
-        raise CloudWriteError(f"{shown}: cannot open: {_describe(e)}") from None
+        raise CloudWriteError(f"{shown}: cannot open: {describe(e)}") from None
     pinned = _pinned_path(fd)
     try:
         if not PINNABLE:
@@ -325,10 +326,10 @@ def pinned_directory(path) -> Iterator[Path]:
         try:
             yield Path(pinned)
         except M3C2Error as e:
-            renamed = _renamed(e)
-            if renamed is e:
+            public = renamed(e)
+            if public is e:
                 raise
-            raise renamed from e.__cause__
+            raise public from e.__cause__
     finally:
         _SHOWN.pop(pinned, None)
         os.close(fd)

@@ -19,7 +19,7 @@ import numpy as np
 from .. import api
 from ..errors import M3C2Error, UsageError
 from ..io import read_cloud
-from ..optional import require
+from ..io.atomic import refuse_occupied, staged_directory
 from ..result import Result
 from . import epochs as epochs_mod
 from . import lock as lock_mod
@@ -113,7 +113,6 @@ def create(reference_path: Path, epoch_args, store: Path, settings: dict, *, cor
         "history": f"{dt.datetime.now(dt.timezone.utc).isoformat(timespec='seconds')} m3c2kit {_version()}: "
                    f"m3c2 series",
     }
-    from ..io.atomic import staged_directory
     # The empty store is built in a private folder and appears at -o whole, its lock already held
     # (lockf locks the file, which the rename moves along), so no other writer comes in between;
     # its epochs are then committed into it as `add` commits them, so a kill keeps those committed.
@@ -151,8 +150,7 @@ def refuse_existing_output(store: Path) -> None:
             raise UsageError(f"{store}: -o holds a Zarr store that is no committed m3c2 series; nothing in it is "
                              f"touched: choose another -o (m3c2 series check {store} says what it holds)") from None
         raise UsageError(f"{store} already holds a series; add epochs with: m3c2 series add {store} EPOCH...")
-    if store.is_symlink() or not store.is_dir() or any(os.scandir(store)):  # a link: io.atomic refuses it too
-        raise UsageError(f"{store}: -o exists and is not an empty folder; nothing in it is touched: choose another -o")
+    refuse_occupied(store)  # absent or an empty folder (the rule staged_directory applies again at publication)
 
 
 def stored_settings(store: Path) -> dict:

@@ -6,7 +6,6 @@ docs/errors.md, "Interruption") or a write error (a full disk) ends as one line 
 and what of it is committed, never "no output written" when something was."""
 from __future__ import annotations
 
-import os
 import re
 import sys
 from contextlib import contextmanager
@@ -40,12 +39,6 @@ def is_interruption(error: BaseException) -> bool:
     return isinstance(error, KeyboardInterrupt) or (kind is not M3C2Error and isinstance(error, kind))
 
 
-def _public(error: M3C2Error, pinned: str, shown: Path) -> M3C2Error:
-    """`error` with the pinned path (/proc/self/fd/N) written as the user's path of the store."""
-    text = str(error)
-    return type(error)(text.replace(pinned, os.fspath(shown))) if pinned in text else error
-
-
 @contextmanager
 def guarded(shown: Path, kept: Callable[[], str]):
     """Maps an interruption or a write error inside the block to one line naming `shown` and
@@ -67,13 +60,13 @@ def writing(store: Path, step: str, kept: Callable[[Path], str], *, held: "lock_
     last commit. `kept(folder)`: what the store holds, for the message of a failure."""
     from ..io.atomic import pinned_directory
     store = Path(store)
-    where = [store]  # the pinned folder once pinned, for the messages
     try:
+        # Errors raised inside name the store, not the pinned path (pinned_directory renames them);
         # kept() reads the store by its name: the message may come after the pinned folder is let go.
         with guarded(store, lambda: kept(store)):
             st.open_group(store)  # a clear error, naming the user's path, for what is no committed store
             with pinned_directory(store) as pinned:
-                folder = where[0] = Path(pinned)
+                folder = Path(pinned)
                 with (held or lock_mod.acquire(folder, step, store)):
                     integrity.recover(folder)
                     integrity.require_present(folder, store)
@@ -83,8 +76,6 @@ def writing(store: Path, step: str, kept: Callable[[Path], str], *, held: "lock_
                         # The step's unpublished arrays: never part of the store (analysis.publish).
                         integrity.remove_staging(folder)
                         raise
-    except M3C2Error as e:
-        raise _public(e, os.fspath(where[0]), store) from None
     finally:
         if held is not None:
             held.release()  # also when the step failed before taking it over
