@@ -22,9 +22,9 @@ from ..io.arrays import bounds
 from ..io.atomic import staged_outputs
 from . import engine
 from . import integrity
-from .outputs import members_path
 from . import step
 from . import store as st
+from .outputs import members_path
 
 SMOOTHED = "smoothed_distance"
 LABEL = "object"
