@@ -136,3 +136,13 @@ def test_without_pyproj_every_crs_is_unknown(monkeypatch):
             C.assign_crs("EPSG:32617")
     finally:
         C.parse_crs.cache_clear()
+
+
+def test_a_crs_name_with_line_breaks_is_labelled_on_one_line():
+    # Found by the crs_text fuzz target: a WKT's quoted name may hold a line break, which PROJ keeps.
+    pytest.importorskip("pyproj")
+    from m3c2kit.io.crs import crs_label
+    wkt = ('GEOGCRS["WGS\n84",DATUM["World Geodetic System 1984",ELLIPSOID["WGS 84",6378137,298.257223563]],'
+           'CS[ellipsoidal,2],AXIS["lat",north,ANGLEUNIT["degree",0.0174532925199433]],'
+           'AXIS["lon",east,ANGLEUNIT["degree",0.0174532925199433]]]')
+    assert crs_label(wkt) == "'WGS 84'"

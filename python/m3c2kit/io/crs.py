@@ -233,7 +233,8 @@ def crs_label(text: str | None, limit: int = 120) -> str:
         label = " ".join(text.split())
         return label if len(label) <= limit else label[: limit - 3] + "..."
     code = _epsg(crs)
-    return f"'{crs.name}' (EPSG:{code})" if code else f"'{crs.name}'"
+    name = " ".join(str(crs.name).split())  # a WKT's quoted name may hold line breaks: one line all the same
+    return f"'{name}' (EPSG:{code})" if code else f"'{name}'"
 
 
 def is_angular(text: str | None, units_hint: str | None = None) -> bool:
