@@ -26,7 +26,7 @@ W5 and W5mem are the same 10M + 10M-point pair with 2M core points, run two ways
 
 * W5 (out-of-core, the way a user runs a 20M-point pair in bounded memory): the clouds are
   written once as LAZ (or LAS, --stream-format) files and the core points as core.npy; the worker
-  runs m3c2kit.tiling.run_tiled -- what `m3c2 compare ref.laz cmp.laz --core core.npy -o change.laz
+  runs m3c2kit.run.tiled.run_tiled -- what `m3c2 compare ref.laz cmp.laz --core core.npy -o change.laz
   --memory-limit SIZE` runs -- which streams the files and never holds the whole clouds, and
   writes the result file. Its wall time covers everything (reading the core points, streaming and
   distributing both clouds into tiles, computing the tiles, merging and writing the output);
@@ -83,7 +83,7 @@ for _n in SWEEP:
 INPUTS = {"W1": "toronto", "W2": "rough1M", "W3": "rough1M", "W4": "rough1M", "W6": "rough1M",
           "W5": "rough10M", "W5mem": "rough10M", "W7": "moderate1M", "W8": "sparse1M",
           **{f"S{n}": "sweep" for n in SWEEP}}
-STREAMED = {"W5"}  # run through the out-of-core path (m3c2kit.tiling.run_tiled) from files
+STREAMED = {"W5"}  # run through the out-of-core path (m3c2kit.run.tiled.run_tiled) from files
 WHOLE = {"W7"}  # each tool timed as a whole process from LAZ files to a result file
 # Per set of inputs: (points per cloud, core points, side of the square in m) at scale 1.
 SIZES = {"rough1M": (1_000_000, 100_000, 10.0), "rough10M": (10_000_000, 2_000_000, 10.0 * np.sqrt(10.0)),
@@ -210,7 +210,7 @@ def run_m3c2(folder: Path, D, d, L, normals: str, threads: int, tag: str, wall_o
     if not wall_only:
         # Phases, measured after the real run: index builds (normals on no core point), normals,
         # and the projection alone (compare with these normals imposed).
-        from m3c2kit.api import build_params
+        from m3c2kit.settings import build_params
         empty = np.empty((0, 3))
         p = build_params(normal_scale=D, projection_scale=d, max_depth=L)
         t = time.perf_counter(); _core.compute_normals(ref, empty, p, threads=threads)
@@ -245,7 +245,7 @@ def run_m3c2_tiled(folder: Path, D, d, L, normals: str, threads: int, tag: str, 
     """The out-of-core path from files: what `m3c2 compare ref.laz cmp.laz --core core.npy
     -o change.laz --memory-limit SIZE` (or --tile-size S) runs."""
     from m3c2kit.io import read_cloud
-    from m3c2kit.tiling import run_tiled
+    from m3c2kit.run.tiled import run_tiled
 
     params = dict(normal_scale=D, projection_scale=d, max_depth=L, min_points=1, lod=PEER_LOD, threads=threads)
     if normals == "vertical":
@@ -315,14 +315,14 @@ def run_py4dgeo(folder: Path, D, d, L, normals: str, threads: int, tag: str, rep
 
 
 # W7, whole processes. m3c2: the command line's own entry point (what the `m3c2` script runs),
-# its phases timed by wrapping m3c2kit.phases.Phases.phase (reading, computing, writing).
+# its phases timed by wrapping m3c2kit.base.phases.Phases.phase (reading, computing, writing).
 M3C2_WHOLE = r"""
 import sys, time, json
 t0 = time.perf_counter()
-import m3c2kit.cli, m3c2kit.phases
+import m3c2kit.cli.main, m3c2kit.base.phases
 t_import = time.perf_counter() - t0
 seconds = {"import": t_import}
-original = m3c2kit.phases.Phases.phase
+original = m3c2kit.base.phases.Phases.phase
 import contextlib
 @contextlib.contextmanager
 def timed(self, name, total=None):
@@ -330,8 +330,8 @@ def timed(self, name, total=None):
     with original(self, name, total) as step:
         yield step
     seconds[name] = seconds.get(name, 0.0) + time.perf_counter() - t
-m3c2kit.phases.Phases.phase = timed
-rc = m3c2kit.cli.main()  # as the `m3c2` script calls it: the arguments from sys.argv
+m3c2kit.base.phases.Phases.phase = timed
+rc = m3c2kit.cli.main.main()  # as the `m3c2` script calls it: the arguments from sys.argv
 print("PHASES " + json.dumps(seconds), file=sys.stderr)
 sys.exit(rc)
 """

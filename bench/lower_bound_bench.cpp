@@ -10,14 +10,14 @@
 //
 // Built with -DM3C2_BUILD_BENCH=ON (target lower_bound_bench), or by hand:
 //   g++ -O3 -DNDEBUG -std=c++20 -fopenmp -ffp-contract=off -Iinclude -Isrc -I/usr/include/eigen3
-//       bench/lower_bound_bench.cpp src/plane_fit.cpp -o /tmp/lower_bound_bench
+//       bench/lower_bound_bench.cpp src/pipeline/plane_fit.cpp -o /tmp/lower_bound_bench
 // Run: lower_bound_bench REF.npy CMP.npy CORE.npy D d DEPTH THREADS [REPEAT [engine]]   (float64 (n, 3) .npy)
 // D = 0: vertical normals (no sphere). Prints one JSON line (seconds: best of REPEAT; cpu_*: CPU
 // seconds of the process, user + system, every thread). With `engine`, m3c2::compute on the same
 // inputs (min_points 1) is timed too, and a hash of its output columns' bits printed: the
 // engine's own check that a change of speed left the results alone.
 
-#include "plane_fit.hpp"
+#include "pipeline/plane_fit.hpp"
 
 #include <m3c2/m3c2.hpp>
 

@@ -2,9 +2,9 @@
 // (fit_plane_iterative) on co-moments of noisy planar neighbourhoods of ~30 points (workload
 // W1's size), plus their largest disagreement. Not part of the build or of the tests; build by hand:
 //   g++ -O3 -DNDEBUG -std=c++20 -ffp-contract=off -Iinclude -Isrc -I/usr/include/eigen3
-//       bench/plane_fit_bench.cpp src/plane_fit.cpp -o /tmp/plane_fit_bench && /tmp/plane_fit_bench
+//       bench/plane_fit_bench.cpp src/pipeline/plane_fit.cpp -o /tmp/plane_fit_bench && /tmp/plane_fit_bench
 
-#include "plane_fit.hpp"
+#include "pipeline/plane_fit.hpp"
 
 #include <Eigen/Geometry>
 

@@ -67,7 +67,7 @@ def peak_kb() -> int:
 
 
 def run_m3c2(work: Path, threads: int) -> dict:
-    from m3c2kit.cli import main
+    from m3c2kit.cli.main import main
     import xarray, zarr  # noqa: F401,E401 - imported before the clock, as py4dgeo is (~2 s CPU)
     epochs = sorted((work / "epochs").glob("epoch_*.npy"))
     store = work / "m3c2.zarr"

@@ -136,7 +136,7 @@ def main() -> int:
         # 2. the same tiles on a Dask LocalCluster
         if not args.skip_dask:
             from distributed import Client, LocalCluster
-            from m3c2kit.tiling import run_tiled
+            from m3c2kit.run.tiled import run_tiled
             out2 = work / "dask.laz"
             sampler = TreeSampler()
             sampler.start()

@@ -21,7 +21,7 @@ from pathlib import Path
 import numpy as np
 
 from m3c2kit import _core
-from m3c2kit import uncertainty_inputs as ui
+from m3c2kit.run import uncertainty_inputs as ui
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "validation"))
 import uncertainty_sim as sim  # noqa: E402

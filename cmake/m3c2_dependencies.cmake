@@ -1,5 +1,5 @@
 # The engine's dependencies: Eigen (public: include/m3c2/points_view.hpp uses Eigen::Vector3d),
-# Boost.Math (private, header-only: src/confidence.cpp) and OpenMP (private, optional).
+# Boost.Math (private, header-only: src/uncertainty/confidence.cpp) and OpenMP (private, optional).
 #
 # Eigen and Boost come from the system (Debian: libeigen3-dev, libboost-math-dev) or from PyPI:
 # cmeel-eigen and boost-headers, the build requirements of pyproject.toml, found through the

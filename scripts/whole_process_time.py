@@ -2,9 +2,9 @@
 
     python scripts/whole_process_time.py REF CMP CORE OUT [compare options...]
 
-Runs m3c2kit.cli.main in this process with the reading (cli._read), engine (api.compare) and
-writing (cli.write_compare_outputs) steps wrapped in getrusage counters, and prints one line:
-imports (m3c2kit.cli), laspy (its import as the `m3c2` command imports it, m3c2kit.io.laspy_local,
+Runs m3c2kit.cli.main.main in this process with the reading (cli.inputs.read_input), engine (api.compare) and
+writing (cli.compare.write_compare_outputs) steps wrapped in getrusage counters, and prints one line:
+imports (m3c2kit.cli.main), laspy (its import as the `m3c2` command imports it, m3c2kit.io.laspy_local,
 which the first LAS read would otherwise pay inside reading), reading, engine, writing, rest and total in seconds, and the process's wall time. CPU time, not wall time: on a
 shared machine the wall clock measures the other processes too.
 """
@@ -20,7 +20,8 @@ def _cpu() -> float:
 
 def main() -> None:
     wall, start = time.perf_counter(), _cpu()
-    from m3c2kit import cli  # noqa: the import itself is the first phase
+    from m3c2kit.cli import compare, inputs  # noqa: the import itself is the first phase
+    from m3c2kit.cli import main as cli
 
     spent = {"imports": _cpu() - start}
     t = _cpu()
@@ -39,9 +40,9 @@ def main() -> None:
                 spent[phase] += _cpu() - t
         return wrapper
 
-    cli._read = timed("reading", cli._read)
-    cli.api.compare = timed("engine", cli.api.compare)
-    cli.write_compare_outputs = timed("writing", cli.write_compare_outputs)
+    inputs.read_input = compare.read_input = timed("reading", inputs.read_input)
+    compare.api.compare = timed("engine", compare.api.compare)
+    compare.write_compare_outputs = timed("writing", compare.write_compare_outputs)
     ref, cmp, core, out, *options = sys.argv[1:]
     rc = cli.main(["compare", ref, cmp, "--core", core, "-o", out, "--quiet", *options])
     total = _cpu() - start

@@ -20,7 +20,7 @@ import numpy as np
 
 import m3c2kit
 from m3c2kit.classify import classify
-from m3c2kit.classify.cli import default_scales
+from m3c2kit.cli.classify import default_scales
 from m3c2kit.classify.labels import labels_from_field
 from m3c2kit.classify.plot import plot_training
 from m3c2kit.classify.train import train_with_samples

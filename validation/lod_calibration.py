@@ -5,7 +5,7 @@ n = 5 to 200 points per cylinder (m3c2kit.analysis.no_change).
 
     python validation/lod_calibration.py [--cores 6000] [--threads 0] [--write] [--from-table]
 
-prints the table as Markdown; --write also regenerates python/m3c2kit/lod_table.py, the one
+prints the table as Markdown; --write also regenerates python/m3c2kit/output/lod_table.py, the one
 place the summary, the report and the tests read the expected rates from. Seeded: the same
 table on any machine and thread count.
 """
@@ -79,11 +79,11 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--cores", type=int, default=6000, help="core points per simulation (half at n > 50)")
     ap.add_argument("--threads", type=int, default=0)
-    ap.add_argument("--write", action="store_true", help="regenerate python/m3c2kit/lod_table.py")
+    ap.add_argument("--write", action="store_true", help="regenerate python/m3c2kit/output/lod_table.py")
     ap.add_argument("--from-table", action="store_true", help="print the stored table, no simulation")
     args = ap.parse_args()
     if args.from_table:
-        from m3c2kit.lod_table import RATES
+        from m3c2kit.output.lod_table import RATES
         print("\n".join(markdown(RATES)))
         return
     rates = measure(args.cores, args.threads)

@@ -23,7 +23,7 @@ import numpy as np
 import py4dgeo
 
 from m3c2kit import _core
-from m3c2kit import uncertainty_inputs as ui
+from m3c2kit.run import uncertainty_inputs as ui
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 import uncertainty_sim as sim  # noqa: E402

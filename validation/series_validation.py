@@ -26,7 +26,7 @@ WINDOW = 5
 
 def run_ours(s, folder: Path):
     from m3c2kit import api
-    from m3c2kit.cli import main
+    from m3c2kit.cli.main import main
     from m3c2kit.io import read_cloud
     import xarray as xr
     paths = ss.write(s, folder)
@@ -49,7 +49,7 @@ def run_ours(s, folder: Path):
 
 
 def objects_ours(store: Path, whole: bool, folder: Path):
-    from m3c2kit.cli import main
+    from m3c2kit.cli.main import main
     import xarray as xr
     table = folder / ("objects_whole.csv" if whole else "objects.csv")
     assert main(["series", "objects", str(store), "-o", str(table), "--quiet"] + (["--whole-series"] if whole else [])) == 0

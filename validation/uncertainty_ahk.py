@@ -19,7 +19,7 @@ import numpy as np
 from scipy.interpolate import LinearNDInterpolator
 
 from m3c2kit import _core
-from m3c2kit import uncertainty_inputs as ui
+from m3c2kit.run import uncertainty_inputs as ui
 from m3c2kit.io import read_cloud
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))

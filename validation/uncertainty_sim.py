@@ -27,7 +27,7 @@ from pathlib import Path
 import numpy as np
 
 from m3c2kit import _core
-from m3c2kit import uncertainty_inputs as ui
+from m3c2kit.run import uncertainty_inputs as ui
 
 REPO = Path(__file__).resolve().parents[1]
 SIDE = 10.0

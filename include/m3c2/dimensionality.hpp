@@ -38,7 +38,7 @@ struct DimensionalityResult {
 /// with fewer than `min_points` (>= 3) neighbours, or with coincident ones, takes the values of
 /// the next larger scale, as CANUPO does (Brodu & Lague 2012; qCANUPO's descriptor): its count
 /// says so. Bit-identical for any thread count and any tile holding each neighbourhood whole
-/// (sums over the neighbours in the octree's key order, src/dimensionality.cpp: a function of the
+/// (sums over the neighbours in the octree's key order, src/features/dimensionality.cpp: a function of the
 /// neighbours and their relative input order). At most 255 scales. Throws InvalidArgument on bad
 /// inputs.
 DimensionalityResult dimensionality(PointsView cloud, PointsView core_points, const std::vector<double>& diameters,

@@ -40,7 +40,7 @@ std::vector<std::uint32_t> change_points(const double* series, std::size_t epoch
 /// b - norm_b over the epochs where both are finite, divided by D_max = sum |a - dmax_origin|
 /// over the finite epochs of a, capped at 1 (Anders et al. 2021, eq. 3). NaN when no epoch is
 /// shared. O(n) memory. The computation may stop as soon as the result is known to be >= at_least
-/// (a lower bound on the cost, src/dtw_bound.hpp, or a row's minimum plus the bound of the rows
+/// (a lower bound on the cost, src/series/dtw_bound.hpp, or a row's minimum plus the bound of the rows
 /// below it: every warping path crosses each row) and then returns 1: exact for any comparison
 /// with a threshold <= at_least, and the exact value with at_least = 1 (the result is capped).
 double normalised_dtw(const double* a, const double* b, std::size_t n, double norm_a, double norm_b, double dmax_origin,

@@ -15,7 +15,7 @@ using ProgressCallback = std::function<bool(std::size_t done, std::size_t total)
 struct RunOptions {
   /// 0 = all hardware threads; results are bit-identical for any value. At most 4 per hardware
   /// thread and 1024 are started (a larger value is clamped), and fewer when the process cannot
-  /// create more (RLIMIT_NPROC, a cgroup's pids.max): src/threads.hpp.
+  /// create more (RLIMIT_NPROC, a cgroup's pids.max): src/support/threads.hpp.
   int threads = 0;
   ProgressCallback progress;
   /// compute() may order the reference's and the compared cloud's arrays in place (their rows

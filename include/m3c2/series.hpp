@@ -2,7 +2,7 @@
 // M3C2 time series (docs/series.md): one reference cloud and its core points compared with many
 // epochs. The reference's index and the core points' normals are computed once; each epoch then
 // costs its own index and the cylinders. Every epoch's result equals compute(reference, epoch,
-// core_points, params) bit for bit: both run the steps of src/core_point.hpp.
+// core_points, params) bit for bit: both run the steps of src/pipeline/core_point.hpp.
 
 #include <m3c2/params.hpp>
 #include <m3c2/points_view.hpp>

@@ -7,12 +7,13 @@
 
 D (normal_scale) and d (projection_scale) are diameters; max_depth is a half-length.
 """
-from .api import compare, normals, subsample
-from .errors import Cancelled, M3C2Error, M3C2Warning, UsageError
+from .api import compare
+from .base.errors import Cancelled, M3C2Error, M3C2Warning, UsageError
 from .io import Cloud, info
 from .io import read_cloud as read
-from .result import COLUMNS, STATUS_NAMES, Result
-from .writing import write
+from .engine.result import COLUMNS, STATUS_NAMES, Result
+from .output.writing import write
+from .run.in_memory import normals, subsample
 
 __all__ = ["compare", "normals", "subsample", "read", "write", "info", "Cloud", "Result", "COLUMNS",
            "STATUS_NAMES", "M3C2Error", "UsageError", "Cancelled", "M3C2Warning"]

@@ -1,8 +1,8 @@
-// M3C2_ASSERT (src/assert.hpp): active in this build when NDEBUG is not defined or
+// M3C2_ASSERT (src/support/assert.hpp): active in this build when NDEBUG is not defined or
 // M3C2_ENABLE_ASSERTS is (CI's sanitizer build), and then a violated invariant aborts with its
 // condition named; compiled out otherwise (the condition is not even evaluated).
 
-#include "assert.hpp"
+#include "support/assert.hpp"
 
 #include <gtest/gtest.h>
 

@@ -1,8 +1,8 @@
-// The cylinder test over a leaf (src/cylinder_leaf.hpp): two points at a time in SSE2 lanes,
+// The cylinder test over a leaf (src/index/cylinder_leaf.hpp): two points at a time in SSE2 lanes,
 // against the one-point test, bit for bit, on random points, on points exactly on the
 // boundaries and at every leaf length (the odd point left to the scalar loop).
 
-#include "cylinder_leaf.hpp"
+#include "index/cylinder_leaf.hpp"
 
 #include <gtest/gtest.h>
 

@@ -4,7 +4,7 @@
 
 #include "test_support.hpp"
 
-#include "distance.hpp"
+#include "index/distance.hpp"
 
 #include <Eigen/Eigenvalues>
 

@@ -1,14 +1,14 @@
-// normalised_dtw (src/dtw.cpp) against the plain full cost matrix of Anders et al. 2021, eq. 3:
-// the lower bound (src/dtw_bound.hpp) is never above the exact cost, the strips of rows
-// (src/dtw_rows.hpp) give the same bits as row by row, and the early stops never change a
+// normalised_dtw (src/series/dtw.cpp) against the plain full cost matrix of Anders et al. 2021, eq. 3:
+// the lower bound (src/series/dtw_bound.hpp) is never above the exact cost, the strips of rows
+// (src/series/dtw_rows.hpp) give the same bits as row by row, and the early stops never change a
 // comparison with a threshold <= at_least, on seeded random series with NaNs, equal and
-// constant series; the pairs computed lanes at a time (src/dtw_many.hpp) give the same bits as
+// constant series; the pairs computed lanes at a time (src/series/dtw_many.hpp) give the same bits as
 // one at a time.
 
 #include <m3c2/objects_by_change.hpp>
 
-#include "dtw_bound.hpp"
-#include "dtw_many.hpp"
+#include "series/dtw_bound.hpp"
+#include "series/dtw_many.hpp"
 
 #include <gtest/gtest.h>
 

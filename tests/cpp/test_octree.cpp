@@ -1,11 +1,11 @@
-// The octree of the pipeline (src/octree.hpp) against brute force: the neighbourhood moments of
+// The octree of the pipeline (src/index/octree.hpp) against brute force: the neighbourhood moments of
 // a ball and the cylinder offsets. And its promise: the moments of a neighbourhood, and the order
 // of a cylinder's offsets, depend only on the neighbours (and their relative input order), never
 // on the other points the index holds, which is what makes tiled runs bit-identical.
 
 #include "test_support.hpp"
 
-#include "octree.hpp"
+#include "index/octree.hpp"
 
 #include <algorithm>
 #include <cstring>
@@ -17,7 +17,11 @@ namespace {
 using detail::Moments;
 using detail::Octree;
 using detail::OctreeGrid;
+using detail::OctreeOptions;
 using detail::OctreeScratch;
+
+/// An index with the node moments that normals read.
+const OctreeOptions kWithMoments{.node_moments = true};
 
 /// Moments of the points of `cloud` within `radius` of `c`, two-pass in input order (the oracle).
 Moments brute_moments(const Cloud& cloud, const Vec3& c, double radius) {
@@ -62,7 +66,7 @@ void expect_moments_match_brute_force(const Vec3& offset) {
   const Cloud cloud = test_cloud(7, 20000, offset);
   const std::vector<double> radii = {0.15, 0.4, 0.75};
   const OctreeGrid grid = detail::octree_grid(0.3, 1.5);
-  const Octree tree(cloud.view(), grid, true);
+  const Octree tree(cloud.view(), grid, kWithMoments);
   OctreeScratch scratch;
   std::vector<Moments> out;
   std::mt19937_64 rng(11);
@@ -90,7 +94,7 @@ TEST(Octree, InclusiveSphereBoundaryOnQuantisedPoints) {
   Cloud cloud;
   for (int i = 0; i <= 32; ++i)
     for (int j = 0; j <= 32; ++j) cloud.add(0.125 * i, 0.125 * j, 0.125 * ((i * j) % 3));
-  const Octree tree(cloud.view(), detail::octree_grid(0.5, 1.0), true);
+  const Octree tree(cloud.view(), detail::octree_grid(0.5, 1.0), kWithMoments);
   OctreeScratch scratch;
   std::vector<Moments> out;
   for (const Vec3& c : {Vec3(2.0, 2.0, 0.0), Vec3(1.5, 2.25, 0.125), Vec3(0.0, 0.0, 0.0)}) {
@@ -105,9 +109,9 @@ TEST(Octree, MomentsAddedAfterTheBuildAreTheBuildsBits) {
   const Cloud cloud = test_cloud(5, 30000, Vec3(600000.0, 4200000.0, 50.0));
   const std::vector<double> radii = {0.2, 0.5, 1.5};
   const OctreeGrid grid = detail::octree_grid(0.4, 3.0);
-  const Octree built(cloud.view(), grid, true);
+  const Octree built(cloud.view(), grid, kWithMoments);
   for (const int threads : {1, 2}) {
-    Octree added(cloud.view(), grid, false);
+    Octree added(cloud.view(), grid);
     added.add_moments(threads);
     added.add_moments(threads);  // a second call changes nothing
     OctreeScratch scratch;
@@ -132,7 +136,7 @@ void expect_moments_independent_of_other_points(const Vec3& offset) {
   const Cloud cloud = test_cloud(3, 30000, offset);
   const std::vector<double> radii = {0.2, 0.5};
   const OctreeGrid grid = detail::octree_grid(0.4, 1.0);
-  const Octree whole(cloud.view(), grid, true);
+  const Octree whole(cloud.view(), grid, kWithMoments);
   std::mt19937_64 rng(5);
   OctreeScratch scratch;
   std::vector<Moments> a, b;
@@ -142,7 +146,7 @@ void expect_moments_independent_of_other_points(const Vec3& offset) {
     Cloud part;
     for (std::size_t i = 0; i < cloud.size(); ++i)
       if ((cloud[i] - core).norm() <= 0.5 + 1e-9 || keep(rng)) part.add(cloud[i]);
-    const Octree tile(part.view(), grid, true);
+    const Octree tile(part.view(), grid, kWithMoments);
     whole.ball_moments(core, radii, scratch, a);
     tile.ball_moments(core, radii, scratch, b);
     for (std::size_t k = 0; k < radii.size(); ++k) {
@@ -171,7 +175,7 @@ TEST(Octree, NeighbourhoodMomentsDoNotDependOnTheOtherPointsAroundTheOrigin) {
 TEST(Octree, EachScaleOfAMultiScaleQueryEqualsItsSingleScaleQuery) {
   const Cloud cloud = test_cloud(9, 20000, Vec3(1000.0, 2000.0, 0.0));
   const OctreeGrid grid = detail::octree_grid(0.2, 1.6);
-  const Octree tree(cloud.view(), grid, true);
+  const Octree tree(cloud.view(), grid, kWithMoments);
   const std::vector<double> radii = {0.1, 0.25, 0.4, 0.8};
   OctreeScratch scratch;
   std::vector<Moments> all, one;
@@ -188,7 +192,7 @@ TEST(Octree, EachScaleOfAMultiScaleQueryEqualsItsSingleScaleQuery) {
 TEST(Octree, CylinderOffsetsMatchBruteForceAndKeepTheirOrderInASubset) {
   const Cloud cloud = test_cloud(13, 30000, Vec3(300000.0, 5000000.0, 100.0));
   const OctreeGrid grid = detail::octree_grid(0.3, 0.0);
-  const Octree whole(cloud.view(), grid, false);
+  const Octree whole(cloud.view(), grid);
   std::mt19937_64 rng(17);
   std::vector<double> t_whole, t_tile;
   for (int q = 0; q < 40; ++q) {
@@ -201,7 +205,7 @@ TEST(Octree, CylinderOffsetsMatchBruteForceAndKeepTheirOrderInASubset) {
     Cloud part;
     for (std::size_t i = 0; i < cloud.size(); ++i)
       if ((cloud[i] - core).norm() <= 0.7 || keep(rng)) part.add(cloud[i]);
-    const Octree tile(part.view(), grid, false);
+    const Octree tile(part.view(), grid);
     tile.cylinder(cyl, t_tile);
     EXPECT_EQ(t_whole, t_tile) << q;  // the same values in the same order
   }
@@ -211,7 +215,7 @@ TEST(Octree, RejectsCoordinatesBeyondTheGridRange) {
   Cloud cloud;
   cloud.add(0.0, 0.0, 0.0);
   cloud.add(1e12, 0.0, 0.0);
-  EXPECT_THROW(Octree(cloud.view(), detail::octree_grid(0.01, 0.01), false), InvalidArgument);
+  EXPECT_THROW(Octree(cloud.view(), detail::octree_grid(0.01, 0.01)), InvalidArgument);
 }
 
 TEST(Octree, ComputeRefusesAFarOutlierNamingTheCloud) {
@@ -249,8 +253,8 @@ TEST(Octree, OrderedInPlaceHoldsTheSlotsRowsAndPutsThemBack) {
   std::vector<double> own = original;
   const OctreeGrid grid = detail::octree_grid(0.2, 0.4);
   {
-    const Octree copied(PointsView(original.data(), 5000), grid, true);
-    const Octree ordered(PointsView(own.data(), 5000), grid, true, "a cloud", true);
+    const Octree copied(PointsView(original.data(), 5000), grid, kWithMoments);
+    const Octree ordered(PointsView(own.data(), 5000), grid, {.node_moments = true, .order_cloud_in_place = true});
     ASSERT_EQ(ordered.size(), 5000u);
     bool moved = false;
     for (std::size_t s = 0; s < 5000; ++s) {

@@ -3,9 +3,9 @@
 // command-line flag a C++ caller does not have. The views are never dereferenced: each check
 // comes first, so a dummy pointer with a huge count tests it without 100 GB of points.
 
-#include "kdtree.hpp"
-#include "octree.hpp"
-#include "spatial_order.hpp"
+#include "index/kdtree.hpp"
+#include "index/octree.hpp"
+#include "index/spatial_order.hpp"
 #include "test_support.hpp"
 
 #include <string>
@@ -35,7 +35,8 @@ TEST(OverflowGuards, CorePointsBeyond32BitIndexesAreRefused) {
 
 TEST(OverflowGuards, AnOctreeOfMoreThan2To32Minus2PointsIsRefused) {
   const detail::OctreeGrid grid = detail::octree_grid(1.0, 1.0);
-  const std::string m = message_of([&] { detail::Octree(PointsView(kDummy, k2To32 - 1), grid, false, "cloud"); });
+  const std::string m =
+      message_of([&] { detail::Octree(PointsView(kDummy, k2To32 - 1), grid, {.cloud_name = "cloud"}); });
   EXPECT_NE(m.find("4294967295 points"), std::string::npos) << m;
   EXPECT_NE(m.find("tile_size"), std::string::npos) << m;
   EXPECT_EQ(m.find("--"), std::string::npos) << m;

@@ -1,11 +1,11 @@
-// The closed-form plane fit (src/plane_fit.cpp) against Eigen's iterative solver, on thousands
+// The closed-form plane fit (src/pipeline/plane_fit.cpp) against Eigen's iterative solver, on thousands
 // of seeded random co-moment matrices: planar, noisy, anisotropic, lines, points, zero and
 // repeated eigenvalues. Both solvers are backward stable, so they agree to a few ulps of ||A||
 // on eigenvalues, and on the normal to eps ||A|| / gap (gap: lambda1 - lambda0).
 
 #include "test_support.hpp"
 
-#include "plane_fit.hpp"
+#include "pipeline/plane_fit.hpp"
 
 #include <Eigen/Eigenvalues>
 

@@ -1,9 +1,9 @@
-// The standard C++ stand-ins of src/portable.hpp against the compiler's builtins, on the
+// The standard C++ stand-ins of src/support/portable.hpp against the compiler's builtins, on the
 // operations the engine uses, for fixed-seed random operands and the edge cases (shifts by 0,
 // 63, 64, 127; all-ones words). Where the compiler has no unsigned __int128 the reference is
 // the 128-bit arithmetic written out here (mul_high checked by its defining identity).
 
-#include "portable.hpp"
+#include "support/portable.hpp"
 
 #include <gtest/gtest.h>
 

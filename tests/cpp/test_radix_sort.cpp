@@ -1,13 +1,13 @@
-// The index build's sort (src/radix_sort.hpp) against std::stable_sort, and the parallel build
+// The index build's sort (src/index/radix_sort.hpp) against std::stable_sort, and the parallel build
 // (Octree's `threads`) against the serial one: the same order, slots and moment bits. The
 // sizes pass the thresholds of the parallel paths (radix::kParallelSort, the blocks of
 // parallel_blocks), which the pipeline's small test scenes stay below.
 
 #include "test_support.hpp"
 
-#include "octree.hpp"
-#include "portable.hpp"
-#include "radix_sort.hpp"
+#include "index/octree.hpp"
+#include "index/radix_sort.hpp"
+#include "support/portable.hpp"
 
 #include <algorithm>
 #include <cstring>
@@ -122,9 +122,9 @@ TEST(ParallelBuild, GivesTheSerialBuildsSlotsAndBits) {
     if (shift > 0.0) xyz.insert(xyz.end(), {-shift, -3.0e5, 50.0});
     const PointsView cloud(xyz.data(), xyz.size() / 3);
     const detail::OctreeGrid grid = detail::octree_grid(0.5, 1.0);
-    const detail::Octree serial(cloud, grid, true, "cloud", false, 1);
+    const detail::Octree serial(cloud, grid, {.node_moments = true, .cloud_name = "cloud", .build_threads = 1});
     for (const int t : {2, 4}) {
-      const detail::Octree parallel(cloud, grid, true, "cloud", false, t);
+      const detail::Octree parallel(cloud, grid, {.node_moments = true, .cloud_name = "cloud", .build_threads = t});
       ASSERT_EQ(parallel.size(), serial.size());
       for (std::size_t s = 0; s < serial.size(); ++s) ASSERT_EQ(parallel.original_index(s), serial.original_index(s));
       detail::OctreeScratch a, b;

@@ -2,9 +2,9 @@
 // counts are clamped to thread_cap() with the same bits, bootstrap resamples are capped, and a
 // long bootstrap inside one core point is cancellable.
 
+#include "pipeline/validation.hpp"
+#include "support/thread_limits.hpp"
 #include "test_support.hpp"
-#include "thread_limits.hpp"
-#include "validation.hpp"
 
 #include <sys/resource.h>
 #include <sys/wait.h>

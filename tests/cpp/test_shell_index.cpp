@@ -1,8 +1,8 @@
-// detail::ShellIndex (src/shell_index.hpp) against the plain count of the inner radii a squared
+// detail::ShellIndex (src/features/shell_index.hpp) against the plain count of the inner radii a squared
 // distance exceeds, on the values where a table lookup could go wrong: the radii themselves and
 // their neighbouring doubles, bins holding two radii, one scale, radii near under- and overflow.
 
-#include "shell_index.hpp"
+#include "features/shell_index.hpp"
 
 #include <gtest/gtest.h>
 

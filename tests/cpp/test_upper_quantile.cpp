@@ -1,8 +1,8 @@
-// detail::UpperQuantile (src/upper_quantile.hpp) against what 4D-OBC's region growing computed
+// detail::UpperQuantile (src/series/upper_quantile.hpp) against what 4D-OBC's region growing computed
 // before it: a descending ordered set of the distinct values, walked to floor(0.05 n), after every
 // value, on seeded random values with many repeats and both signed zeros.
 
-#include "upper_quantile.hpp"
+#include "series/upper_quantile.hpp"
 
 #include <gtest/gtest.h>
 

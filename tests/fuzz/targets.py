@@ -8,7 +8,7 @@ re-raises it and the fuzzer reports the input.
     ascii_reader   m3c2kit.io.read_cloud on a .xyz/.csv/.txt/.pts file  -> CloudReadError only
     ply_reader     m3c2kit.io.read_cloud on a .ply file                  -> CloudReadError only
     cc_params      m3c2kit.settings.cloudcompare_params.read_cloudcompare_params  -> UsageError only
-    cli_args       cli.make_parser().parse_args + cli.compare_settings + settings.build_params and the
+    cli_args       cli.make_parser().parse_args + compare_cli.compare_settings + settings.build_params and the
                    option parsers of m3c2kit.options                      -> M3C2Error (UsageError:
                    exit 2), or SystemExit(0) for --help
 
@@ -33,11 +33,13 @@ except ImportError:  # pragma: no cover
 
 import numpy as np  # noqa: E402
 
-from m3c2kit import api, cli  # noqa: E402
+from m3c2kit import api
+from m3c2kit.cli import compare as compare_cli  # noqa: E402
+from m3c2kit.cli import main as cli  # noqa: E402
 from m3c2kit.settings import build_params, parameters_of  # noqa: E402
 from m3c2kit.settings.parsers import positive  # noqa: E402
 from m3c2kit.settings.cloudcompare_params import read_cloudcompare_params  # noqa: E402
-from m3c2kit.errors import CloudReadError, M3C2Error, UsageError  # noqa: E402
+from m3c2kit.base.errors import CloudReadError, M3C2Error, UsageError  # noqa: E402
 from m3c2kit.io import read_cloud  # noqa: E402
 
 _WORK = Path(tempfile.mkdtemp(prefix="m3c2-fuzz-"))
@@ -153,7 +155,7 @@ def _check_command(args) -> None:
     os.chdir(_WORK)  # relative --params paths resolve in the scratch directory
     try:
         if args.command == "compare":
-            settings = cli.compare_settings(args)
+            settings = compare_cli.compare_settings(args)
             settings.pop("position", None)
             build_params(read_points=_no_files, **settings)
         elif args.command == "normals":
@@ -170,7 +172,7 @@ def _check_command(args) -> None:
 def crs_text(data: bytes) -> None:
     """The CRS helpers on any text (a LAS WKT record, --crs): values or None, never an exception
     (a deeply nested WKT raised RecursionError), and printable() leaves no control character."""
-    from m3c2kit.errors import printable
+    from m3c2kit.base.errors import printable
     from m3c2kit.io import crs
     text = data.decode("utf-8", "replace")
     assert isinstance(crs.looks_like_wkt(text), bool)

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 import m3c2kit
-from m3c2kit.result import STATUS_NAMES
+from m3c2kit.engine.result import STATUS_NAMES
 
 
 #: CloudCompare's and PDAL's outputs and the input clouds, copied into the repository

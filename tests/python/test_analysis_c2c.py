@@ -9,8 +9,8 @@ import pytest
 
 from m3c2kit.analysis import c2c
 from m3c2kit.analysis.synthetic import noisy_plane
-from m3c2kit.cli import main
-from m3c2kit.errors import UsageError
+from m3c2kit.cli.main import main
+from m3c2kit.base.errors import UsageError
 
 
 def brute(ref, q):

@@ -11,8 +11,8 @@ from m3c2kit.analysis import calibrate
 from m3c2kit.analysis.calibrate import report_lines
 from m3c2kit.analysis.calibrate import resolve_spacing
 from m3c2kit.analysis.synthetic import noisy_plane
-from m3c2kit.cli import main
-from m3c2kit.errors import UsageError
+from m3c2kit.cli.main import main
+from m3c2kit.base.errors import UsageError
 
 D_LIST = [0.8, 1.2, 1.6, 2.4]  # n2 >= 4 needs d >~ 0.7 on the 0.3-spaced copy
 

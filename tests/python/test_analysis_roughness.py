@@ -9,7 +9,7 @@ import pytest
 
 from m3c2kit.analysis import fit_scaling, roughness_by_scale, roughness_table
 from m3c2kit.analysis.synthetic import self_affine_surface
-from m3c2kit.cli import main
+from m3c2kit.cli.main import main
 
 N, SPACING = 256, 0.1           # 25.6 x 25.6 surface, one point per 0.1 x 0.1 cell
 SCALES = np.geomspace(1.0, 6.4, 7)  # 10 spacings to a quarter of the surface: well inside the self-affine range

@@ -9,7 +9,7 @@ import pytest
 
 from m3c2kit.analysis import simplify
 from m3c2kit.analysis.synthetic import noisy_plane
-from m3c2kit.cli import main
+from m3c2kit.cli.main import main
 
 
 @pytest.fixture(scope="module")

@@ -5,10 +5,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from m3c2kit.result import Result
-from m3c2kit.diagnostics import normal_accuracy_warnings, warn
-from m3c2kit.errors import M3C2Warning
-from m3c2kit.summary import normal_accuracy, summary_lines
+from m3c2kit.engine.result import Result
+from m3c2kit.run.diagnostics import normal_accuracy_warnings, warn
+from m3c2kit.base.errors import M3C2Warning
+from m3c2kit.output.summary import normal_accuracy, summary_lines
 
 
 def make_result(normal_scale, roughness) -> Result:

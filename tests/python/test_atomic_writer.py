@@ -15,7 +15,7 @@ from pathlib import Path
 
 import pytest
 
-from m3c2kit.errors import CloudWriteError, UsageError
+from m3c2kit.base.errors import CloudWriteError, UsageError
 from m3c2kit.io.atomic import PRIVATE_PREFIX, atomic_output, pinned_directory, staged_directory, staged_outputs
 from m3c2kit.io.private import LOCK_NAME, PINNABLE
 from child_env import child_env

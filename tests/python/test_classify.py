@@ -14,8 +14,8 @@ from m3c2kit.classify import classify, features, keep_mask, read_classifier, tra
 from m3c2kit.classify.labels import labels_from_polygons, read_polygons
 from m3c2kit.classify.model import BinaryClassifier, Classifier, _signed_distance
 from m3c2kit.classify.train import best_split
-from m3c2kit.cli import main
-from m3c2kit.errors import UsageError
+from m3c2kit.cli.main import main
+from m3c2kit.base.errors import UsageError
 from m3c2kit.io import read_cloud, write_cloud_table
 
 pytest.importorskip("sklearn")

@@ -10,8 +10,8 @@ import pytest
 import m3c2kit
 from m3c2kit.io.fields import typed_columns
 from m3c2kit.io.quantised import Quantised
-from m3c2kit.cli import main
-from m3c2kit.result import COLUMNS
+from m3c2kit.cli.main import main
+from m3c2kit.engine.result import COLUMNS
 
 from synthetic import noisy_plane_pair, write_xyz
 

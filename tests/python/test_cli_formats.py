@@ -9,7 +9,7 @@ import csv
 import numpy as np
 import pytest
 
-from m3c2kit.cli import main
+from m3c2kit.cli.main import main
 
 # (file under shared/data, D, d, max depth, core spacing): parameters scaled to each file's density.
 CASES = {

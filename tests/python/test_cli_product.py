@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 import m3c2kit
-from m3c2kit.cli import join_dash_values, main
+from m3c2kit.cli.main import join_dash_values, main
 from m3c2kit.io import Cloud, write_cloud_table
 from m3c2kit.io.crs import assign_crs
 

@@ -6,7 +6,7 @@ import re
 import pytest
 
 from m3c2kit.settings.cloudcompare_params import read_cloudcompare_params
-from m3c2kit.errors import UsageError
+from m3c2kit.base.errors import UsageError
 
 # The parameter file behind /work/shared/data/pairs/autzen-bmx/autzen-bmx-cc.txt, in the key
 # order qM3C2 writes.  The multi-scale keys are unused (NormalMode=0) and hold the values qM3C2's
@@ -56,6 +56,7 @@ AUTZEN_BMX_OPTIONS = {
     "positive_search_only": False,
     "threads": 8,
     "position": "core",
+    "compat": "cloudcompare",
 }
 
 MINIMAL = {"M3C2VER": "1", "NormalScale": "2", "SearchScale": "1", "SearchDepth": "3"}
@@ -115,6 +116,7 @@ def test_minimal_file_gets_qm3c2_factory_defaults(tmp_path):
         "depth_search": "progressive",
         "positive_search_only": False,
         "position": "compared",
+        "compat": "cloudcompare",
     }
 
 
@@ -293,9 +295,11 @@ def test_boolean_spellings_qvariant_accepts(tmp_path, text, expected):
     assert read(tmp_path, UseMedian=text)["median"] is expected
 
 
-def test_compat_options_are_not_emitted(tmp_path):
+def test_compat_options_are_implied_by_compat_not_emitted(tmp_path):
+    """The file's settings carry compat="cloudcompare" (so the API and --params read it alike); the
+    options it implies are not repeated."""
     opts = read_cloudcompare_params(write(tmp_path, AUTZEN_BMX))
-    assert "variance" not in opts and "scale_selection" not in opts and "compat" not in opts
+    assert "variance" not in opts and "scale_selection" not in opts and opts["compat"] == "cloudcompare"
 
 
 # --- multi-scale normals ------------------------------------------------------------------------

@@ -15,7 +15,7 @@ import pytest
 
 import m3c2kit
 import m3c2kit.compat.py4dgeo as p4
-from m3c2kit.errors import CloudReadError, UsageError
+from m3c2kit.base.errors import CloudReadError, UsageError
 
 REPO = Path(__file__).resolve().parents[2]
 TUTORIAL = REPO / "tests" / "data" / "py4dgeo-tutorial"

@@ -1,4 +1,4 @@
-"""Tiles as tasks on a Dask distributed cluster (python/m3c2kit/tiling.py, docs/scaling.md): the
+"""Tiles as tasks on a Dask distributed cluster (python/m3c2kit/run/, docs/scaling.md): the
 result equals the single in-memory run, also when a worker dies in the middle of a task."""
 from __future__ import annotations
 
@@ -17,8 +17,9 @@ cloudpickle = pytest.importorskip("cloudpickle")
 
 from m3c2kit import api  # noqa: E402
 from m3c2kit.io import read_cloud  # noqa: E402
-from m3c2kit.tiling import compute_tile, run_tiled  # noqa: E402
-from m3c2kit.writing import write  # noqa: E402
+from m3c2kit.run.tasks import compute_tile
+from m3c2kit.run.tiled import run_tiled  # noqa: E402
+from m3c2kit.output.writing import write  # noqa: E402
 
 REPO = Path(__file__).resolve().parents[2]
 REF, CMP = REPO / "data" / "toronto-ttp" / "TTP_15.laz", REPO / "data" / "toronto-ttp" / "TTP_23.laz"

@@ -1,4 +1,4 @@
-"""The run's data-quality warnings (m3c2kit.diagnostics) reach every executor and the API: a tiled
+"""The run's data-quality warnings (m3c2kit.run.diagnostics) reach every executor and the API: a tiled
 run warns exactly as the in-memory run (issue 12: it used to drop them), the API raises them as
 M3C2Warning, the command line prints them on stderr, even with -q."""
 from __future__ import annotations
@@ -10,8 +10,8 @@ import numpy as np
 import pytest
 
 import m3c2kit
-from m3c2kit.cli import main
-from m3c2kit.errors import M3C2Warning
+from m3c2kit.cli.main import main
+from m3c2kit.base.errors import M3C2Warning
 from synthetic import noisy_plane_pair
 
 TORONTO = Path(__file__).resolve().parents[2] / "data" / "toronto-ttp"
@@ -30,7 +30,7 @@ def test_a_tiled_run_gives_the_in_memory_warnings(tmp_path, capsys):
     memory = _warnings(capsys, "compare", *pair, "-o", tmp_path / "a.laz", *THIN, "-q")
     tiled = _warnings(capsys, "compare", *pair, "-o", tmp_path / "b.laz", *THIN, "-q", "--tile-size", "5")
     assert any("the median cylinder holds" in line for line in memory)
-    # The same warnings, except m3c2kit.quality's diagnosis of empty cylinders, which reruns the
+    # The same warnings, except m3c2kit.run.quality's diagnosis of empty cylinders, which reruns the
     # engine on the whole clouds that a tiled run does not hold (docs/errors.md).
     assert tiled == [line for line in memory if "in their cylinder" not in line]
 

@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 
 from m3c2kit.run import dask as dask_run
-from m3c2kit.cli import main
+from m3c2kit.cli.main import main
 
 pytest.importorskip("distributed")
 
@@ -89,7 +89,7 @@ import sys  # noqa: E402
 from contextlib import contextmanager  # noqa: E402
 from pathlib import Path  # noqa: E402
 
-from m3c2kit import fault_hook  # noqa: E402
+from m3c2kit.base import fault_hook  # noqa: E402
 
 SERIES_PARAMS = ["--normal-scale", "1", "--projection-scale", "1", "--max-depth", "1", "--quiet"]
 

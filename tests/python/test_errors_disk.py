@@ -20,7 +20,7 @@ import numpy as np
 import pytest
 from child_env import child_env
 
-from m3c2kit.cli import main
+from m3c2kit.cli.main import main
 
 SPILL_MESSAGE = "cannot write the tiled run's spill files (kept in a work folder there until the run ends)"
 OLDER = b"older output\n"
@@ -74,7 +74,7 @@ _FSIZE_CHILD = textwrap.dedent("""
     signal.signal(signal.SIGXFSZ, signal.SIG_IGN)  # a write past the limit then fails with EFBIG
     limit = int(sys.argv[1])
     resource.setrlimit(resource.RLIMIT_FSIZE, (limit, limit))
-    from m3c2kit.cli import main
+    from m3c2kit.cli.main import main
     sys.exit(main(sys.argv[2:]))
 """)
 

@@ -16,10 +16,10 @@ sys.path.insert(0, str(FUZZ))
 import random_fuzz  # noqa: E402
 import targets  # noqa: E402
 
-from m3c2kit import api  # noqa: E402
+from m3c2kit.run.checks import threads_count  # noqa: E402
 from m3c2kit.settings import build_params  # noqa: E402
-from m3c2kit.cli import main  # noqa: E402
-from m3c2kit.errors import CloudReadError, UsageError  # noqa: E402
+from m3c2kit.cli.main import main  # noqa: E402
+from m3c2kit.base.errors import CloudReadError, UsageError  # noqa: E402
 from m3c2kit.io import read_cloud, write_cloud_table  # noqa: E402
 
 
@@ -68,7 +68,7 @@ def test_regression_api_integer_fields():
         with pytest.raises(UsageError):
             build_params(normal_scale=1, projection_scale=1, max_depth=1, **kwargs)
     with pytest.raises(UsageError):
-        api.threads_count(-2)
+        threads_count(-2)
 
 
 def test_regression_fifo_does_not_block(tmp_path):

@@ -9,11 +9,11 @@ import numpy as np
 import pytest
 
 from m3c2kit.analysis.suggest import suggest as suggest_parameters
-from m3c2kit.cli import main
+from m3c2kit.cli.main import main
 from m3c2kit.settings.cloudcompare_params import read_cloudcompare_params
-from m3c2kit.errors import M3C2Error, UsageError, printable
+from m3c2kit.base.errors import M3C2Error, UsageError, printable
 from m3c2kit.io.arrays import as_coordinates
-from m3c2kit.limits import check_tile_size, usable_length
+from m3c2kit.settings.limits import check_tile_size, usable_length
 
 
 @pytest.mark.parametrize("n", [1, 2, 3, 4, 9])
@@ -258,6 +258,6 @@ _BAD_CALLS = [
 @pytest.mark.parametrize("fn, args, kwargs", _BAD_CALLS)
 def test_the_api_raises_only_the_packages_exceptions(fn, args, kwargs):
     """ValueError, TypeError, AttributeError and m3c2kit._core.Cancelled escaped the API."""
-    from m3c2kit import api
+    import m3c2kit
     with pytest.raises(M3C2Error):
-        getattr(api, fn)(*args, **kwargs)
+        getattr(m3c2kit, fn)(*args, **kwargs)

@@ -12,9 +12,9 @@ import numpy as np
 import pytest
 
 import m3c2kit
-from m3c2kit import uncertainty_inputs as ui
-from m3c2kit.cli import main
-from m3c2kit.errors import UsageError
+from m3c2kit.run import uncertainty_inputs as ui
+from m3c2kit.cli.main import main
+from m3c2kit.base.errors import UsageError
 from m3c2kit.settings import build_params, resolve
 
 REQUIRED = {"normal_scale": 1.0, "projection_scale": 1.0, "max_depth": 1.0}
@@ -479,7 +479,7 @@ def test_an_option_given_an_empty_value_is_refused_not_dropped(clouds, capsys, a
 
 
 def test_an_empty_class_map_is_refused_not_dropped():
-    from m3c2kit.classify.cli import class_codes
+    from m3c2kit.cli.classify import class_codes
     from types import SimpleNamespace
     for spec in ("", " , "):
         with pytest.raises(UsageError, match="--class-map is empty"):

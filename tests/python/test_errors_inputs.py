@@ -17,10 +17,10 @@ import pytest
 from child_env import child_env
 
 import m3c2kit
-from m3c2kit.cli import main
-from m3c2kit.errors import CloudReadError, UsageError
+from m3c2kit.cli.main import main
+from m3c2kit.base.errors import CloudReadError, UsageError
 from m3c2kit.io import files as io_files
-from m3c2kit.result import STATUS_NAMES
+from m3c2kit.engine.result import STATUS_NAMES
 
 BASE = ["--normal-scale", "0.5", "--projection-scale", "0.3", "--max-depth", "0.5"]
 STATUS = {name: code for code, name in enumerate(STATUS_NAMES)}

@@ -12,8 +12,8 @@ import laspy
 import numpy as np
 import pytest
 
-from m3c2kit.cli import main
-from m3c2kit.errors import CloudReadError, QuantisationWarning
+from m3c2kit.cli.main import main
+from m3c2kit.base.errors import CloudReadError, QuantisationWarning
 from m3c2kit.io import read_cloud, write_cloud_table
 from m3c2kit.io.las import choose_scale_offset
 

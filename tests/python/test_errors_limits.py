@@ -16,7 +16,7 @@ import pytest
 from child_env import child_env
 
 from m3c2kit import _core, api
-from m3c2kit.errors import UsageError
+from m3c2kit.base.errors import UsageError
 
 PARAMS = dict(normal_scale=1.0, projection_scale=0.5, max_depth=2.0, bootstrap=20)
 
@@ -101,7 +101,7 @@ _HOOK = textwrap.dedent("""
             return True if progress is None else progress(done, total)
         return original(*args, progress=first_poll, **kwargs)
     engine.compute = compute
-    from m3c2kit.cli import main
+    from m3c2kit.cli.main import main
     sys.exit(main(sys.argv[1:]))
 """)
 

@@ -11,8 +11,8 @@ import numpy as np
 import pytest
 
 import m3c2kit
-from m3c2kit.cli import main
-from m3c2kit.result import STATUS_NAMES
+from m3c2kit.cli.main import main
+from m3c2kit.engine.result import STATUS_NAMES
 
 Z95 = 1.959963984540054  # two-tailed z at 95 % (docs/algorithm.md, 6.1)
 STATUS = {name: code for code, name in enumerate(STATUS_NAMES)}

@@ -16,8 +16,8 @@ import numpy as np
 import pytest
 from child_env import child_env
 
-from m3c2kit import cli
-from m3c2kit.cli import main
+from m3c2kit.cli import main as cli
+from m3c2kit.cli.main import main
 from m3c2kit.io import ascii as io_ascii
 from m3c2kit.io import atomic, las as io_las
 
@@ -156,7 +156,7 @@ _FSIZE_CHILD = textwrap.dedent("""
     import resource, signal, sys
     signal.signal(signal.SIGXFSZ, signal.SIG_IGN)  # a write past the limit then fails with EFBIG
     resource.setrlimit(resource.RLIMIT_FSIZE, (4096, 4096))
-    from m3c2kit.cli import main
+    from m3c2kit.cli.main import main
     sys.exit(main(sys.argv[1:]))
 """)
 
@@ -191,7 +191,7 @@ def test_failed_write_keeps_the_previous_output(pair, capsys, monkeypatch):
 _HOOK = textwrap.dedent("""
     import contextlib
     import sys
-    import m3c2kit.phases as phases
+    import m3c2kit.base.phases as phases
     original = phases.Phases.phase
     @contextlib.contextmanager
     def phase(self, name, total=None):
@@ -203,7 +203,7 @@ _HOOK = textwrap.dedent("""
                 return step(done, total_now)
             yield update
     phases.Phases.phase = phase
-    from m3c2kit.cli import main
+    from m3c2kit.cli.main import main
     sys.exit(main(sys.argv[1:]))
 """)
 

@@ -11,10 +11,12 @@ import numpy as np
 import pytest
 
 import m3c2kit
-from m3c2kit import api, cli, engine
-from m3c2kit.cli import main
-from m3c2kit.diagnostics import cylinder_warnings as result_warnings
-from m3c2kit.errors import CloudReadError
+from m3c2kit import api, engine
+from m3c2kit.run import memory
+from m3c2kit.cli import compare as compare_cli
+from m3c2kit.cli.main import main
+from m3c2kit.run.diagnostics import cylinder_warnings as result_warnings
+from m3c2kit.base.errors import CloudReadError
 from m3c2kit.io import Cloud, files as io_files, guard, write_cloud_table
 from m3c2kit.io.crs import crs_label, same_crs
 
@@ -177,7 +179,7 @@ def test_max_depth_shorter_than_the_change_warns(tmp_path, capsys):
     assert code == 0
     assert "status: empty_cylinder_compared 1600" in out
     # The compared points are there, 0.5 along the normal: the depth is too short, and by how much
-    # (m3c2kit.quality; tests/python/test_quality.py for the no-overlap case, which never advises it).
+    # (m3c2kit.run.quality; tests/python/test_quality.py for the no-overlap case, which never advises it).
     line = [x for x in err.splitlines() if "only beyond --max-depth" in x]
     assert len(line) == 1 and line[0].startswith("m3c2: warning: 1,600 of the 1,600 core points with a normal "
                                                  "(100.0 %) have compared points only beyond --max-depth 0.2")
@@ -190,7 +192,7 @@ def _fake(status, n1, n2):
 
 
 def test_warning_thresholds():
-    # Empty cylinders in one cloud are diagnosed by m3c2kit.quality (no overlap vs depth too
+    # Empty cylinders in one cloud are diagnosed by m3c2kit.run.quality (no overlap vs depth too
     # short, test_quality.py); result_warnings no longer advises a depth blindly.
     n = 100
     n1, n2 = np.full(n, 20), np.full(n, 20)
@@ -262,7 +264,7 @@ def test_same_crs_spelled_differently_and_unknown_crs_pass(autzen_pair, tmp_path
     pair = autzen_pair
     a, b = m3c2kit.read(pair / "autzen-bmx-2010.las"), m3c2kit.read(pair / "autzen-bmx-2023.las")
     assert a.crs != b.crs and same_crs(a.crs, b.crs) is True  # two WKT spellings of one compound CRS
-    cli.check_same_crs(a, b)
+    compare_cli.check_same_crs(a, b)
     # A cloud without CRS (text) against one with a CRS: refused (issue 13), unless --ignore-crs
     # or --crs gives it the reference's.
     write_xyz(tmp_path / "cmp.xyz", grid(z=0.1))
@@ -297,29 +299,29 @@ def test_estimate_memory_formula():
     from m3c2kit.settings import build_params
     mem = engine.INDEX_MEMORY
     copied, moments = mem["bytes_per_point"] + mem["copy_bytes_per_point"], mem["moments_bytes_per_point"]
-    assert api.estimate_memory(0, 0, 0) == 0
+    assert memory.estimate_memory(0, 0, 0) == 0
     # The default normals are the reference's: its node moments, none on the compared cloud.
-    assert api.estimate_memory(1000, 2000, 0) == int((1000 * (copied + moments) + 2000 * copied) * mem["overhead"])
-    assert api.estimate_memory(0, 0, 1000) == mem["bytes_per_core_point"] * 1000
-    big = api.estimate_memory(10**9, 10**9, 10**8)
+    assert memory.estimate_memory(1000, 2000, 0) == int((1000 * (copied + moments) + 2000 * copied) * mem["overhead"])
+    assert memory.estimate_memory(0, 0, 1000) == mem["bytes_per_core_point"] * 1000
+    big = memory.estimate_memory(10**9, 10**9, 10**8)
     assert big == int((10**9 * (2 * copied + moments)) * mem["overhead"] + mem["bytes_per_core_point"] * 10**8)
     # Normals on both clouds: moments on both; given core normals: none.
     both = build_params(normal_scale=1, projection_scale=1, max_depth=1, normal_source="mean")
-    assert api.estimate_memory(1000, 1000, 0, both) == int(2000 * (copied + moments) * mem["overhead"])
+    assert memory.estimate_memory(1000, 1000, 0, both) == int(2000 * (copied + moments) * mem["overhead"])
     given = build_params(projection_scale=1, max_depth=1, normal_source="core")
-    assert api.estimate_memory(1000, 1000, 0, given) == int(2000 * copied * mem["overhead"])
+    assert memory.estimate_memory(1000, 1000, 0, given) == int(2000 * copied * mem["overhead"])
     # Ordered in place: no copies, unless an uncertainty model forbids it.
     in_place = mem["bytes_per_point"]
-    assert api.estimate_memory(1000, 1000, 0, given, reorder_inputs=True) == int(2000 * in_place * mem["overhead"])
+    assert memory.estimate_memory(1000, 1000, 0, given, reorder_inputs=True) == int(2000 * in_place * mem["overhead"])
     ep = build_params(projection_scale=1, max_depth=1, normal_source="core", uncertainty="ep")
-    assert api.estimate_memory(1000, 1000, 0, ep, reorder_inputs=True) == int(2000 * copied * mem["overhead"])
+    assert memory.estimate_memory(1000, 1000, 0, ep, reorder_inputs=True) == int(2000 * copied * mem["overhead"])
 
 
 def test_check_memory_with_injected_available_memory():
-    needed = api.estimate_memory(10**6, 10**6, 10**5)
-    assert api.check_memory(10**6, 10**6, 10**5, available=needed) == needed
-    with pytest.raises(api.InsufficientMemory) as err:
-        api.check_memory(10**6, 10**6, 10**5, available=needed - 1)
+    needed = memory.estimate_memory(10**6, 10**6, 10**5)
+    assert memory.check_memory(10**6, 10**6, 10**5, available=needed) == needed
+    with pytest.raises(memory.InsufficientMemory) as err:
+        memory.check_memory(10**6, 10**6, 10**5, available=needed - 1)
     message = str(err.value)
     assert message.startswith("not enough memory: this run needs about 177.7 MiB (spatial index of 1000000 + "
                               "1000000 points, results for 100000 core points) but only 177.7 MiB is available")
@@ -328,7 +330,7 @@ def test_check_memory_with_injected_available_memory():
 
 def test_compare_checks_memory_before_computing(monkeypatch):
     monkeypatch.setenv(guard.MEMORY_ENV, "1000")
-    with pytest.raises(api.InsufficientMemory):
+    with pytest.raises(memory.InsufficientMemory):
         m3c2kit.compare(grid(), grid(z=0.1), normal_scale=0.5, projection_scale=0.3, max_depth=0.5)
 
 

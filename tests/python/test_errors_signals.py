@@ -5,7 +5,7 @@ the next run into that folder nothing is left but its output (no temporary, no p
 spill folder).
 
 Each run is stopped at its phase by the testing aid M3C2_TEST_SIGNAL_AT=PHASE:SIGNAL
-(m3c2kit.fault_hook: the run sends itself the signal there), not by sleeping. SIGKILL and SIGTERM
+(m3c2kit.base.fault_hook: the run sends itself the signal there), not by sleeping. SIGKILL and SIGTERM
 are sent in every mode at every phase; every other catchable signal once, dealt over the six
 (mode, phase) cases so that each case also sees an ignored signal and three that end the process
 (a few tens of runs in all). What each signal does is its disposition in `m3c2`:
@@ -134,7 +134,7 @@ def test_every_catchable_signal_is_sent_in_each_case_or_once():
 
 
 def test_the_hook_is_inert_when_unset_or_malformed(tmp_path, monkeypatch):
-    from m3c2kit import fault_hook
+    from m3c2kit.base import fault_hook
 
     for value in (None, "", "reading", "reading:SIGNOPE", "nophase:SIGTERM"):
         if value is None:

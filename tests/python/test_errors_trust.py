@@ -23,11 +23,11 @@ import pytest
 import m3c2kit
 from m3c2kit import engine
 from m3c2kit.classify.model import ClassifierFileError, read_classifier
-from m3c2kit.cli import main
-from m3c2kit.errors import UsageError
+from m3c2kit.cli.main import main
+from m3c2kit.base.errors import UsageError
 from m3c2kit.io import write_cloud_table
 from m3c2kit.io.input_file import SMALL_FILE_LIMITS, read_small_bytes
-from m3c2kit.uncertainty_inputs import load_scan_positions
+from m3c2kit.run.uncertainty_inputs import load_scan_positions
 
 pytestmark = pytest.mark.skipif(not hasattr(os, "mkfifo") or not os.path.exists("/dev/zero"),
                                 reason="needs FIFOs and /dev/zero")
@@ -202,7 +202,7 @@ def test_an_os_error_no_reader_converted_is_one_line_naming_its_file(number, str
     # (pathlib's checks raise ENAMETOOLONG instead of answering; a full disk in any command).
     def fail(*args, **kwargs):
         raise OSError(number, strerror, str(tmp_path / "out.csv"))
-    monkeypatch.setattr("m3c2kit.cli.check_outputs", fail)
+    monkeypatch.setattr("m3c2kit.cli.compare.check_outputs", fail)
     code, err = run(["compare", data / "a.xyz", data / "b.xyz", "-o", tmp_path / "out.csv", *SCALES], capsys)
     message = one_line(err)
     assert code == 1 and message.startswith(f"{tmp_path / 'out.csv'}: {words}")
@@ -539,7 +539,7 @@ def test_a_report_png_prefix_naming_a_folder_is_a_usage_error(prefix, data, tmp_
 def test_the_api_writers_never_replace_a_special_file(link, tmp_path):
     # The command line checks its outputs first (io.collisions); the API's writers reach the atomic
     # writer directly, which refuses them too: write_cloud_table('fifo.csv', ...) replaced the FIFO.
-    from m3c2kit.errors import CloudWriteError
+    from m3c2kit.base.errors import CloudWriteError
     from m3c2kit.io import write_cloud_table
     fifo = tmp_path / "fifo.csv"
     os.mkfifo(fifo)

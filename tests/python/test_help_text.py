@@ -8,9 +8,9 @@ import re
 
 import pytest
 
-from m3c2kit.cli import make_parser
-from m3c2kit.cli_parser import HelpFormatter
-from m3c2kit.series import cli as series_cli
+from m3c2kit.cli.main import make_parser
+from m3c2kit.cli.parser import HelpFormatter
+from m3c2kit.cli import series as series_cli
 
 
 def _walk(parser, path):

@@ -20,8 +20,8 @@ import pytest
 xr = pytest.importorskip("xarray")
 zarr = pytest.importorskip("zarr")
 
-from m3c2kit import fault_hook  # noqa: E402
-from m3c2kit.cli import main  # noqa: E402
+from m3c2kit.base import fault_hook  # noqa: E402
+from m3c2kit.cli.main import main  # noqa: E402
 from m3c2kit.series import integrity  # noqa: E402
 from m3c2kit.series import store as st  # noqa: E402
 

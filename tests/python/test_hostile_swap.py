@@ -55,7 +55,7 @@ def series_inputs(tmp_path_factory):
     pytest.importorskip("zarr")
     sys.path.insert(0, str(REPO / "validation"))
     import series_synthetic as ss
-    from m3c2kit.cli import main
+    from m3c2kit.cli.main import main
     d = tmp_path_factory.mktemp("series")
     scenario = ss.Scenario(extent=6.0, density=8.0, epochs=6, offset_epoch=3,
                            landslide=ss.Landslide(2.0, 4.0, 1.5, 1.0, 0.08, 0.003, 2),

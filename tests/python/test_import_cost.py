@@ -14,7 +14,7 @@ import pytest
 HEAVY = ("matplotlib", "dask", "distributed", "pyproj", "rasterio", "xarray", "zarr", "plotly", "sklearn",
          "scipy", "tqdm", "laspy", "requests", "pye57")
 #: The package's own modules a compare run does not use.
-OWN = ("m3c2kit.report.figures", "m3c2kit.report.view3d", "m3c2kit.report.cartography", "m3c2kit.series.epochs",
+OWN = ("m3c2kit.output.report.figures", "m3c2kit.output.report.view3d", "m3c2kit.output.report.cartography", "m3c2kit.series.epochs",
        "m3c2kit.classify.plot")
 
 
@@ -35,7 +35,7 @@ def test_import_m3c2kit_imports_no_heavy_library():
 
 
 def test_building_the_parser_imports_no_heavy_library():
-    modules = _imported_after("from m3c2kit import cli\nparser = cli.make_parser()\n"
+    modules = _imported_after("from m3c2kit.cli import main as cli\nparser = cli.make_parser()\n"
                               "parser.parse_args(['compare', 'a.laz', 'b.laz', '-o', 'c.laz'])")
     assert _heavy(modules, HEAVY + OWN) == []
 

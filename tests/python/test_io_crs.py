@@ -10,7 +10,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from m3c2kit.errors import UsageError
+from m3c2kit.base.errors import UsageError
 from m3c2kit.io import Cloud, write_cloud_table
 from m3c2kit.io import crs as C
 from m3c2kit.io.describe import describe, describe_text

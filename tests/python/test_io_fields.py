@@ -10,7 +10,7 @@ import pytest
 
 import m3c2kit
 from m3c2kit.io.quantised import LENGTH_QUANTUM
-from m3c2kit.errors import UsageError
+from m3c2kit.base.errors import UsageError
 from m3c2kit.io import fields as F
 from m3c2kit.engine import match_rows
 

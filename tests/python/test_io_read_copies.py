@@ -9,7 +9,7 @@ import laspy
 import numpy as np
 
 import m3c2kit
-from m3c2kit import api
+from m3c2kit.run.checks import as_points
 
 
 def _laz(path, n=200_000):
@@ -29,7 +29,7 @@ def test_coordinates_are_laspys_bits_in_one_engine_ready_array(tmp_path):
     expected = np.column_stack([las.x, las.y, las.z])
     assert np.array_equal(cloud.xyz.view(np.uint64), expected.view(np.uint64))
     assert cloud.xyz.dtype == np.float64 and cloud.xyz.flags.c_contiguous
-    handed = api.as_points("reference", cloud)
+    handed = as_points("reference", cloud)
     assert handed is cloud.xyz or np.shares_memory(handed, cloud.xyz)
 
 

@@ -13,7 +13,7 @@ import pye57
 import pytest
 from child_env import child_env
 
-from m3c2kit.errors import CloudReadError, UsageError
+from m3c2kit.base.errors import CloudReadError, UsageError
 from m3c2kit.io import SUPPORTED_READ, info, read_cloud
 
 DATA = Path(__file__).resolve().parents[3] / "shared" / "data"
@@ -155,7 +155,7 @@ def test_rejection_list_names_existing_files():
 
 _CHILD = """
 import sys
-from m3c2kit.errors import CloudReadError
+from m3c2kit.base.errors import CloudReadError
 from m3c2kit.io import read_cloud
 try:
     read_cloud(sys.argv[1])

@@ -10,7 +10,7 @@ import pytest
 
 import m3c2kit.io.ascii
 import m3c2kit.io.ply
-from m3c2kit.errors import CloudWriteError, QuantisationWarning
+from m3c2kit.base.errors import CloudWriteError, QuantisationWarning
 from m3c2kit.io import SUPPORTED_WRITE, Cloud, atomic_output, read_cloud, write_cloud_table
 
 

@@ -7,10 +7,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from m3c2kit import lod_rates
-from m3c2kit.report import _summary
-from m3c2kit.result import STATUS_NAMES, Result
-from m3c2kit.summary import normal_accuracy, summary_lines
+from m3c2kit.output import lod_rates
+from m3c2kit.output.report import _summary
+from m3c2kit.engine.result import STATUS_NAMES, Result
+from m3c2kit.output.summary import normal_accuracy, summary_lines
 
 
 def make_result(normal_scale, roughness, *, n=10, params=None, i1=None, status=None) -> Result:

@@ -20,13 +20,13 @@ pytestmark = pytest.mark.filterwarnings("ignore:.*LAS stores the coordinates")  
 # still imports.
 _PROBE = r"""
 import json, sys
-import m3c2kit.cli
+import m3c2kit.cli.main
 argv = {argv!r}
 if {as_script!r}:
     sys.argv = ["m3c2", *argv]
-    rc = m3c2kit.cli.main()
+    rc = m3c2kit.cli.main.main()
 else:
-    rc = m3c2kit.cli.main(argv)
+    rc = m3c2kit.cli.main.main(argv)
 loaded = {{name: name in sys.modules for name in ("laspy", "pyproj", "requests")}}
 import laspy.copc
 try:

@@ -1,34 +1,33 @@
 """The package's layers depend one way (docs/architecture.md):
-errors <- io <- engine <- settings <- run <- report <- cli. Each module may import only modules of
-its own layer or of the layers to its left; nothing imports the command line. Read from the
-source with ast (every import, including those inside functions)."""
+base <- io <- engine <- settings <- run <- output <- features <- api <- cli. A module's layer is
+the folder it is in (m3c2kit/<folder>/...), so moving a file is the only way to change it. Each
+module may import only modules of its own layer or of the layers to its left; nothing imports
+the command line. Read from the source with ast (every import, including those inside
+functions)."""
 from __future__ import annotations
 
 import ast
 from pathlib import Path
 
 PACKAGE = Path(__file__).resolve().parents[2] / "python" / "m3c2kit"
-ORDER = ("errors", "io", "engine", "settings", "run", "report", "cli")
+ORDER = ("base", "io", "engine", "settings", "run", "output", "features", "api", "cli")
 
-#: Layer of each module (dotted names below m3c2kit); a package stands for its modules.
-LAYERS = {
-    "errors": "errors", "optional": "errors", "fault_hook": "errors", "io": "io",
-    "_core": "engine", "engine": "engine", "result": "engine",
-    "settings": "settings", "limits": "settings",
-    "run": "run", "api": "run", "tiling": "run", "raster": "run", "diagnostics": "run", "uncertainty_inputs": "run",
-    "analysis": "run", "compat": "run", "classify": "run", "lod_rates": "run", "lod_table": "run", "quality": "run", "phases": "run",
-    "report": "report", "summary": "report", "writing": "report",
-    "cli": "cli", "cli_parser": "cli", "cli_integers": "cli", "analysis.cli": "cli", "classify.cli": "cli", "series": "run", "series.report": "report", "series.cli": "cli", "__main__": "cli",
-}
+#: The layer of each folder of m3c2kit; the features are four folders of one layer.
+FOLDERS = {"base": "base", "io": "io", "engine": "engine", "settings": "settings", "run": "run", "output": "output",
+           "analysis": "features", "classify": "features", "series": "features", "compat": "features", "cli": "cli"}
+#: The package's root holds only its face: the public API (api.py), the re-exports (__init__,
+#: exempt) and `python -m m3c2kit`; _core is the binding, which the engine imports.
+ROOT_MODULES = {"api": "api", "__main__": "cli", "_core": "engine"}
 
 
 def layer_of(module: str) -> str:
-    parts = module.split(".")
-    for n in range(len(parts), 0, -1):
-        if ".".join(parts[:n]) in LAYERS:
-            return LAYERS[".".join(parts[:n])]
-    raise AssertionError(f"m3c2kit.{module} has no layer in tests/python/test_layers.py (add it, and to "
-                         f"docs/architecture.md)")
+    head = module.split(".")[0]
+    if "." not in module and head in ROOT_MODULES:
+        return ROOT_MODULES[head]
+    if head in FOLDERS:
+        return FOLDERS[head]
+    raise AssertionError(f"m3c2kit.{module} is in no layer's folder: move it into one of {sorted(FOLDERS)} "
+                         f"(docs/architecture.md)")
 
 
 def _name(path: Path) -> str:
@@ -83,3 +82,9 @@ def test_every_import_goes_to_the_same_or_a_lower_layer():
 def test_nothing_imports_the_command_line():
     importers = sorted(_name(p) for p in PACKAGE.rglob("*.py") if "cli" in imports(p) and _name(p) != "__main__")
     assert importers == []
+
+
+def test_every_module_is_in_a_layer_folder():
+    modules = sorted(_name(p) for p in PACKAGE.rglob("*.py") if _name(p))
+    assert [m for m in modules if m.split(".")[0] not in FOLDERS and m not in ROOT_MODULES] == []
+    assert set(FOLDERS) <= {p.name for p in PACKAGE.iterdir() if (p / "__init__.py").exists()}

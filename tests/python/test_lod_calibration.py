@@ -11,7 +11,7 @@ import math
 import numpy as np
 import pytest
 
-from m3c2kit import lod_rates
+from m3c2kit.output import lod_rates
 from m3c2kit.analysis import lod_engine, no_change
 
 SEED = 2  # seed 1 draws a p ~ 1e-4 fluke: 43 of 2000 median/z false positives at 99 %, n = 5 (23 expected)

@@ -8,9 +8,9 @@ import numpy as np
 import pytest
 
 import m3c2kit
-import m3c2kit.errors
+import m3c2kit.base.errors
 import m3c2kit.settings.table
-from m3c2kit.cli import main
+from m3c2kit.cli.main import main
 
 from synthetic import noisy_plane_pair, write_xyz
 
@@ -44,7 +44,7 @@ def test_lod_statistics_and_the_old_flags(pair):
     np.testing.assert_array_equal(lod(pair).lod, auto.lod)
     table = m3c2kit.settings.table.by_name()
     assert table["lod"].default_for() == "auto" and table["lod"].default_for("cloudcompare") == "z"
-    with pytest.raises(m3c2kit.errors.UsageError, match="contradicts"):
+    with pytest.raises(m3c2kit.base.errors.UsageError, match="contradicts"):
         lod(pair, lod="z", t_statistic=True)
 
 

@@ -1,4 +1,4 @@
-"""The in-memory run's memory estimate (m3c2::IndexMemory, api.estimate_memory) against the
+"""The in-memory run's memory estimate (m3c2::IndexMemory, memory.estimate_memory) against the
 peak a real run reaches: an upper estimate, and not a loose one (docs/errors.md, "Memory")."""
 from __future__ import annotations
 
@@ -18,6 +18,7 @@ CHILD = r"""
 import json, sys
 import numpy as np
 from m3c2kit import api
+from m3c2kit.run import memory
 from m3c2kit.settings import build_params
 
 def status(key):
@@ -41,7 +42,7 @@ with open("/proc/self/clear_refs", "w") as f:
     f.write("5")  # VmHWM starts afresh from the resident size now
 before = status("VmRSS")
 api.compare(ref, cmp_, core, reorder_inputs=reorder, **params)
-estimate = api.estimate_memory(n, n, len(core), build_params(**params), reorder_inputs=reorder)
+estimate = memory.estimate_memory(n, n, len(core), build_params(**params), reorder_inputs=reorder)
 print(json.dumps(dict(peak=status("VmHWM") - before, estimate=estimate)))
 """
 

@@ -1,4 +1,4 @@
-"""Optional features behind extras (python/m3c2kit/optional.py, issue 13 point 9): with the
+"""Optional features behind extras (python/m3c2kit/base/optional.py, issue 13 point 9): with the
 library of an extra missing (simulated by a None entry in sys.modules, which makes its import
 fail as an uninstalled one does), importing m3c2kit and running the core still work, and the
 feature fails with a message naming its extra and the pip command that installs it."""
@@ -12,8 +12,8 @@ import numpy as np
 import pytest
 
 from child_env import child_env
-from m3c2kit import optional
-from m3c2kit.errors import M3C2Error
+from m3c2kit.base import optional
+from m3c2kit.base.errors import M3C2Error
 
 EXTRAS = {"rasterio": "raster", "pye57": "e57", "distributed": "dask", "dask": "dask", "matplotlib": "report"}
 
@@ -71,7 +71,7 @@ def test_reading_e57_without_pye57(absent, tmp_path):
 
 
 def test_rasters_without_rasterio(absent):
-    from m3c2kit import raster
+    from m3c2kit.run import raster
     absent("rasterio")
     with pytest.raises(optional.MissingExtraError, match="raster extra"):
         raster.rasterio_crs("EPSG:32617")
@@ -81,12 +81,12 @@ def test_rasters_without_rasterio(absent):
 
 def test_report_figures_without_matplotlib(absent):
     absent("matplotlib")
-    sys.modules.pop("m3c2kit.report.figures", None)
+    sys.modules.pop("m3c2kit.output.report.figures", None)
     try:
         with pytest.raises(optional.MissingExtraError, match=r"needs the report extra: pip install 'm3c2kit\[report\]'"):
-            import m3c2kit.report.figures  # noqa: F401
+            import m3c2kit.output.report.figures  # noqa: F401
     finally:
-        sys.modules.pop("m3c2kit.report.figures", None)  # re-imported with matplotlib by later tests
+        sys.modules.pop("m3c2kit.output.report.figures", None)  # re-imported with matplotlib by later tests
 
 
 def test_analysis_plots_without_matplotlib(absent):
@@ -112,13 +112,13 @@ def test_the_core_install_imports_and_computes_without_any_extra(tmp_path):
     the command line's module and a comparison to LAZ all work."""
     script = _blocking_prelude(EXTRAS) + textwrap.dedent(f"""
         import numpy as np
-        import m3c2kit, m3c2kit.cli
+        import m3c2kit, m3c2kit.cli.main
         x, y = np.meshgrid(np.linspace(0, 4, 41), np.linspace(0, 4, 41))
         ref = np.column_stack([x.ravel(), y.ravel(), np.zeros(x.size)])
         cmp = ref + [0, 0, 0.25]
         np.save({str(tmp_path / 'ref.npy')!r}, ref)
         np.save({str(tmp_path / 'cmp.npy')!r}, cmp)
-        code = m3c2kit.cli.main([
+        code = m3c2kit.cli.main.main([
             "compare", {str(tmp_path / 'ref.npy')!r}, {str(tmp_path / 'cmp.npy')!r},
             "-o", {str(tmp_path / 'out.laz')!r}, "--core-spacing", "1", "--normal-scale", "1",
             "--projection-scale", "1", "--max-depth", "1", "--quiet"])
@@ -144,7 +144,7 @@ def test_the_command_line_names_the_missing_extra(tmp_path, args, extra):
             "--max-depth", "1"] + [a.format(tmp=tmp_path) for a in args]
     if extra != "raster":  # --grid imposes vertical normals and its own core points
         argv += ["--core-spacing", "2", "--normal-scale", "2", "--projection-scale", "2"]
-    script = _blocking_prelude(modules) + f"from m3c2kit.cli import main\nsys.exit(main({argv!r}))\n"
+    script = _blocking_prelude(modules) + f"from m3c2kit.cli.main import main\nsys.exit(main({argv!r}))\n"
     proc = subprocess.run([sys.executable, "-c", script], env=child_env(), capture_output=True, text=True, timeout=120)
     assert proc.returncode == 1, (proc.returncode, proc.stderr)
     assert f"needs the {extra} extra: pip install 'm3c2kit[{extra}]'" in proc.stderr

@@ -10,8 +10,8 @@ import numpy as np
 import pytest
 
 import m3c2kit
-from m3c2kit.cli import main
-from m3c2kit.errors import UsageError
+from m3c2kit.cli.main import main
+from m3c2kit.base.errors import UsageError
 from m3c2kit.io import Cloud, read_cloud, write_cloud_table
 from m3c2kit.settings.cloudcompare_params import read_cloudcompare_params
 from m3c2kit.settings.orientation import exact_mean

@@ -9,7 +9,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from m3c2kit.cli import main
+from m3c2kit.cli.main import main
 from m3c2kit.io import Cloud, write_cloud_table
 from synthetic import noisy_plane_pair
 

@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 import m3c2kit
-from m3c2kit.cli import main
+from m3c2kit.cli.main import main
 from m3c2kit.io import read_cloud
 from m3c2kit.io.quantised import LENGTH_QUANTUM, UNIT_QUANTUM
 

@@ -1,4 +1,4 @@
-"""Progress over a run's phases (m3c2kit.phases): tqdm bars, no ETA before 3 %, silent off a
+"""Progress over a run's phases (m3c2kit.base.phases): tqdm bars, no ETA before 3 %, silent off a
 terminal unless forced, and the engine's callback drives it."""
 from __future__ import annotations
 
@@ -9,7 +9,7 @@ import sys
 import numpy as np
 
 import m3c2kit
-from m3c2kit.phases import ETA_AFTER, Phases
+from m3c2kit.base.phases import ETA_AFTER, Phases
 
 
 class _Tty(io.StringIO):
@@ -76,7 +76,7 @@ def test_without_tqdm_each_phase_is_a_plain_line(monkeypatch):
 
 
 def test_without_tqdm_the_command_line_prints_phase_lines(monkeypatch, tmp_path, capsys):
-    from m3c2kit.cli import main
+    from m3c2kit.cli.main import main
     from m3c2kit.io import write_cloud_table
     monkeypatch.setitem(sys.modules, "tqdm", None)
     monkeypatch.setitem(sys.modules, "tqdm.auto", None)

@@ -1,4 +1,4 @@
-"""The diagnoses behind the data-quality warnings (m3c2kit.quality): no overlap vs. a depth too
+"""The diagnoses behind the data-quality warnings (m3c2kit.run.quality): no overlap vs. a depth too
 short, normals that fail because D was given as a radius, shares over what they describe."""
 from __future__ import annotations
 
@@ -8,7 +8,9 @@ import numpy as np
 import pytest
 
 import m3c2kit
-from m3c2kit import engine, quality as Q
+from m3c2kit import engine
+from m3c2kit.run import in_memory
+from m3c2kit.run import quality as Q
 from m3c2kit.io.arrays import bounds
 
 TORONTO = Path(__file__).resolve().parents[2] / "data" / "toronto-ttp"
@@ -45,7 +47,7 @@ def test_the_one_cloud_index_gives_the_two_cloud_runs_cylinders(toronto, cloud):
     for diameter in (1.0, 4.0):
         kw = dict(normal_source="core", core_normals=r.normal[idx], projection_scale=diameter, max_depth=reach,
                   min_points=1)
-        both = m3c2kit.api.compare_quietly(ref, cmp_, r.core[idx], **kw)
+        both = in_memory.compare(ref, cmp_, r.core[idx], warn=False, **kw)
         alone = index.statistics(r.core[idx], r.normal[idx], diameter, reach)
         n, offset = (both.n1, both.i1) if cloud == 1 else (both.n2, both.i2)
         sigma = both.sigma1 if cloud == 1 else both.sigma2
@@ -179,8 +181,8 @@ def test_share_text():
 
 
 def test_status_in_is_membership_of_the_named_codes():
-    """m3c2kit.result.status_in against set membership, for every subset size and every code."""
-    from m3c2kit.result import STATUS_NAMES, status_in
+    """m3c2kit.engine.result.status_in against set membership, for every subset size and every code."""
+    from m3c2kit.engine.result import STATUS_NAMES, status_in
 
     rng = np.random.default_rng(3)
     status = rng.integers(0, len(STATUS_NAMES), 5000).astype(np.uint8)

@@ -10,9 +10,9 @@ from rasterio.transform import rowcol, xy  # noqa: E402
 
 import m3c2kit  # noqa: E402
 from m3c2kit.io.fields import typed_columns  # noqa: E402
-from m3c2kit import raster  # noqa: E402
-from m3c2kit.cli import main  # noqa: E402
-from m3c2kit.errors import CloudWriteError  # noqa: E402
+from m3c2kit.run import raster  # noqa: E402
+from m3c2kit.cli.main import main  # noqa: E402
+from m3c2kit.base.errors import CloudWriteError  # noqa: E402
 from m3c2kit.io import Cloud, read_cloud, write_cloud_table  # noqa: E402
 
 from synthetic import write_xyz  # noqa: E402

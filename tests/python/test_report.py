@@ -11,9 +11,9 @@ import pytest
 
 pytest.importorskip("matplotlib")
 
-from m3c2kit.cli import main  # noqa: E402
-from m3c2kit.report import FIGURES, build_report, png_paths, render_html  # noqa: E402
-from m3c2kit.result import Result  # noqa: E402
+from m3c2kit.cli.main import main  # noqa: E402
+from m3c2kit.output.report import FIGURES, build_report, png_paths, render_html  # noqa: E402
+from m3c2kit.engine.result import Result  # noqa: E402
 
 from synthetic import noisy_plane_pair, write_xyz  # noqa: E402
 

@@ -14,9 +14,9 @@ import pytest
 
 import m3c2kit
 from m3c2kit.analysis.common import readable_log_axis, reference_line
-from m3c2kit.report import build_report, render_html, write_report
-from m3c2kit.report import cartography as K
-from m3c2kit.report import figures as F
+from m3c2kit.output.report import build_report, render_html, write_report
+from m3c2kit.output.report import cartography as K
+from m3c2kit.output.report import figures as F
 
 
 @pytest.fixture(scope="module")

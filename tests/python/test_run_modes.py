@@ -14,7 +14,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from m3c2kit.cli import main
+from m3c2kit.cli.main import main
 from m3c2kit.io import write_cloud_table
 
 BASE = ["--normal-scale", "1", "--projection-scale", "0.5", "--max-depth", "0.5", "--quiet"]

@@ -22,7 +22,7 @@ xr = pytest.importorskip("xarray")
 pytest.importorskip("zarr")
 
 from m3c2kit import _core  # noqa: E402
-from m3c2kit.cli import main  # noqa: E402
+from m3c2kit.cli.main import main  # noqa: E402
 from m3c2kit.series import engine  # noqa: E402
 from m3c2kit.series import store as st  # noqa: E402
 

@@ -18,7 +18,7 @@ pytest.importorskip("xarray")
 pytest.importorskip("zarr")
 pytest.importorskip("matplotlib")
 
-from m3c2kit.cli import main  # noqa: E402
+from m3c2kit.cli.main import main  # noqa: E402
 
 PARAMS = ["--normal-scale", "1", "--projection-scale", "1", "--max-depth", "1", "--quiet"]
 
@@ -308,7 +308,7 @@ def test_a_fifo_or_missing_archive_is_refused_without_blocking(tmp_path, capsys)
 
 
 def test_a_failure_while_writing_leaves_no_half_store(tmp_path, capsys, monkeypatch):
-    from m3c2kit.errors import CloudWriteError
+    from m3c2kit.base.errors import CloudWriteError
     from m3c2kit.series import store as st
     real = st.append_batch
 

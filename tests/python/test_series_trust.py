@@ -19,8 +19,8 @@ import pytest
 xr = pytest.importorskip("xarray")
 zarr = pytest.importorskip("zarr")
 
-from m3c2kit import fault_hook  # noqa: E402
-from m3c2kit.cli import main  # noqa: E402
+from m3c2kit.base import fault_hook  # noqa: E402
+from m3c2kit.cli.main import main  # noqa: E402
 from m3c2kit.series import store as st  # noqa: E402
 from m3c2kit.series.lock import LOCK_NAME  # noqa: E402
 
@@ -475,7 +475,7 @@ def test_a_chunk_or_thread_count_out_of_range_is_a_usage_error(argv, epochs, tmp
 
 
 def test_a_zarr_older_than_the_extra_asks_is_named(monkeypatch):
-    from m3c2kit.errors import UsageError
+    from m3c2kit.base.errors import UsageError
     monkeypatch.delattr(zarr.Array, "with_config")
     with pytest.raises(UsageError, match=r"needs zarr >= 3\.1\.6 \(installed: .*pip install -U 'm3c2kit\[series\]'"):
         st.require_extra()

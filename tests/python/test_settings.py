@@ -14,10 +14,11 @@ import pytest
 
 import m3c2kit
 from m3c2kit import _core, engine
-from m3c2kit.cli import compare_settings, make_parser
-from m3c2kit.errors import UsageError
+from m3c2kit.cli.compare import compare_settings
+from m3c2kit.cli.main import make_parser
+from m3c2kit.base.errors import UsageError
 from m3c2kit.settings import PARAMETERS, build_params, by_name, docs, parameters_of
-from m3c2kit.settings import cloudcompare_params
+from m3c2kit.settings import cloudcompare_params, orientation
 from synthetic import noisy_plane_pair
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -83,7 +84,11 @@ def test_defaults_come_from_the_engine_struct():
     assert by_name()["min_points"].default_for("cloudcompare") == 5
     assert by_name()["variance"].default_for() == "sample"
     assert by_name()["depth_search"].default_for() == "single"
-    assert by_name()["orient"].default_for() == "+z"
+    # Not given, --orient is one rule (settings.orientation): the scan positions when the cloud has
+    # them, else +z.
+    assert by_name()["orient"].default_for() is None
+    assert orientation.orientation(None)[0] == (0.0, 0.0, 1.0)
+    assert orientation.orientation(None, scan_positions=np.array([[1.0, 2.0, 3.0]]))[1].tolist() == [[1.0, 2.0, 3.0]]
     p = build_params(**REQUIRED)
     defaults = engine.default_fields()
     for name in ("min_points", "min_points_normal", "min_points_multiscale", "confidence", "variance"):
@@ -212,4 +217,4 @@ def test_only_the_facade_imports_the_binding():
             module = getattr(node, "module", None) or ""
             if any(n.split(".")[-1] == "_core" for n in names) or module.split(".")[-1] == "_core":
                 offenders.append(str(f.relative_to(ROOT)))
-    assert offenders == ["python/m3c2kit/engine.py"]
+    assert offenders == ["python/m3c2kit/engine/__init__.py"]

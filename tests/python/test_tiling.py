@@ -1,4 +1,4 @@
-"""Out-of-core tiling (python/m3c2kit/tiling.py, docs/scaling.md): a tiled run equals the single
+"""Out-of-core tiling (python/m3c2kit/run/, docs/scaling.md): a tiled run equals the single
 in-memory run bit for bit, in core-point order, and writes the same file bytes."""
 from __future__ import annotations
 
@@ -9,16 +9,20 @@ import laspy
 import numpy as np
 import pytest
 
-from m3c2kit import _core, api, tiling
+from m3c2kit import _core, api
+from m3c2kit.run import memory as tiling
 from m3c2kit.settings import build_params
-from m3c2kit.cli import main
-from m3c2kit.errors import UsageError
+from m3c2kit.cli.main import main
+from m3c2kit.base.errors import UsageError
 from m3c2kit.io import read_cloud
 from m3c2kit.io.streaming import PointSource
 from m3c2kit.io.fields import FIELDS as OUTPUT_FIELDS
-from m3c2kit.result import COLUMNS
-from m3c2kit.tiling import choose_tile_size, halo, parse_memory, run_tiled, streaming_subsample
-from m3c2kit.writing import write
+from m3c2kit.engine.result import COLUMNS
+from m3c2kit.engine import neighbourhood_reach as halo
+from m3c2kit.run.cores import streaming_subsample
+from m3c2kit.run.memory import choose_tile_size, parse_memory
+from m3c2kit.run.tiled import run_tiled
+from m3c2kit.output.writing import write
 
 REPO = Path(__file__).resolve().parents[2]
 TORONTO = REPO / "data" / "toronto-ttp"
@@ -178,7 +182,7 @@ def test_cli_tiled_matches_untiled_bytes(tmp_path):
     assert main(["compare", str(ref), str(cmp_), "-o", str(tmp_path / "u.laz"), *common]) == 0
     assert main(["compare", str(ref), str(cmp_), "-o", str(tmp_path / "t.laz"), "--tile-size", "90", *common]) == 0
     # The limit counts this process's resident memory, which depends on the tests run before.
-    limit = f"{(max(tiling.BASE_BYTES, tiling._rss_bytes() + tiling.HEADROOM_BYTES) + 60 * 2**20) // 2**20}MiB"
+    limit = f"{(max(tiling.BASE_BYTES, tiling.rss_bytes() + tiling.HEADROOM_BYTES) + 60 * 2**20) // 2**20}MiB"
     assert main(["compare", str(ref), str(cmp_), "-o", str(tmp_path / "m.laz"), "--memory-limit", limit,
                  *common]) == 0
     # The in-memory run also carries the reference's attributes (intensity, ...), the tiled runs

@@ -1,4 +1,4 @@
-"""The memory plan of a tiled run (python/m3c2kit/tiling.py, docs/scaling.md "Memory"): the fixed
+"""The memory plan of a tiled run (python/m3c2kit/run/memory.py, docs/scaling.md "Memory"): the fixed
 costs (this process, the streaming and merge chunks) and the tiles share --memory-limit, chunks
 sized from the plan leave the output bytes unchanged, and a small run's peak stays under its limit."""
 from __future__ import annotations
@@ -14,10 +14,11 @@ import numpy as np
 import pytest
 
 from child_env import child_env
-from m3c2kit import tiling
-from m3c2kit.errors import UsageError
+from m3c2kit.run import memory as tiling
+from m3c2kit.base.errors import UsageError
 from m3c2kit.io.streaming import DEFAULT_CHUNK
-from m3c2kit.tiling import MemoryPlan, choose_tile_size, plan_memory, run_tiled
+from m3c2kit.run.memory import MemoryPlan, choose_tile_size, plan_memory
+from m3c2kit.run.tiled import run_tiled
 
 MiB = 2**20
 PARAMS = dict(normal_scale=1.0, projection_scale=0.5, max_depth=1.0)
@@ -85,11 +86,11 @@ def test_chunks_from_the_plan_keep_the_bytes(pair, tmp_path, monkeypatch):
     out_plain, out_limited = tmp_path / "plain.laz", tmp_path / "limited.laz"
     run_tiled(ref, cmp_, output=out_plain, tile_size=12.0, **PARAMS)
     # Tiny chunks: the plan must take its row counts from the (scaled) per-row costs.
-    from m3c2kit.run import memory  # the executor's memory planning (tiling re-exports its names)
+    from m3c2kit.run import memory  # the executor's memory planning
     monkeypatch.setattr(memory, "MIN_CHUNK", 64)
     monkeypatch.setattr(memory, "MERGE_BYTES_PER_ROW", 2**20)
     monkeypatch.setattr(memory, "STREAM_BYTES_PER_ROW", 2**19)
-    limit = tiling._rss_bytes() + tiling.HEADROOM_BYTES + 4000 * 2**20
+    limit = tiling.rss_bytes() + tiling.HEADROOM_BYTES + 4000 * 2**20
     rep = run_tiled(ref, cmp_, output=out_limited, tile_size=12.0, memory_limit=limit, **PARAMS)
     assert rep.memory_plan.merge_rows < 2000 and rep.memory_plan.stream_rows < 4000
     assert filecmp.cmp(out_plain, out_limited, shallow=False)
@@ -97,15 +98,16 @@ def test_chunks_from_the_plan_keep_the_bytes(pair, tmp_path, monkeypatch):
 
 CHILD = r"""
 import json, sys
-from m3c2kit import tiling
+from m3c2kit.run import memory
+from m3c2kit.run.tiled import run_tiled
 def hwm():
     with open("/proc/self/status") as f:
         return next(int(l.split()[1]) * 1024 for l in f if l.startswith("VmHWM:"))
 ref, cmp_, out, extra = sys.argv[1:5]
 import laspy, numpy  # what a command-line run has loaded when it starts
-limit = tiling._rss_bytes() + tiling.HEADROOM_BYTES + int(extra)
-rep = tiling.run_tiled(ref, cmp_, output=out, memory_limit=limit, normal_scale=1.0, projection_scale=0.5,
-                       max_depth=1.0, threads=2)
+limit = memory.rss_bytes() + memory.HEADROOM_BYTES + int(extra)
+rep = run_tiled(ref, cmp_, output=out, memory_limit=limit, normal_scale=1.0, projection_scale=0.5,
+                max_depth=1.0, threads=2)
 print(json.dumps(dict(limit=limit, peak=hwm(), tiles=rep.tiles)))
 """
 

@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 
 from m3c2kit import _core
-from m3c2kit import uncertainty_inputs as ui
-from m3c2kit.errors import UsageError
+from m3c2kit.run import uncertainty_inputs as ui
+from m3c2kit.base.errors import UsageError
 
 Z95 = 1.959963984540054
 CHI2_3_95 = 7.814727903251178

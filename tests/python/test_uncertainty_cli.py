@@ -10,11 +10,11 @@ import numpy as np
 import pytest
 
 import m3c2kit
-from m3c2kit import uncertainty_inputs as ui
-from m3c2kit.cli import main
-from m3c2kit.errors import UsageError
+from m3c2kit.run import uncertainty_inputs as ui
+from m3c2kit.cli.main import main
+from m3c2kit.base.errors import UsageError
 from m3c2kit.io import read_cloud
-from m3c2kit.result import COLUMNS
+from m3c2kit.engine.result import COLUMNS
 
 BASE = ["--normal-scale", "1", "--projection-scale", "0.5", "--max-depth", "0.5", "--quiet"]
 

@@ -14,8 +14,8 @@ from __future__ import annotations
 import numpy as np
 
 from .. import engine
-from ..api import as_points
-from ..errors import UsageError
+from ..run.checks import as_points
+from ..base.errors import UsageError
 
 MODELS = ("none", "plane")
 RULES = ("closer", "model")

@@ -23,11 +23,12 @@ import math
 
 import numpy as np
 
-from .. import api
+from ..run import in_memory
+from ..run.checks import as_points
 from . import lod_engine
-from ..errors import UsageError
+from ..base.errors import UsageError
 from .common import (format_table, loglog_fit, median_spacing, pyplot, readable_log_axis, reference_line,
-                     sample_indices, save_figure)
+    sample_indices, save_figure)
 from .roughness import L0, fit_scaling, roughness_by_scale, roughness_table
 
 
@@ -49,7 +50,7 @@ def resolve_spacing(spec, spacing: float) -> float:
 
 
 def _version(points: np.ndarray, spacing: float) -> np.ndarray:
-    return points if spacing == 0 else points[api.subsample(points, spacing)]
+    return points if spacing == 0 else points[in_memory.subsample(points, spacing)]
 
 
 def calibrate(cloud, projection_scales, *, spacings=("raw", "3x"), normal_scale=None, core=None, core_spacing=None,
@@ -57,7 +58,7 @@ def calibrate(cloud, projection_scales, *, spacings=("raw", "3x"), normal_scale=
               min_points: int = 4, confidence: float = 0.95, orient="+z", fit_range=None, l0: float = L0,
               threads: int = 0) -> dict:
     """Runs the calibration; returns {'table': columns per d, 'fit': ..., 'info': ...}."""
-    pts = api.as_points("cloud", cloud)
+    pts = as_points("cloud", cloud)
     d_list = np.asarray(projection_scales, float)
     if len(spacings) != 2:
         raise UsageError(f"--spacings needs two values (cloud 1, cloud 2), got {len(spacings)}")
@@ -65,9 +66,9 @@ def calibrate(cloud, projection_scales, *, spacings=("raw", "3x"), normal_scale=
     s1, s2 = (resolve_spacing(s, spacing) for s in spacings)
     cloud1, cloud2 = _version(pts, s1), _version(pts, s2)
     if core is not None:
-        core_pts = api.as_points("core", core)
+        core_pts = as_points("core", core)
     else:
-        core_pts = pts[api.subsample(pts, core_spacing)] if core_spacing else _version(pts, max(s1, s2, 4 * spacing))
+        core_pts = pts[in_memory.subsample(pts, core_spacing)] if core_spacing else _version(pts, max(s1, s2, 4 * spacing))
     core_pts = np.ascontiguousarray(core_pts[sample_indices(len(core_pts), max_core, seed)])
     depth = float(max_depth) if max_depth is not None else float(d_list.max())
     common = dict(projection_scale=None, max_depth=depth, min_points=min_points, confidence=confidence,
@@ -86,7 +87,7 @@ def calibrate(cloud, projection_scales, *, spacings=("raw", "3x"), normal_scale=
         common["projection_scale"] = float(d)
         out = {}
         for name, extra in runs.items():
-            r = api.compare(cloud1, cloud2, core_pts, **common, **extra)
+            r = in_memory.compare(cloud1, cloud2, core_pts, **common, **extra)
             valid = r.status == 0
             out[name] = (r, valid, 100.0 * float(np.mean(~r.significant[valid])) if valid.any() else math.nan)
         r, valid, pct = out["z"]
@@ -139,7 +140,7 @@ def _every_statistic(cloud1, cloud2, core_pts, d_list, common, bootstrap, seed, 
                 cols[f"fp_{statistic}_{lod}"].append(math.nan)
                 continue
             extra = {"bootstrap": int(bootstrap), "seed": int(seed)} if lod == "bootstrap" else {}
-            r = api.compare(cloud1, cloud2, core_pts, median=statistic == "median", lod=lod, threads=threads,
+            r = in_memory.compare(cloud1, cloud2, core_pts, median=statistic == "median", lod=lod, threads=threads,
                             **kwargs, **extra)
             ok = r.status == 0
             cols[f"fp_{statistic}_{lod}"].append(float(np.mean(r.significant[ok])) if ok.any() else math.nan)

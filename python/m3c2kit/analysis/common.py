@@ -7,9 +7,9 @@ from pathlib import Path
 import numpy as np
 
 from .. import engine
-from ..errors import UsageError
+from ..base.errors import UsageError
 from ..io.atomic import atomic_output
-from ..optional import require
+from ..base.optional import require
 from ..settings.parsers import normal_scales, positive
 
 

@@ -15,8 +15,8 @@ import math
 import numpy as np
 
 from .. import engine
-from ..api import as_points
-from ..errors import UsageError
+from ..run.checks import as_points
+from ..base.errors import UsageError
 from ..settings.parsers import positive
 from .common import format_table, loglog_fit, pyplot, readable_log_axis, save_figure, scales
 

@@ -12,8 +12,9 @@ import math
 
 import numpy as np
 
-from .. import api
-from ..errors import UsageError
+from ..run import in_memory
+from ..run.checks import as_points
+from ..base.errors import UsageError
 
 COLUMNS = ("roughness", "sigma", "density", "density_per_area", "nx", "ny", "nz", "normal_scale", "offset", "status")
 
@@ -23,7 +24,7 @@ def simplify(cloud, core=None, *, projection_scale: float, normal_scale=None, co
              progress=None) -> tuple[np.ndarray, dict[str, np.ndarray]]:
     """(points, fields): the projected positions (NaN rows dropped) and their scalars.
     normal_scale defaults to 2 d; max_depth to d; vertical imposes (0, 0, 1) normals."""
-    pts = api.as_points("cloud", cloud)
+    pts = as_points("cloud", cloud)
     d = float(projection_scale)
     if not (math.isfinite(d) and d > 0):
         raise UsageError(f"--projection-scale must be finite and > 0, got {projection_scale!r}")
@@ -41,7 +42,7 @@ def simplify(cloud, core=None, *, projection_scale: float, normal_scale=None, co
     else:  # the default would name --normal-scale, which the user did not give
         raise UsageError(f"--projection-scale {projection_scale!r} is too large: the default --normal-scale "
                          f"2 d is not finite; give --normal-scale")
-    result = api.compare(pts, pts, core, **params)
+    result = in_memory.compare(pts, pts, core, **params)
     projected = result.projected(1)
     keep = np.isfinite(projected).all(axis=1)
     n = result.n1.astype(np.float64)

@@ -22,8 +22,9 @@ import math
 
 import numpy as np
 
-from .. import api
-from ..errors import M3C2Error, UsageError
+from ..run import in_memory
+from ..run.checks import as_points
+from ..base.errors import M3C2Error, UsageError
 from ..io.arrays import bounds
 from .common import format_table, median_spacing, sample_indices
 from .roughness import roughness_by_scale
@@ -62,7 +63,7 @@ def suggest(reference, compared, *, sample: int = 2000, seed: int = 0, threads: 
     if isinstance(sample, bool) or not isinstance(sample, (int, np.integer)) or sample < 1:
         # 0 sampled nothing (numpy's "Mean of empty slice"), -1 raised numpy's ValueError
         raise UsageError(f"sample must be an integer >= 1, got {sample!r}")
-    ref, cmp_ = api.as_points("reference", reference), api.as_points("compared", compared)
+    ref, cmp_ = as_points("reference", reference), as_points("compared", compared)
     _require_a_surface("reference", reference, ref)
     _require_a_surface("compared", compared, cmp_)
     core = np.ascontiguousarray(ref[sample_indices(len(ref), sample, seed)])
@@ -100,7 +101,7 @@ def suggest(reference, compared, *, sample: int = 2000, seed: int = 0, threads: 
     # Max depth from a first pass with a generous cylinder.
     h0 = float(candidates[-1])
     d0 = D / 2
-    first = api.compare(ref, cmp_, core, normal_scale=normal_scale, projection_scale=d0, max_depth=h0, threads=threads)
+    first = in_memory.compare(ref, cmp_, core, normal_scale=normal_scale, projection_scale=d0, max_depth=h0, threads=threads)
     dist = np.abs(first.distance[np.isfinite(first.distance)])
     p99 = float(np.percentile(dist, 99)) if dist.size else math.nan
     max_depth = max(3 * p99, d0 / 2) if np.isfinite(p99) else h0
@@ -114,7 +115,7 @@ def suggest(reference, compared, *, sample: int = 2000, seed: int = 0, threads: 
     d = 2 * s
     d_cap = float(candidates[-1])
     while True:
-        r = api.compare(ref, cmp_, core, normal_scale=normal_scale, projection_scale=d, max_depth=max_depth, threads=threads)
+        r = in_memory.compare(ref, cmp_, core, normal_scale=normal_scale, projection_scale=d, max_depth=max_depth, threads=threads)
         searched = np.isfinite(r.normal[:, 0])
         m1 = float(np.median(r.n1[searched])) if searched.any() else 0.0
         m2 = float(np.median(r.n2[searched])) if searched.any() else 0.0

@@ -6,7 +6,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..errors import UsageError
+from ..base.errors import UsageError
 from .features import features
 from .model import Classifier
 

@@ -12,7 +12,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..errors import UsageError
+from ..base.errors import UsageError
 from ..io.input_file import read_small_json
 
 

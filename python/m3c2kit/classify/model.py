@@ -18,7 +18,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..errors import M3C2Error
+from ..base.errors import M3C2Error
 from ..io.atomic import atomic_output
 from ..io.input_file import read_small_bytes, read_small_json
 

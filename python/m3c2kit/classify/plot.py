@@ -6,7 +6,7 @@ from pathlib import Path
 import numpy as np
 
 from ..analysis.common import figure_format
-from ..errors import UsageError
+from ..base.errors import UsageError
 from ..io.atomic import atomic_output
 from .model import Classifier
 

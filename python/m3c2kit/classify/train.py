@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..errors import UsageError
+from ..base.errors import UsageError
 from .apply import predict_vectors
 from .features import features
 from .model import BinaryClassifier, Classifier

@@ -32,10 +32,10 @@ from typing import Any, Union
 
 import numpy as np
 
-from ..api import compare
-from ..errors import CloudReadError, UsageError
+from ..run.in_memory import compare
+from ..base.errors import CloudReadError, UsageError
 from ..io.files import read_cloud
-from ..result import Result
+from ..engine.result import Result
 
 __all__ = ["Epoch", "M3C2", "read_from_xyz", "read_from_las", "as_epoch", "set_num_threads",
            "get_num_threads", "UnsupportedArgument", "UNCERTAINTY_DTYPE"]

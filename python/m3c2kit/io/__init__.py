@@ -6,7 +6,7 @@
 
 Formats by extension: LAS/LAZ/COPC (laspy), E57 (pye57), PLY, delimited text
 (.xyz .txt .csv .asc .pts .neu) and .npy. Every writer is atomic (:func:`atomic_output`).
-Errors are :class:`m3c2kit.errors.CloudReadError` / :class:`~m3c2kit.errors.CloudWriteError`
+Errors are :class:`m3c2kit.base.errors.CloudReadError` / :class:`~m3c2kit.base.errors.CloudWriteError`
 with messages ``"{path}: {problem}"``.
 """
 from .atomic import atomic_output

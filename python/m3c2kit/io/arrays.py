@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..errors import UsageError
+from ..base.errors import UsageError
 
 __all__ = ["as_coordinates", "bounds"]
 

@@ -28,7 +28,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..errors import CloudReadError, CloudWriteError, UsageError
+from ..base.errors import CloudReadError, CloudWriteError, UsageError
 from .atomic import atomic_output
 from .cloud import Cloud
 from .guard import read_errors, write_errors

@@ -27,11 +27,11 @@ from contextlib import ExitStack, contextmanager
 from pathlib import Path
 from typing import Iterator
 
-from ..errors import CloudWriteError, M3C2Error, UsageError
-from ..fault_hook import checkpoint as fault_checkpoint
+from ..base.errors import CloudWriteError, M3C2Error, UsageError
+from ..base.fault_hook import checkpoint as fault_checkpoint
 from .collisions import refuse_special
 from .private import (PRIVATE_PREFIX, PrivateFolder, describe, pinned_directory, private_folder, public_name,
-                      remove_stale, renamed)
+    remove_stale, renamed)
 
 __all__ = ["atomic_output", "staged_outputs", "staged_directory", "pinned_directory", "private_folder",
            "remove_stale", "public_name", "refuse_occupied", "PRIVATE_PREFIX"]

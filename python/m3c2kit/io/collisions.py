@@ -8,7 +8,7 @@ import os
 import stat
 from typing import Mapping
 
-from ..errors import CloudWriteError, UsageError
+from ..base.errors import CloudWriteError, UsageError
 from .input_file import os_problem
 
 __all__ = ["check_outputs", "refuse_special"]

@@ -17,7 +17,7 @@ import os
 import re
 from typing import Any
 
-from ..errors import M3C2Error, UsageError
+from ..base.errors import M3C2Error, UsageError
 
 __all__ = ["looks_like_wkt", "parse_crs", "wkt_units", "crs_units", "geokey_crs", "geokey_units",
            "combine_units", "same_crs", "crs_label", "crs_info", "is_angular", "CrsMismatch",

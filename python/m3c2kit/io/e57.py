@@ -15,8 +15,8 @@ from pathlib import Path
 
 import numpy as np
 
-from ..errors import CloudReadError
-from ..optional import lazy_module
+from ..base.errors import CloudReadError
+from ..base.optional import lazy_module
 from .cloud import Cloud
 from .crs import looks_like_wkt
 from .guard import read_errors

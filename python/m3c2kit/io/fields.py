@@ -86,7 +86,7 @@ _BY_NAME = {f.name: f for f in FIELDS}
 
 def _check_names(field_names: str) -> str:
     if field_names not in FIELD_NAME_SETS:
-        from ..errors import UsageError
+        from ..base.errors import UsageError
         raise UsageError(f"--field-names must be one of {', '.join(FIELD_NAME_SETS)}, got {field_names!r}")
     return field_names
 

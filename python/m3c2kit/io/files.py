@@ -6,8 +6,8 @@ from pathlib import Path
 
 import numpy as np
 
-from ..errors import CloudReadError, CloudWriteError, UsageError
-from ..fault_hook import checkpoint as fault_checkpoint
+from ..base.errors import CloudReadError, CloudWriteError, UsageError
+from ..base.fault_hook import checkpoint as fault_checkpoint
 from .arrays import bounds as column_bounds
 from .cloud import Cloud
 from .input_file import check_input_file, path_argument
@@ -117,7 +117,7 @@ def read_cloud(path: str | os.PathLike, *, columns: tuple[int, int, int] | None 
                                  f"({bad} non-finite)")
         cloud = cloud.select(finite)
         cloud.dropped_nonfinite = bad
-    fault_checkpoint("reading")  # a testing aid (m3c2kit.fault_hook)
+    fault_checkpoint("reading")  # a testing aid (m3c2kit.base.fault_hook)
     return cloud
 
 

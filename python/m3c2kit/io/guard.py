@@ -8,7 +8,7 @@ from contextlib import contextmanager
 from pathlib import Path
 from typing import Iterator
 
-from ..errors import CloudReadError, CloudWriteError, M3C2Error
+from ..base.errors import CloudReadError, CloudWriteError, M3C2Error
 
 __all__ = ["library_message", "read_errors", "write_errors", "available_memory", "format_bytes"]
 

@@ -17,7 +17,7 @@ import stat
 from pathlib import Path
 from typing import Callable
 
-from ..errors import M3C2Error, UsageError
+from ..base.errors import M3C2Error, UsageError
 from .guard import format_bytes
 
 __all__ = ["SMALL_FILE_LIMITS", "os_problem", "os_error_message", "check_input_file", "read_small_bytes", "read_small_text", "read_small_json",

@@ -18,7 +18,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from ..errors import CloudReadError, CloudWriteError, QuantisationWarning
+from ..base.errors import CloudReadError, CloudWriteError, QuantisationWarning
 from .quantised import Quantised
 from .arrays import bounds
 from .atomic import atomic_output

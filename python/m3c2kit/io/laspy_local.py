@@ -6,7 +6,7 @@ needs it): about 0.09 s of laspy's 0.12 s import, paid by every LAS/LAZ run of t
 before its first point is read (issue 19, whole process). The command line opens paths, never
 URLs, and m3c2kit imports pyproj itself where a file has a CRS (m3c2kit.io.crs), so its process
 imports laspy with those two modules hidden: laspy takes them as not installed, and they stay
-importable for everything else. Only the command line's own process does this (m3c2kit.cli.main
+importable for everything else. Only the command line's own process does this (m3c2kit.cli.main.main
 without arguments): in a user's process laspy keeps COPC over HTTP.
 """
 from __future__ import annotations

@@ -6,7 +6,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..errors import CloudReadError
+from ..base.errors import CloudReadError
 from .cloud import Cloud
 from .guard import read_errors
 

@@ -31,7 +31,7 @@ from contextlib import contextmanager
 from pathlib import Path
 from typing import Iterator
 
-from ..errors import CloudWriteError, M3C2Error
+from ..base.errors import CloudWriteError, M3C2Error
 
 __all__ = ["PRIVATE_PREFIX", "LOCK_NAME", "PINNABLE", "PrivateFolder", "private_folder", "pinned_directory",
            "remove_stale", "remove_tree", "public_name", "renamed", "describe"]

@@ -28,8 +28,8 @@ from typing import Iterator
 
 import numpy as np
 
-from ..errors import CloudReadError, CloudWriteError
-from ..fault_hook import checkpoint as fault_checkpoint
+from ..base.errors import CloudReadError, CloudWriteError
+from ..base.fault_hook import checkpoint as fault_checkpoint
 from .arrays import bounds
 from .atomic import atomic_output
 from .cloud import Cloud
@@ -147,7 +147,7 @@ class PointSource:
                 xyz = xyz[finite]
             if len(xyz):
                 yield xyz
-        fault_checkpoint("reading")  # a testing aid (m3c2kit.fault_hook): the whole file streamed
+        fault_checkpoint("reading")  # a testing aid (m3c2kit.base.fault_hook): the whole file streamed
 
     def _finite_rows(self, xyz: np.ndarray) -> np.ndarray | None:
         """The mask of a streamed chunk's finite rows to keep (--drop-nonfinite), None when all
@@ -379,7 +379,7 @@ class TableWriter:
         error, magnitude, float32, lo, hi = self._quantised
         if error > las.quantisation_tolerance(magnitude, float32):
             import warnings
-            from ..errors import QuantisationWarning
+            from ..base.errors import QuantisationWarning
             span = float(np.max(hi - np.asarray(self._offset)))
             warnings.warn(las.quantisation_message(self.path, error, self._scale, span),
                           QuantisationWarning, stacklevel=3)

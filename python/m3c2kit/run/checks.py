@@ -9,7 +9,7 @@ from pathlib import Path
 import numpy as np
 
 from .. import engine
-from ..errors import CloudReadError, UsageError
+from ..base.errors import CloudReadError, UsageError
 from ..io.arrays import as_coordinates, bounds
 from ..settings.table import by_name
 

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 from .. import engine
-from ..errors import M3C2Error, UsageError
+from ..base.errors import M3C2Error, UsageError
 from ..io.arrays import bounds
 from ..io.streaming import DEFAULT_CHUNK, PointSource, _in_box
 from ..settings.parsers import positive

@@ -7,8 +7,8 @@ from __future__ import annotations
 import time
 import uuid
 
-from ..errors import M3C2Error
-from ..optional import require
+from ..base.errors import M3C2Error
+from ..base.optional import require
 
 #: Seconds to reach a Dask scheduler and complete its handshake: an address that accepts and never
 #: answers waited forever, a closed local port took 30 s (distributed's default) to say so.

@@ -10,7 +10,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .. import engine
-from ..errors import M3C2Error, UsageError
+from ..base.errors import M3C2Error, UsageError
 from ..io.arrays import bounds
 from ..io.guard import available_memory, format_bytes
 from ..io.streaming import DEFAULT_CHUNK, PointSource

@@ -10,15 +10,15 @@ from types import SimpleNamespace
 
 import numpy as np
 
-from ..errors import M3C2Error
+from ..base.errors import M3C2Error
 from ..io.fields import typed_columns
 from ..io.registry import format_for
 from ..io.streaming import TableWriter
-from ..result import STATUS_NAMES, Result
+from ..engine.result import STATUS_NAMES, Result
 from .outcome import TiledReport
 from .spill import SpillFolder
 
-#: The columns m3c2kit.diagnostics reads, gathered over the tiles (about 17 B per core point).
+#: The columns m3c2kit.run.diagnostics reads, gathered over the tiles (about 17 B per core point).
 EVIDENCE = ("status", "n1", "n2", "normal_scale", "roughness")
 
 

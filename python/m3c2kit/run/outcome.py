@@ -4,7 +4,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from types import SimpleNamespace
 
-from ..result import Result
+from ..engine.result import Result
 from .memory import MemoryPlan
 
 @dataclass
@@ -29,7 +29,7 @@ class TiledReport:
     significant: int = 0
     with_distance: int = 0
     result: Result | None = None
-    warnings: list = field(default_factory=list)  # m3c2kit.diagnostics' messages, also emitted
+    warnings: list = field(default_factory=list)  # m3c2kit.run.diagnostics' messages, also emitted
     evidence: SimpleNamespace | None = None  # the columns the warnings were drawn from
 
     def lines(self, output) -> list[str]:

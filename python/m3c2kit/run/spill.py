@@ -20,7 +20,7 @@ from typing import Iterator
 
 import numpy as np
 
-from ..errors import CloudWriteError
+from ..base.errors import CloudWriteError
 
 
 def _tofile(rows: np.ndarray, f) -> None:

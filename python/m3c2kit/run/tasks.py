@@ -1,7 +1,7 @@
 """The engine call of a run: one task (the whole run in memory, or one tile) computed from its
 inputs. A tile's inputs are paths and numbers (picklable, for Dask workers); a cloud's spill holds
 float64 xyz rows, or structured records when the cloud carries per-point engine inputs
-(m3c2kit.uncertainty_inputs.Carried: --uncertainty pm precisions, ep scan-position ids)."""
+(m3c2kit.run.uncertainty_inputs.Carried: --uncertainty pm precisions, ep scan-position ids)."""
 from __future__ import annotations
 
 import os
@@ -10,7 +10,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .. import engine
-from ..errors import M3C2Error
+from ..base.errors import M3C2Error
 from ..io.streaming import PointSource
 
 RESULT_KEYS = engine.RESULT_FIELDS

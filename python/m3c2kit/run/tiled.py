@@ -33,27 +33,28 @@ from typing import Callable
 
 import numpy as np
 
-from .. import diagnostics, engine, uncertainty_inputs
-from ..errors import M3C2Error, UsageError
-from ..fault_hook import checkpoint as fault_checkpoint
+from . import diagnostics, uncertainty_inputs
+from .. import engine
+from ..base.errors import M3C2Error, UsageError
+from ..base.fault_hook import checkpoint as fault_checkpoint
 from ..io.arrays import bounds
 from ..io.atomic import private_folder
 from ..io.streaming import DEFAULT_CHUNK, PointSource
-from ..limits import check_halo, check_tile_size, usable_length
+from ..settings.limits import check_halo, check_tile_size, usable_length
 from ..settings import engine_params, orientation
 from ..settings.parsers import positive
 from . import dask as dask_run
 from .checks import as_points, check_all_fields, check_core_normals
 from .cores import streaming_subsample
 from .memory import (BASE_BYTES, BYTES_PER_CORE, BYTES_PER_POINT, choose_tile_size, density, parse_memory,
-                     plan_memory, release_memory, rss_bytes)
+    plan_memory, release_memory, rss_bytes)
 from .merge import Storage, merge
 from .outcome import TiledReport
 from .partition import CoreStream, Tiles, distribute, plan_tiles
 from .plan import Plan, make_plan
 from .spill import SpillFolder
 from .tasks import CloudInput, TileTask, compute_tile, result_dtype, result_rows
-from .vegetation import classify_tiled, reach
+from .vegetation import classify_tiled
 
 
 def run_tiled(reference, compared, *, output=None, core=None, core_spacing=None, core_normals=None,
@@ -77,8 +78,9 @@ def run_tiled(reference, compared, *, output=None, core=None, core_spacing=None,
     log = log or (lambda s: None)
     report = TiledReport()
     read_points = params.pop("read_points", None)
+    vegetation = params.pop("vegetation", None)  # --classifier / --keep (m3c2kit.classify.vegetation)
     given = dict(params, normal_scale=normal_scale, projection_scale=projection_scale, max_depth=max_depth)
-    plan, h, hp, tile_size, limit = preflight(given, tile_size, memory_limit, read_points)
+    plan, h, hp, tile_size, limit = preflight(given, tile_size, memory_limit, read_points, vegetation)
     check_core_normals(plan.values, core_normals)
     check_all_fields(output, all_fields)
     report.halo = h
@@ -140,11 +142,11 @@ class TiledOptions:
     read_points: Callable | None = None
 
 
-def preflight(params: dict, tile_size=None, memory_limit=None, read_points=None):
+def preflight(params: dict, tile_size=None, memory_limit=None, read_points=None, vegetation=None):
     """The checks of a tiled run that need no file (docs/errors.md, "Run limits"): the plan, the
     options tiles cannot reproduce, the tile size against the halo, the memory limit. Returns
     (plan, reach h, tile halo, tile size, memory limit in bytes)."""
-    plan = make_plan(params, read_points)
+    plan = make_plan(params, read_points, vegetation=vegetation)
     values, engine_p = plan.values, plan.engine
     if engine_p.normal_subsample_spacing > 0:
         raise UsageError("--normal-subsample cannot be combined with tiling (--tile-size, --memory-limit, "
@@ -203,7 +205,7 @@ def _run(plan: Plan, report: TiledReport, ref_src, cmp_src, spills: SpillFolder,
         size_c = tile_size
         if size_c is None:
             _, rho = density(ref_src, stream_rows)
-            size_c = choose_tile_size(limit, reach(plan.filter.classifier), rho, 0.0, rho, base=mem.base)
+            size_c = choose_tile_size(limit, plan.filter.reach, rho, 0.0, rho, base=mem.base)
         ref_src = classify_tiled(plan.filter, "reference", ref_src, spills, size_c, stream_rows, execute, threads)
         cmp_src = classify_tiled(plan.filter, "compared", cmp_src, spills, size_c, stream_rows, execute, threads)
         release_memory()

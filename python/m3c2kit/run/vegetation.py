@@ -1,6 +1,7 @@
-"""--classifier FILE --keep CLASS (section 4.3: vegetation removed by CANUPO before the comparison,
-m3c2kit.classify): both clouds reduced to the points classified as a kept class, each point
-classified from its neighbourhoods in its whole cloud.
+"""--classifier FILE --keep CLASS (section 4.3: vegetation removed by CANUPO before the comparison):
+both clouds reduced to the points classified as a kept class, each point classified from its
+neighbourhoods in its whole cloud. The filter is the plan's input (the caller builds it with
+m3c2kit.classify.vegetation): this module only cuts the work into tiles.
 
 In memory the clouds are classified whole. A tiled run classifies each cloud tile by tile first:
 its points are cut into the run's XY tiles, each tile's points are classified from the cloud's
@@ -14,7 +15,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..errors import M3C2Error, UsageError
+from ..base.errors import M3C2Error, UsageError
 from ..io.streaming import DEFAULT_CHUNK
 from .partition import CoreStream, distribute, plan_tiles
 from .spill import SpillFolder
@@ -24,16 +25,8 @@ def filtered_clouds(filt, reference, compared, threads: int = 0):
     """The in-memory filter: (reference, compared) reduced to their kept points."""
     if filt is None:
         return reference, compared
-    from ..classify import filtered
-    return tuple(filtered(filt.classifier, cloud, filt.keep, name, threads=threads)
+    return tuple(filt.filtered(cloud, name, threads=threads)
                  for name, cloud in (("reference", reference), ("compared", compared)))
-
-
-def reach(classifier) -> float:
-    """The farthest point whose position changes a point's class: half the largest scale, with a
-    margin for the rounding of the box test."""
-    r = 0.5 * float(np.max(classifier.scales))
-    return r * (1 + 1e-9) + 1e-9
 
 
 @dataclass
@@ -44,23 +37,17 @@ class ClassifyTask:
     n_own: int
     own_path: str
     near_path: str
-    classifier: str  # the classifier file (read on the worker)
-    keep: list
+    vegetation: object  # the plan's filter (picklable: the worker reads the classifier file)
 
 
 def classify_tile(task: ClassifyTask, threads: int = 0) -> dict:
-    from ..classify import read_classifier
-    from ..classify.apply import classify
     from .tasks import worker_threads
 
     own = np.fromfile(task.own_path, dtype=np.float64).reshape(-1, 3)
     if len(own) != task.n_own:
         raise M3C2Error(f"classification tile {task.tile}: {len(own)} points spilled, expected {task.n_own}")
     near = np.fromfile(task.near_path, dtype=np.float64).reshape(-1, 3)
-    clf = read_classifier(task.classifier)
-    p = classify(clf, near, own, threads=worker_threads(threads))
-    wanted = np.array([clf.labels.index(k) for k in task.keep])
-    return {"tile": task.tile, "keep": np.isin(p.index, wanted).astype(np.uint8)}
+    return {"tile": task.tile, "keep": task.vegetation.keep_mask(near, own, threads=worker_threads(threads))}
 
 
 class MaskedSource:
@@ -113,12 +100,12 @@ def classify_tiled(filt, name: str, source, spills: SpillFolder, size: float, ro
                        tile_of=f"{stem}-tile_of.u32")
     if tiles.n_core == 0:
         raise UsageError(f"the {name} cloud is empty (0 points)")
-    margin = reach(filt.classifier)
+    margin = filt.reach
     tiles.lo -= margin
     tiles.hi += margin
     distribute(source, spills, f"{stem}-near", tiles, margin, rows)
     tasks = [ClassifyTask(t, int(tiles.counts[t]), spills.path(f"{stem}-own", t), spills.path(f"{stem}-near", t),
-                          str(filt.path), list(filt.keep)) for t in range(len(tiles))]
+                          filt) for t in range(len(tiles))]
     done = set()
 
     def accept(out: dict) -> None:

@@ -16,8 +16,8 @@ from pathlib import Path
 
 import numpy as np
 
-from .. import fault_hook
-from ..errors import M3C2Error, UsageError
+from ..base import fault_hook
+from ..base.errors import M3C2Error, UsageError
 from ..io.arrays import bounds
 from ..io.atomic import staged_outputs
 from . import engine

@@ -4,9 +4,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from .. import api
+from ..run.checks import check_coordinate_range, threads_count
 from .. import engine as facade
-from ..errors import UsageError
+from ..base.errors import UsageError
 from ..settings import build_params as table_params
 
 #: Settings that are not engine parameters (the core points, the thread count).
@@ -26,16 +26,16 @@ class Comparison:
                  threads: int = 0):
         params = build_params(settings)
         self._limit = facade.max_abs_coordinate(params)
-        api.check_coordinate_range("reference", None, reference, self._limit)
+        check_coordinate_range("reference", None, reference, self._limit)
         normals = None if core_normals is None else np.ascontiguousarray(core_normals, dtype=np.float64)
-        self._impl = facade.Comparison(reference, core, params, normals, threads=api.threads_count(threads))
+        self._impl = facade.Comparison(reference, core, params, normals, threads=threads_count(threads))
 
     def compare(self, compared: np.ndarray, source=None, threads: int = 0) -> dict:
         """Raw engine result of one epoch (the arrays of the engine's compute)."""
         if len(compared) == 0:
             raise UsageError(f"the epoch {getattr(source, 'path', '')} is empty (0 points)")
-        api.check_coordinate_range("compared", source, compared, self._limit)
-        return self._impl.compare(compared, threads=api.threads_count(threads))
+        check_coordinate_range("compared", source, compared, self._limit)
+        return self._impl.compare(compared, threads=threads_count(threads))
 
     def normals(self) -> dict:
         return self._impl.normals()
@@ -43,7 +43,7 @@ class Comparison:
 
 def temporal_median(values: np.ndarray, window: int, threads: int = 0) -> np.ndarray:
     return facade.temporal_median(np.ascontiguousarray(values, dtype=np.float64), int(window),
-                                  threads=api.threads_count(threads))
+                                  threads=threads_count(threads))
 
 
 def change_points(series: np.ndarray, width: int, min_size: int, jump: int, penalty: float) -> np.ndarray:
@@ -58,4 +58,4 @@ def objects_params(**kw):
 def objects_by_change(distances: np.ndarray, core: np.ndarray, params, threads: int = 0, progress=None) -> dict:
     return facade.objects_by_change(np.ascontiguousarray(distances, dtype=np.float64),
                                     np.ascontiguousarray(core, dtype=np.float64), params,
-                                    threads=api.threads_count(threads), progress=progress)
+                                    threads=threads_count(threads), progress=progress)

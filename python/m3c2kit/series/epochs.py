@@ -11,9 +11,9 @@ from pathlib import Path
 
 import numpy as np
 
-from ..errors import UsageError
+from ..base.errors import UsageError
 from ..io.input_file import check_input_file, read_small_text
-from ..optional import require
+from ..base.optional import require
 
 #: GPS time 0 (1980-01-06 UTC); LAS "adjusted standard GPS time" is GPS seconds - 1e9.
 GPS_EPOCH = dt.datetime(1980, 1, 6)

@@ -8,7 +8,7 @@ import json
 import os
 from pathlib import Path
 
-from ..errors import UsageError
+from ..base.errors import UsageError
 from . import store as st
 
 

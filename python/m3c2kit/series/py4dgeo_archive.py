@@ -24,7 +24,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..errors import CloudReadError, M3C2Error, printable
+from ..base.errors import CloudReadError, M3C2Error, printable
 from ..io.atomic import staged_directory
 from ..io.guard import available_memory, format_bytes
 from . import lock as lock_mod

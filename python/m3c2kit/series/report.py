@@ -11,14 +11,14 @@ from pathlib import Path
 
 import numpy as np
 
-from ..errors import M3C2Error, UsageError, printable
+from ..base.errors import M3C2Error, UsageError, printable
 from ..io.atomic import atomic_output
-from ..optional import require
+from ..base.optional import require
 
 require("matplotlib", extra="report", purpose="the series report's figures")
 from matplotlib.figure import Figure  # noqa: E402
 
-from ..report.figures import png
+from ..output.report.figures import png
 from . import store as st
 from .outputs import members_path
 

@@ -16,11 +16,11 @@ from pathlib import Path
 
 import numpy as np
 
-from .. import api
-from ..errors import M3C2Error, UsageError
+from ..run.cores import core_points_for
+from ..base.errors import M3C2Error, UsageError
 from ..io import read_cloud
 from ..io.atomic import refuse_occupied, staged_directory
-from ..result import Result
+from ..engine.result import Result
 from . import epochs as epochs_mod
 from . import lock as lock_mod
 from . import step
@@ -76,7 +76,7 @@ def _orient(settings: dict, reference) -> dict:
 
 
 def _engine_settings(settings: dict) -> dict:
-    """The keywords of api.build_params (orientation points given as a list become an array)."""
+    """The keywords of m3c2kit.settings.build_params (orientation points given as a list become an array)."""
     out = {k: v for k, v in settings.items() if k not in ("core_spacing",)}
     if isinstance(out.get("orient"), list):
         out["orient"] = np.asarray(out["orient"], dtype=np.float64).reshape(-1, 3)
@@ -94,7 +94,7 @@ def create(reference_path: Path, epoch_args, store: Path, settings: dict, *, cor
     reference = read_cloud(reference_path, drop_nonfinite=drop_nonfinite)
     core_cloud = read_cloud(core_path, drop_nonfinite=drop_nonfinite) if core_path is not None else None
     settings = _orient(settings, reference)
-    core = api.core_points_for(reference.xyz, core_cloud.xyz if core_cloud is not None else None,
+    core = core_points_for(reference.xyz, core_cloud.xyz if core_cloud is not None else None,
                                settings.get("core_spacing"))
     if len(core) == 0:
         raise UsageError("no core points: there is nothing to compute")

@@ -12,7 +12,7 @@ from contextlib import contextmanager
 from pathlib import Path
 from typing import Callable
 
-from ..errors import M3C2Error
+from ..base.errors import M3C2Error
 from . import integrity
 from . import lock as lock_mod
 from . import store as st
@@ -31,7 +31,7 @@ def _interrupted_type() -> type:
     """The command line's Interrupted (raised by its signal handlers), looked up rather than
     imported: nothing below the command line imports it (tests/python/test_layers.py). Without
     the command line (the Python API) only Ctrl-C interrupts, reported as an M3C2Error."""
-    return getattr(sys.modules.get("m3c2kit.cli"), "Interrupted", M3C2Error)
+    return getattr(sys.modules.get("m3c2kit.cli.main"), "Interrupted", M3C2Error)
 
 
 def is_interruption(error: BaseException) -> bool:

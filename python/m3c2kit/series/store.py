@@ -29,7 +29,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..errors import M3C2Error, UsageError
+from ..base.errors import M3C2Error, UsageError
 
 FORMAT = "m3c2kit-series"
 FORMAT_VERSION = 2
@@ -134,7 +134,7 @@ def create(path: Path, core: np.ndarray, normals: dict, attrs: dict, *, core_chu
 
 
 def _status_names():
-    from ..result import STATUS_NAMES
+    from ..engine.result import STATUS_NAMES
     return STATUS_NAMES
 
 
@@ -309,7 +309,7 @@ def append_batch(path: Path, index: int, batch: list) -> None:
     whole chunks, never reading back what it replaces. A store of format 1 gets no hash column."""
     if not batch:
         return
-    from .. import fault_hook
+    from ..base import fault_hook
     _, zarr = require_extra()
     group = zarr.open_group(str(path), mode="r+", use_consolidated=False)
     end = index + len(batch)
@@ -346,7 +346,7 @@ def append_batch(path: Path, index: int, batch: list) -> None:
 def commit(path: Path) -> None:
     """Publishes what is written: consolidates the metadata (one atomic replace of the root
     zarr.json)."""
-    from .. import fault_hook
+    from ..base import fault_hook
     _, zarr = require_extra()
     fault_hook.checkpoint("store-commit")
     zarr.consolidate_metadata(str(path))

@@ -11,9 +11,10 @@ CloudCompare, which are also m3c2's:
 
 No value is halved or doubled.  Every key is either mapped, accepted as having no effect on the
 numbers (``UseOriginalCloud``, ``ExportStdDevInfo``, ``ExportDensityAtProjScale``: m3c2 always
-writes the spread and count columns), or rejected with :class:`~m3c2kit.errors.UsageError` naming the
+writes the spread and count columns), or rejected with :class:`~m3c2kit.base.errors.UsageError` naming the
 file, the key and the reason.  ``variance="population"`` and ``scale_selection="cloudcompare"`` are
-implied by ``compat="cloudcompare"``, which the caller sets; they are not returned.
+implied by ``compat="cloudcompare"``, which is returned with the file's values: the command line's
+``--params FILE`` and ``m3c2kit.compare(..., **read_cloudcompare_params(FILE))`` are one setting.
 """
 
 from __future__ import annotations
@@ -24,7 +25,7 @@ import math
 import os
 import re
 
-from ..errors import UsageError
+from ..base.errors import UsageError
 from ..io.input_file import read_small_bytes
 from .parsers import scale_range
 from .table import by_cloudcompare_key, by_name
@@ -95,7 +96,7 @@ _NORMAL_SOURCE = {0: "reference", 2: "reference", 3: "vertical", 4: "horizontal"
 def read_cloudcompare_params(path: str | os.PathLike) -> dict[str, object]:
     """Return m3c2 options (Python names) for the qM3C2 parameter file at ``path``.
 
-    Raises :class:`~m3c2kit.errors.UsageError` when the file cannot be read, is not a qM3C2
+    Raises :class:`~m3c2kit.base.errors.UsageError` when the file cannot be read, is not a qM3C2
     parameter file, holds an unknown or misspelt key or a malformed value, or asks for something
     m3c2 does not support.  An optional key that is absent (CloudCompare would take it from its
     last GUI state, which a file cannot reproduce) defaults to NormalMode 0, NormalPreferedOri 4,
@@ -209,6 +210,7 @@ def read_cloudcompare_params(path: str | os.PathLike) -> dict[str, object]:
     for key in _OUTPUT_ONLY_KEYS:
         if key in values:
             _log.info("%s: %s only changes CloudCompare's output fields; ignored", name, key)
+    options["compat"] = "cloudcompare"  # the defaults of the keys a file leaves out are CloudCompare's
     return options
 
 

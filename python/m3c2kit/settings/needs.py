@@ -8,7 +8,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Callable, Mapping
 
-from ..errors import UsageError
+from ..base.errors import UsageError
 
 __all__ = ["Needs", "FITTING_SOURCES", "check_effective", "inapplicable"]
 

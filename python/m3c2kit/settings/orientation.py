@@ -27,11 +27,11 @@ from typing import Callable, Iterable
 
 import numpy as np
 
-from ..errors import UsageError
+from ..base.errors import UsageError
 from .parsers import AXES
 
 __all__ = ["PointOrientation", "orientation", "needs_core_points", "needs_scan_positions", "exact_mean",
-           "sensor_points", "LATER", "AWAY"]
+           "sensor_points", "scan_positions_of", "for_clouds", "LATER", "AWAY"]
 
 AWAY = "away:"
 BARYCENTRE = ("barycentre", "barycenter")
@@ -132,13 +132,43 @@ def sensor_points(spec, positions, cloud: str, origin: str = "--orient", also: s
     return PointOrientation(np.asarray(positions, dtype=np.float64).reshape(-1, 3), away)
 
 
+def scan_positions_of(reference, core=None):
+    """The scanner positions ``sensor`` (and the default) orients towards: those of the cloud the
+    core points come from (CloudCompare's rule), else the reference's; None when neither has any.
+    The clouds are m3c2kit.io.Cloud (E57 files carry scan poses) or arrays (none)."""
+    for cloud in (core, reference):
+        positions = getattr(cloud, "scan_positions", None)
+        if positions is not None and len(positions):
+            return positions
+    return None
+
+
+def for_clouds(spec, reference, core=None, *, reference_name: str, core_name: str | None = None,
+               origin: str = "--orient"):
+    """`spec` with the scanner positions of clouds read from files resolved (for executors that
+    are handed points without their clouds: tiles; and for messages that name the files): not
+    given (None) becomes the positions of :func:`scan_positions_of` or ``+z``; ``sensor`` becomes
+    them, with an error naming the files when neither has any; other values are unchanged."""
+    positions = scan_positions_of(reference, core)
+    if spec is None:
+        return "+z" if positions is None else PointOrientation(np.asarray(positions, dtype=np.float64).reshape(-1, 3))
+    if not needs_scan_positions(spec):
+        return spec
+    path, also = (core_name, reference_name) if core_name is not None else (reference_name, None)
+    return sensor_points(spec, positions, path, origin, also)
+
+
 def orientation(spec, read_points: Callable | None = None, core_points=None,
                 scan_positions=None) -> tuple[tuple[float, float, float], np.ndarray, bool]:
     """(preferred direction, orientation points (K, 3), away) for a value of --orient (module
     docstring). A FILE is read with `read_points(path)`; `core_points` (an (N, 3) array, or a
-    callable giving (M, 3) chunks) gives the barycentre; `scan_positions` the sensor."""
+    callable giving (M, 3) chunks) gives the barycentre; `scan_positions` the sensor. Not given
+    (None): towards the scan positions when there are any (:func:`scan_positions_of`), else +z,
+    for every caller (the API, the command line, tiles and series alike)."""
     none = np.empty((0, 3))
     if spec is None:
+        if scan_positions is not None and len(scan_positions):
+            return AXES["+z"], _checked_points(np.asarray(scan_positions, dtype=np.float64).reshape(-1, 3)), False
         return AXES["+z"], none, False
     if isinstance(spec, PointOrientation):
         return AXES["+z"], _checked_points(spec.points), spec.away

@@ -14,7 +14,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..errors import UsageError
+from ..base.errors import UsageError
 
 AXES = {"+x": (1.0, 0.0, 0.0), "-x": (-1.0, 0.0, 0.0), "+y": (0.0, 1.0, 0.0),
         "-y": (0.0, -1.0, 0.0), "+z": (0.0, 0.0, 1.0), "-z": (0.0, 0.0, -1.0)}
@@ -182,7 +182,7 @@ class Positives:
 
 class Text:
     """A name, a file or a short list, kept as given (its meaning is checked where it is used:
-    m3c2kit.uncertainty_inputs); `rule` says what it is."""
+    m3c2kit.run.uncertainty_inputs); `rule` says what it is."""
 
     def __init__(self, rule: str):
         self.rule = rule

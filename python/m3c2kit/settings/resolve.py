@@ -7,7 +7,7 @@ import difflib
 from typing import Callable, Iterable, Mapping
 
 from .. import engine
-from ..errors import UsageError
+from ..base.errors import UsageError
 from .needs import check_effective, inapplicable
 from .table import Parameter, by_name, parameters_of
 

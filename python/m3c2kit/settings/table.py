@@ -2,7 +2,7 @@
 once, with its flag, type and range, default, CloudCompare-compatible default, engine field(s),
 help text, paper section, CloudCompare params-file key(s) and py4dgeo name.
 
-Derived from it: the command line's options (m3c2kit.cli), the API's keyword check and defaults
+Derived from it: the command line's options (m3c2kit.cli.main), the API's keyword check and defaults
 (:mod:`m3c2kit.settings.resolve`), the building of the engine's Params, the params-file mapping
 (:mod:`m3c2kit.settings.cloudcompare_params`) and the docs' option table
 (:mod:`m3c2kit.settings.docs`, docs/cli.md). Defaults of engine parameters are the engine's own
@@ -17,7 +17,7 @@ from typing import Any, Callable
 from .. import engine
 from . import orientation, parsers
 from .needs import (A_VARIANCE, BOOTSTRAP, EP, FITTED_NORMALS, MOVED_OR_PROPAGATED, NOT_CORE_NORMALS,
-                    PARAMETRIC_MEDIAN, PM, SEVERAL_SCALES, TRANSFORM, TWO_PASS, WEIGHTED_CENTRES, WELCH_T, Needs)
+    PARAMETRIC_MEDIAN, PM, SEVERAL_SCALES, TRANSFORM, TWO_PASS, WEIGHTED_CENTRES, WELCH_T, Needs)
 from .parsers import UINT32_MAX, UINT64_MAX, Choice, Flag, Integer, Positives, Real, Scales, Text
 
 __all__ = ["Parameter", "EngineField", "PARAMETERS", "FROM_ENGINE", "SAME", "by_name", "parameters_of"]
@@ -156,13 +156,14 @@ PARAMETERS: tuple[Parameter, ...] = (
     Parameter("normal_subsample", "--normal-subsample", Real(), section="5.1",
               engine=unset_is_zero("normal_subsample_spacing"), commands=BOTH, needs=(FITTED_NORMALS,),
               help="compute normals on the cloud subsampled to this minimum spacing"),
-    Parameter("orient", "--orient", parsers.Orientation(), section="3.1.2", engine=ORIENTATION, default="+z",
+    Parameter("orient", "--orient", parsers.Orientation(), section="3.1.2", engine=ORIENTATION, default=None,
               cli_type=str, cloudcompare_keys=("NormalPreferedOri",), py4dgeo="orientation_vector",
               commands=BOTH, needs=(NOT_CORE_NORMALS,),
               help="normal orientation: +z -z +x -x +y -y; towards a point X,Y,Z, the closest point of a "
                    "FILE (scanner positions), origin (0,0,0), the core points' barycentre, or the sensor "
-                   "(E57 scan positions; the default when the reference has them); away:POINT for away "
-                   "from a point (away:barycentre, away:origin, away:sensor, away:X,Y,Z)"),
+                   "(E57 scan positions); away:POINT for away from a point (away:barycentre, away:origin, "
+                   "away:sensor, away:X,Y,Z). Default: the sensor when the cloud the core points come from "
+                   "(else the reference) has scan positions, else +z"),
     # Projection (section 3.1.3)
     Parameter("projection_scale", "--projection-scale", Real(), section="3.1.3",
               engine=same("projection_diameter"), default=None, cloudcompare_keys=("SearchScale",),
@@ -229,7 +230,7 @@ PARAMETERS: tuple[Parameter, ...] = (
               cli_type=str, needs=(EP,), help="M3C2-EP: the level of detection, projected on the normal or as published"),
     Parameter("ep_weights", "--ep-weights", Choice("normal", "matrix"), section="6.2", engine=enum("ep_weights"),
               cli_type=str, needs=(EP, WEIGHTED_CENTRES), help="M3C2-EP: the weights of the centres of gravity"),
-    # The per-point inputs of pm and ep (read by m3c2kit.uncertainty_inputs; in-memory runs)
+    # The per-point inputs of pm and ep (read by m3c2kit.run.uncertainty_inputs; in-memory runs)
     Parameter("precision_fields", "--precision-fields", Text("three field names SX,SY,SZ"), section="6.2",
               default="sx,sy,sz", cli_type=str, metavar="SX,SY,SZ", scope="run", needs=(PM,),
               help="M3C2-PM: each cloud's fields holding the precisions sx, sy, sz (LAS extra bytes, PLY "

@@ -1,0 +1,250 @@
+"""Command-line subcommands of the analysis toolkit: roughness, calibrate, c2c, simplify, suggest
+(docs/analysis.md). Registered by m3c2kit.cli.main.make_parser through `analysis_parsers`."""
+from __future__ import annotations
+
+import os
+import shlex
+from pathlib import Path
+
+import numpy as np
+
+from .integers import COUNT_MAX, SEED_MAX, THREADS_MAX, integer
+from ..io import read_cloud, write_cloud_table
+from ..io.files import add_drop_nonfinite_option
+from .parser import phases_for
+from ..io.collisions import check_outputs
+from ..run.cores import core_points_for
+from ..settings.parsers import positive
+from importlib import import_module
+
+# m3c2kit.analysis exports functions named like these modules (`from ..analysis import calibrate`
+# and even `import m3c2kit.analysis.calibrate as m` give the function): the modules by name.
+roughness_mod, calibrate_mod, simplify_mod, suggest_mod = (
+    import_module(f"m3c2kit.analysis.{name}") for name in ("roughness", "calibrate", "simplify", "suggest"))
+from ..analysis.baselines import MODEL_NEIGHBOURS, RULE, RULES, c2c, model_options
+from ..analysis.common import figure_format, scales, value_range, write_csv
+
+D_HELP = "D, the normal scale: a DIAMETER"
+d_HELP = "d, the projection scale: the cylinder's DIAMETER"
+THREADS_HELP = "worker threads (0: every core; the results do not depend on it)"
+
+
+def _read(path: Path, args):
+    return read_cloud(path, drop_nonfinite=args.drop_nonfinite)
+
+
+def _core_options(p, what="cloud") -> None:
+    core = p.add_mutually_exclusive_group()
+    core.add_argument("--core", type=Path, help="core points file (default: see the command's help)")
+    core.add_argument("--core-spacing", type=float, help=f"core points = the {what} subsampled to this minimum spacing")
+
+
+def _check_outputs(args) -> None:
+    """No output of the command (-o, --plot) may be one of its inputs (m3c2kit.io.collisions),
+    checked before any work, as for every command (docs/errors.md, "Output")."""
+    orient = getattr(args, "orient", None)
+    inputs = {"input cloud": getattr(args, "cloud", None), "reference cloud": getattr(args, "reference", None),
+              "compared cloud": getattr(args, "compared", None), "core points file": getattr(args, "core", None),
+              "orientation file": orient if orient and os.path.isfile(orient) else None}
+    check_outputs({"-o": getattr(args, "output", None), "--plot": getattr(args, "plot", None)}, inputs)
+    if getattr(args, "plot", None) is not None:
+        figure_format(args.plot)
+
+
+def _core_points(args, cloud_xyz, default_all=True):
+    from .. import api
+    if args.core is not None:
+        return _read(args.core, args).xyz
+    if args.core_spacing is not None:
+        return core_points_for(cloud_xyz, None, args.core_spacing)
+    return cloud_xyz if default_all else None
+
+
+def analysis_parsers(sub) -> None:
+    """Adds the roughness, calibrate, c2c, simplify and suggest subcommands."""
+    p = sub.add_parser("roughness", help="roughness sigma(D) vs scale and the self-affine fit (section 5.1, Fig. 6a)",
+                       description="Mean and standard deviation of sigma(D) over core points per scale D, and the "
+                                   "fit of eq. (3) <sigma(D)> = sigma(l0) (D/l0)^beta in log-log.")
+    p.add_argument("cloud", type=Path, help="the point cloud")
+    p.add_argument("--normal-scale", required=True, help=D_HELP + " for each scale: 'MIN:MAX:STEP' or a list 'a,b,c'")
+    _core_options(p)
+    p.add_argument("--fit-range", help="MIN:MAX: scales used in the fit (default all)")
+    p.add_argument("--l0", type=float, default=roughness_mod.L0, help="reference scale l0 of eq. (3) (default 0.5)")
+    p.add_argument("--min-points", type=integer(1, COUNT_MAX), default=10, help="fewest neighbours for sigma(D) (default 10)")
+    p.add_argument("--variance", choices=["sample", "population"], default="sample",
+                   help="sigma(D) with the n - 1 (sample) or n (population) denominator")
+    p.add_argument("-o", "--output", type=Path, required=True, help="CSV table")
+    p.add_argument("--plot", type=Path, help="log-log plot (PNG, PDF, SVG)")
+    p.add_argument("--threads", type=integer(0, THREADS_MAX), default=0, help=THREADS_HELP)
+    p.add_argument("-q", "--quiet", action="store_true",
+                   help="no progress bar or summary (warnings and errors still go to stderr)")
+    add_drop_nonfinite_option(p)
+    p.set_defaults(run=run_roughness)
+
+    p = sub.add_parser("calibrate", help="LOD95 calibration on subsampled copies of one cloud (5.2.1-5.2.2, Figs. 8-9)",
+                       description="Compares a cloud with differently subsampled versions of itself: per d, the "
+                                   "percentage of core points correctly NOT significant with eq. (1) z, Welch t "
+                                   "(eq. 2) and the bootstrap, the mean LOD95 and its scaling d^alpha vs beta - 0.95.")
+    p.add_argument("cloud", type=Path, help="the point cloud, compared with subsampled copies of itself")
+    p.add_argument("--projection-scales", required=True, help=d_HELP + " for each scale: 'MIN:MAX:STEP' or 'a,b,c'")
+    p.add_argument("--spacings", default="raw,3x",
+                   help="minimum spacings of cloud 1 and cloud 2: 'raw', a length, or 'Nx' = N times the median "
+                        "point spacing (default raw,3x; the paper: raw,0.1 and 0.045,0.05)")
+    p.add_argument("--normal-scale", help=D_HELP + " (default: vertical normals, as the paper: 'We impose a fixed "
+                                                   "normal direction')")
+    _core_options(p)
+    p.add_argument("--max-core", type=integer(1, COUNT_MAX), default=2000,
+                   help="at most this many core points, drawn with --seed (default 2000)")
+    p.add_argument("--max-depth", type=float, help="cylinder half-length (default: the largest d)")
+    p.add_argument("--bootstrap", type=integer(0, COUNT_MAX), default=100, help="bootstrap resamples (0: skip; default 100)")
+    p.add_argument("--seed", type=integer(0, SEED_MAX), default=0, help="seed of the core-point draw and the bootstrap")
+    p.add_argument("--min-points", type=integer(1, COUNT_MAX), default=4, help="fewest points per cylinder for a LOD")
+    p.add_argument("--fit-range", help="MIN:MAX of d used in the LOD and roughness fits (default all)")
+    p.add_argument("--orient", default="+z", help="normal orientation, as m3c2 compare's --orient")
+    p.add_argument("-o", "--output", type=Path, required=True, help="CSV table")
+    p.add_argument("--plot", type=Path, help="plot of the calibration (PNG, PDF, SVG)")
+    p.add_argument("--threads", type=integer(0, THREADS_MAX), default=0, help=THREADS_HELP)
+    add_drop_nonfinite_option(p)
+    p.set_defaults(run=run_calibrate)
+
+    p = sub.add_parser("c2c", help="closest-point baselines C2C and C2C_HF (section 3.4)",
+                       description="Distance from each compared point (or core point) to the closest reference point "
+                                   "(C2C) and, with --model plane, to the least-squares plane of that point's "
+                                   "reference neighbours (C2C_HF). Unsigned, as in CloudCompare.")
+    p.add_argument("reference", type=Path, help="the reference cloud")
+    p.add_argument("compared", type=Path, help="the compared cloud (its points are the query points by default)")
+    p.add_argument("-o", "--output", type=Path, required=True, help="output: .csv .txt .ply .las .laz")
+    _core_options(p, "compared cloud")
+    p.add_argument("--model", choices=["none", "plane"], default="none",
+                   help="local model: none (C2C) or plane (also C2C_HF)")
+    p.add_argument("--model-radius", type=float, help="model neighbours within this radius of the closest point")
+    p.add_argument("--model-knn", type=integer(1, COUNT_MAX),
+                   help=f"else its k nearest reference points (default {MODEL_NEIGHBOURS})")
+    p.add_argument("--rule", choices=RULES,
+                   help=f"with --model plane: closer: min(C2C, plane) as CloudCompare >= 2.5; model: the plane "
+                        f"distance as CloudCompare 2.3 (default {RULE})")
+    p.add_argument("--threads", type=integer(0, THREADS_MAX), default=0, help=THREADS_HELP)
+    p.add_argument("-q", "--quiet", action="store_true",
+                   help="no progress bar or summary (warnings and errors still go to stderr)")
+    add_drop_nonfinite_option(p)
+    p.set_defaults(run=run_c2c)
+
+    p = sub.add_parser("simplify", help="self-comparison: local averaging or outlier removal (section 6.3)",
+                       description="Compares the cloud with itself at core points and writes the projected "
+                                   "positions core + i n (mean: local averaging; --median: outlier removal) with "
+                                   "roughness, density and normals.")
+    p.add_argument("cloud", type=Path, help="the point cloud")
+    _core_options(p)
+    p.add_argument("--projection-scale", type=float, required=True, help=d_HELP + " (the averaging scale)")
+    p.add_argument("--normal-scale", help=D_HELP + " (default 2 d)")
+    p.add_argument("--vertical", action="store_true", help="impose vertical normals instead")
+    p.add_argument("--median", action="store_true", help="median instead of mean (outlier removal)")
+    p.add_argument("--max-depth", type=float, help="cylinder half-length (default d)")
+    p.add_argument("--orient", default="+z", help="normal orientation, as m3c2 compare's --orient")
+    p.add_argument("-o", "--output", type=Path, required=True,
+                   help="the projected points: .csv .txt .ply .las .laz")
+    p.add_argument("--threads", type=integer(0, THREADS_MAX), default=0, help=THREADS_HELP)
+    p.add_argument("-q", "--quiet", action="store_true",
+                   help="no progress bar or summary (warnings and errors still go to stderr)")
+    add_drop_nonfinite_option(p)
+    p.set_defaults(run=run_simplify)
+
+    p = sub.add_parser("suggest", help="suggest D, d and the max depth for a pair of clouds",
+                       description="Proposes D (smallest scale with xi >= 25 at 95% of sampled core points), d "
+                                   "(smallest with median n >= 30 in both clouds) and a max depth (3 x the 99th "
+                                   "percentile of |distance| of a first pass), printing the numbers behind each.")
+    p.add_argument("reference", type=Path, help="the reference cloud")
+    p.add_argument("compared", type=Path, help="the compared cloud")
+    p.add_argument("--sample", type=integer(1, COUNT_MAX), default=2000, help="sampled core points (default 2000)")
+    p.add_argument("--seed", type=integer(0, SEED_MAX), default=0, help="seed of the core-point sample")
+    p.add_argument("--threads", type=integer(0, THREADS_MAX), default=0, help=THREADS_HELP)
+    add_drop_nonfinite_option(p)
+    p.set_defaults(run=run_suggest)
+
+
+def run_roughness(args) -> int:
+    _check_outputs(args)
+    positive("--l0", args.l0)  # checked again by fit_scaling; here before the scales are computed
+    cloud = _read(args.cloud, args)
+    diameters = scales("--normal-scale", args.normal_scale)
+    core = _core_points(args, cloud.xyz)
+    with phases_for(args).phase("roughness") as step:
+        sigma = roughness_mod.roughness_by_scale(cloud.xyz, core, diameters, variance=args.variance,
+                                                 min_points=args.min_points, threads=args.threads, progress=step)
+    table = roughness_mod.roughness_table(sigma, diameters)
+    fit = roughness_mod.fit_scaling(diameters, table["mean_sigma"], value_range("--fit-range", args.fit_range), args.l0)
+    write_csv(args.output, dict(table, in_fit=fit["in_fit"].astype(int)))
+    if args.plot is not None:
+        roughness_mod.plot(args.plot, table, fit, title=f"{args.cloud.name}: roughness scaling")
+    print(f"{args.cloud}: {len(core)} core points, {len(diameters)} scales")
+    for line in roughness_mod.report_lines(table, fit):
+        print(line)
+    return 0
+
+
+def run_calibrate(args) -> int:
+    _check_outputs(args)
+    cloud = _read(args.cloud, args)
+    ds = scales("--projection-scales", args.projection_scales)
+    spacings = [s for s in args.spacings.split(",") if s.strip()]
+    core = _read(args.core, args).xyz if args.core is not None else None
+    res = calibrate_mod.calibrate(cloud.xyz, ds, spacings=spacings, normal_scale=args.normal_scale, core=core,
+                                  core_spacing=args.core_spacing, max_core=args.max_core, seed=args.seed,
+                                  max_depth=args.max_depth, bootstrap=args.bootstrap, min_points=args.min_points,
+                                  orient=args.orient, fit_range=value_range("--fit-range", args.fit_range),
+                                  threads=args.threads)
+    write_csv(args.output, res["table"])
+    if args.plot is not None:
+        calibrate_mod.plot(args.plot, res, title=f"{args.cloud.name}: LOD95 calibration")
+    for line in calibrate_mod.report_lines(res):
+        print(line)
+    return 0
+
+
+def run_c2c(args) -> int:
+    _check_outputs(args)
+    model_options(args.model, args.model_radius, args.model_knn, args.rule)  # refused before reading
+    reference, compared = _read(args.reference, args), _read(args.compared, args)
+    queries = _core_points(args, compared.xyz)
+    with phases_for(args).phase("C2C") as step:
+        r = c2c(reference.xyz, queries, model=args.model, model_radius=args.model_radius,
+                model_neighbours=args.model_knn, rule=args.rule, threads=args.threads, progress=step)
+    fields = {"c2c": r["distance"]}
+    if args.model != "none":
+        fields["c2c_hf"] = r["hf_distance"]
+        fields["model_points"] = r["model_count"].astype(np.uint32)
+    write_cloud_table(args.output, queries, fields, like=compared)
+    if not args.quiet:
+        line = f"wrote {args.output}: {len(queries)} points; C2C mean {np.mean(r['distance']):.6g}, median {np.median(r['distance']):.6g}"
+        if args.model != "none":
+            line += f"; C2C_HF mean {np.mean(r['hf_distance']):.6g}, median {np.median(r['hf_distance']):.6g}"
+        print(line)
+    return 0
+
+
+def run_simplify(args) -> int:
+    _check_outputs(args)
+    cloud = _read(args.cloud, args)
+    core = _read(args.core, args).xyz if args.core is not None else None
+    with phases_for(args).phase("simplify") as step:
+        points, fields = simplify_mod.simplify(cloud.xyz, core, projection_scale=args.projection_scale,
+                                               normal_scale=args.normal_scale, core_spacing=args.core_spacing,
+                                               median=args.median, max_depth=args.max_depth,
+                                               vertical=args.vertical, orient=args.orient, threads=args.threads,
+                                               progress=step)
+    write_cloud_table(args.output, points, fields, like=cloud)
+    if not args.quiet:
+        # No projected point (every core point without a normal): no median, and no numpy warning for it.
+        density = f"{np.median(fields['density']):.4g} points per cylinder" if len(points) else "none"
+        print(f"wrote {args.output}: {len(points)} projected points ({'median' if args.median else 'mean'}, "
+              f"d = {args.projection_scale:g}); median density {density}")
+    return 0
+
+
+def run_suggest(args) -> int:
+    reference, compared = _read(args.reference, args), _read(args.compared, args)
+    res = suggest_mod.suggest(reference, compared, sample=args.sample, seed=args.seed, threads=args.threads)
+    for line in suggest_mod.report_lines(res) + suggest_mod.proposal_lines(res, shlex.quote(str(args.reference)),
+                                                                          shlex.quote(str(args.compared))):
+        print(line)
+    return 0

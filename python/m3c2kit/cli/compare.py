@@ -1,0 +1,269 @@
+"""`m3c2 compare`: its options, reading, the run in memory or in tiles, the outputs."""
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from .. import api
+from ..base.errors import UsageError
+from ..classify.vegetation import vegetation_filter
+from ..io import crs as crs_mod
+from ..io import laz_threads, read_cloud
+from ..io.collisions import check_outputs
+from ..io.files import add_drop_nonfinite_option
+from ..output.report.outputs import CompareOutputs, write_compare_outputs
+from ..output.summary import summary_lines
+from ..run import raster
+from ..run.checks import check_all_fields, check_core_normals, threads_count
+from ..settings import by_name, orientation, parameters_of, resolve
+from ..settings.cloudcompare_params import read_cloudcompare_params
+from ..settings.resolve import without_inapplicable
+from .inputs import input_files, orient_spec, print_notes, read_input
+from .parser import add_progress_option, add_table_options, add_verbosity_options, phases_for
+def compare_parser(sub) -> None:
+    p = sub.add_parser("compare", help="M3C2 distances between two clouds",
+                       description="M3C2 change between REFERENCE and COMPARED at core points. "
+                                   "D and d are diameters; --max-depth is the half-length of the cylinder.")
+    p.add_argument("reference", type=Path, help="reference cloud (first epoch)")
+    p.add_argument("compared", type=Path, help="compared cloud (second epoch)")
+    p.add_argument("-o", "--output", type=Path, required=True, help="output file: .las .laz .ply .csv .txt")
+    core = p.add_mutually_exclusive_group()
+    core.add_argument("--core", type=Path, help="core points file (default: every reference point)")
+    core.add_argument("--grid", type=float, metavar="CELL",
+                      help="2D mode (section 6.1.2): core points on a CELL grid over the reference, vertical normals, "
+                           "d = 1.1 CELL unless --projection-scale; also writes GeoTIFF rasters <stem>_distance.tif, "
+                           "_lod, _significant, _n1, _n2, _status beside -o (docs/report.md)")
+    add_table_options(p, "compare", groups={"core_spacing": core})
+    p.add_argument("--core-normals", type=Path, help="with --normal-source core: file of nx,ny,nz per core point "
+                                                     "(default: the core file's normal fields)")
+    p.add_argument("--params", type=Path, help="CloudCompare qM3C2 parameter file; command-line options win")
+    p.add_argument("--projected", action="store_true", help="also write the projected positions x1..z2")
+    add_drop_nonfinite_option(p)
+    p.add_argument("--ignore-crs", action="store_true",
+                   help="compare clouds whose CRS or units differ, or of which only one has a CRS, or in degrees "
+                        "(default: an error naming them)")
+    p.add_argument("--allow-angular", action="store_true",
+                   help="accept horizontal coordinates in degrees (a geographic CRS such as EPSG:4326; default: "
+                        "an error, as distances would mix degrees and heights)")
+    p.add_argument("--crs", metavar="CRS",
+                   help="CRS of inputs that have none (ASCII, PLY, .npy, LAS without one): EPSG:CODE, a WKT or a "
+                        ".prj file; written to LAS outputs and GeoTIFFs (default: none)")
+    p.add_argument("--report", type=Path, metavar="HTML", help="also write a self-contained HTML report (docs/report.md)")
+    p.add_argument("--report-png", type=Path, metavar="PREFIX", help="also write the report's figures as PREFIX_<figure>.png")
+    p.add_argument("--tile-size", type=float, metavar="S",
+                   help="out-of-core: process the core points in square XY tiles of side S, each with only the "
+                        "points within the halo; same result bit for bit (docs/scaling.md)")
+    p.add_argument("--memory-limit", metavar="SIZE",
+                   help="out-of-core: pick the tile size so a tile's estimated resident memory stays under SIZE "
+                        "(e.g. 2GB; docs/scaling.md)")
+    p.add_argument("--dask-scheduler", metavar="ADDRESS",
+                   help="run the tiles as tasks on this Dask distributed scheduler; every worker must be able to "
+                        "read the inputs and the work folder beside the output (docs/scaling.md)")
+    add_verbosity_options(p)
+    add_progress_option(p)
+    p.set_defaults(run=run_compare)
+
+
+def compare_settings(args) -> dict:
+    """Options from --params, overridden by those given on the command line."""
+    settings = {}
+    if args.params is not None:
+        settings.update(read_cloudcompare_params(args.params))
+        settings.setdefault("compat", "cloudcompare")
+    for param in parameters_of("compare"):
+        value = getattr(args, param.name, None)
+        if value is not None:
+            settings[param.name] = value
+    if args.core is not None:
+        settings.pop("core_spacing", None)  # as CloudCompare: given core points win over subsampling
+    if getattr(args, "grid", None) is not None:
+        explicit = {p.name: getattr(args, p.name, None) for p in parameters_of("compare")}
+        settings = raster.grid_settings(args.grid, settings, dict(explicit, core_normals=args.core_normals))
+        for name, value in explicit.items():  # 2D mode drops what it replaces: given here, it would do nothing
+            if value is not None and name not in settings:
+                raise UsageError(f"--grid imposes vertical normals on grid cells: {by_name()[name].flag} would change "
+                                 f"nothing; leave it out")
+    if args.params is not None:  # the file's values that the options make moot are its dialog's state: dropped
+        typed = {p.name for p in parameters_of("compare") if getattr(args, p.name, None) is not None}
+        settings = without_inapplicable(settings, keep=typed)
+    return settings
+
+
+def run_compare_tiled(args, settings: dict, grid=None) -> int:
+    """`m3c2 compare ... --tile-size S | --memory-limit M [--dask-scheduler ADDRESS]` (m3c2kit.run.tiled)."""
+    from ..run.dask import connect
+    from ..run.tiled import preflight
+
+    for flag, value in (("--grid", grid), ("--report", getattr(args, "report", None)),
+                        ("--report-png", getattr(args, "report_png", None))):
+        if value is not None:
+            raise UsageError(f"{flag} cannot be combined with tiling (--tile-size, --memory-limit, --dask-scheduler)")
+    if args.tile_size is None and args.memory_limit is None:
+        raise UsageError("--dask-scheduler needs --tile-size S or --memory-limit SIZE to cut the work into tiles")
+
+    settings = dict(settings)
+    field_names = settings.pop("field_names", "m3c2") or "m3c2"
+    float64 = bool(settings.pop("float64", False))
+    all_fields = bool(settings.pop("all_fields", False))
+    position = settings.pop("position", "core")
+    threads = settings.pop("threads", 0)
+    core_spacing = settings.pop("core_spacing", None)
+    drop = bool(getattr(args, "drop_nonfinite", False))
+    # The executor's checks and the Dask connection (bounded in time) before any file is read.
+    checked = dict(settings, threads=threads, core_spacing=core_spacing)
+    if orientation.needs_scan_positions(checked.get("orient")):
+        checked.pop("orient")  # read with the files; it does not change the halo
+    vegetation = vegetation_filter(settings.get("classifier"), settings.get("keep"))
+    plan = preflight(checked, args.tile_size, args.memory_limit,
+                     read_points=lambda p: read_cloud(p, drop_nonfinite=drop).xyz, vegetation=vegetation)[0]
+    client = connect(args.dask_scheduler) if args.dask_scheduler is not None else None
+    try:
+        code = _compare_tiled(args, dict(settings, vegetation=vegetation), client, position, threads, core_spacing, drop,
+                              dict(field_names=field_names, float64=float64, all_fields=all_fields))
+    finally:
+        if client is not None:
+            client.close()
+    if args.verbose:  # as the in-memory run: the parameters the run was given, with D as a list
+        for name, value in sorted(plan.record.items()):
+            print(f"parameter {name}: {value}")
+    return code
+
+
+def _compare_tiled(args, settings, client, position, threads, core_spacing, drop, storage: dict) -> int:
+    from ..io.streaming import PointSource
+    from ..run import run_tiled
+
+    ref_src = PointSource(args.reference, drop_nonfinite=drop)
+    cmp_src = PointSource(args.compared, drop_nonfinite=drop)
+    core_cloud = read_cloud(args.core, drop_nonfinite=drop) if args.core is not None else None
+    if settings.get("normal_source") != "core":  # given normals are used as they are
+        settings["orient"] = orient_spec(args, settings, ref_src.cloud, core_cloud)
+    check_same_crs(ref_src.like(), cmp_src.like(), core_cloud, ignore=getattr(args, "ignore_crs", False),
+                   allow_angular=getattr(args, "allow_angular", False))
+    core_normals = _core_normals(args, core_cloud) if settings.get("normal_source") == "core" else None
+    say = (lambda s: None) if args.quiet else (lambda s: print(f"m3c2: {s}", flush=True))
+    report = run_tiled(ref_src, cmp_src, output=args.output,
+                       core=core_cloud.xyz if core_cloud is not None else None, core_spacing=core_spacing,
+                       core_normals=core_normals, tile_size=args.tile_size, memory_limit=args.memory_limit,
+                       client=client, threads=threads or 0, projected=args.projected,
+                       position=position, **storage, drop_nonfinite=drop, log=say,
+                       read_points=lambda p: read_cloud(p, drop_nonfinite=drop).xyz, **settings)
+    if not args.quiet:
+        for line in report.lines(args.output):
+            print(line)
+    return 0
+
+
+def _compare_outputs(args) -> dict:
+    """Every file `m3c2 compare` writes, by its option."""
+    from ..output.report import png_paths
+
+    outputs = {"-o": args.output}
+    if args.grid is not None:
+        outputs.update({f"--grid raster {name}": path for name, path in raster.raster_paths(args.output).items()})
+    outputs["--report"] = args.report
+    if args.report_png is not None:
+        outputs.update({f"--report-png {key}": path for key, path in png_paths(args.report_png).items()})
+    return outputs
+
+
+def run_compare(args) -> int:
+    cell = args.grid
+    settings = compare_settings(args)  # with --grid: 2D mode's settings (raster.grid_settings)
+    # Every parameter's checks, options that would change nothing included, before any file is read.
+    resolve(settings, "compare")
+    check_core_normals(settings, args.core_normals, "--core-normals")
+    check_all_fields(args.output, settings.get("all_fields"))
+    laz_threads.set_threads(threads_count(settings.get("threads")))  # LAZ coding: --threads too (checked first)
+    check_outputs(_compare_outputs(args), input_files(args, settings))  # before any work (docs/errors.md)
+    phases = phases_for(args)  # -q with --progress refused here, in every mode
+    if args.tile_size is not None or args.memory_limit is not None or args.dask_scheduler is not None:
+        if getattr(args, "crs", None) is not None:  # an empty --crs '' was dropped silently
+            raise UsageError("--crs is not available with --tile-size, --memory-limit or --dask-scheduler; "
+                             "give the inputs a CRS (e.g. convert them to LAS with one) or run in memory")
+        return run_compare_tiled(args, settings, grid=cell)  # out-of-core / Dask (docs/scaling.md)
+    files = [f for f in (args.reference, args.compared, args.core) if f is not None]
+    with phases.phase("reading", total=len(files)) as step:
+        reference = read_input(args.reference, args)
+        step(1, len(files))
+        compared = read_input(args.compared, args)
+        step(2, len(files))
+        core_cloud = read_input(args.core, args) if args.core is not None else None
+        step(len(files), len(files))
+    if getattr(args, "crs", None) is not None:  # '' too: refused as no CRS, not ignored
+        assign_crs(args.crs, reference, compared, core_cloud)
+    check_same_crs(reference, compared, core_cloud, ignore=getattr(args, "ignore_crs", False),
+                   allow_angular=getattr(args, "allow_angular", False))  # docs/errors.md
+    grid = None
+    if cell is not None:
+        grid = raster.grid_core_points(reference, cell)
+        core_cloud = grid.core_points
+    if orientation.needs_scan_positions(settings.get("orient")):  # the files named when none has a pose
+        settings["orient"] = orient_spec(args, settings, reference, core_cloud)
+    position = settings.pop("position", "core")
+    field_names = settings.pop("field_names", "m3c2")
+    float64 = bool(settings.pop("float64", False))
+    all_fields = bool(settings.pop("all_fields", False))
+    threads = settings.pop("threads", 0)
+    core_normals = None
+    if settings.get("normal_source") == "core":
+        core_normals = _core_normals(args, core_cloud)
+    # The engine indexes both clouds, fits the normals and measures the distances in one call,
+    # reporting core points done: one bar for the three.
+    with phases.phase("indexing, normals, distances") as step:
+        # The clouds' arrays are the command line's own (read above): ordered in place, not copied.
+        result = api.compare(reference, compared, core_cloud, core_normals=core_normals, threads=threads,
+                             progress=step, read_points=lambda p: read_input(p, args).xyz, reorder_inputs=True,
+                             **settings)
+    outputs = CompareOutputs(table=args.output, report=args.report, report_png=args.report_png,
+                             projected=args.projected, position=position, field_names=field_names,
+                             float64=float64, all_fields=all_fields, core_spacing=settings.get("core_spacing"),
+                             inputs={"reference": args.reference, "compared": args.compared})
+    with phases.phase("writing", total=1) as step:
+        extra = write_compare_outputs(outputs, result, reference, grid=grid)
+        step(1, 1)
+    if not args.quiet:
+        for line in summary_lines(result, args.output):
+            print(line)
+        for path in extra:
+            print(f"wrote {path}")
+    if args.verbose:
+        for name, value in sorted(result.params.items()):
+            print(f"parameter {name}: {value}")
+    print_notes((reference, compared, core_cloud))  # the warnings: m3c2kit.run.diagnostics, through main()
+    return 0
+
+
+CrsMismatch = crs_mod.CrsMismatch  # the epochs' CRSs or units differ (exit 1); --ignore-crs overrides
+
+
+def check_same_crs(reference, compared, core=None, *, ignore: bool = False, allow_angular: bool = False) -> None:
+    """m3c2kit.io.crs.check_crs: CRSs known to differ, a CRS on one cloud only, different units,
+    angular coordinates (docs/errors.md)."""
+    crs_mod.check_crs(reference, compared, core, ignore=ignore, allow_angular=allow_angular)
+
+
+def assign_crs(spec: str, *clouds) -> None:
+    """--crs: the CRS of every given cloud that has none; a cloud with another CRS is an error."""
+    wkt = crs_mod.assign_crs(spec)
+    for cloud in clouds:
+        if cloud is None:
+            continue
+        if not cloud.crs:
+            cloud.crs, cloud.units_hint = wkt, crs_mod.crs_units(wkt) or cloud.units_hint
+        elif crs_mod.same_crs(cloud.crs, wkt) is False:
+            raise CrsMismatch(f"{cloud.path} already has a CRS, {crs_mod.crs_label(cloud.crs)}, not the --crs "
+                              f"{crs_mod.crs_label(wkt)}; --crs only assigns a CRS to inputs that have none")
+
+
+def _core_normals(args, core_cloud) -> np.ndarray:
+    if args.core_normals is not None:
+        return read_input(args.core_normals, args).xyz
+    if core_cloud is None:
+        raise UsageError("--normal-source core needs --core with normal fields (nx, ny, nz) or --core-normals FILE")
+    normals = core_cloud.normals()
+    if normals is not None:
+        return normals
+    raise UsageError(f"{args.core}: no normal fields (nx, ny, nz) for --normal-source core; use --core-normals FILE")
+

@@ -1,0 +1,128 @@
+"""The `m3c2` command line: parse, read, compute, write. Exit 0 on success, 2 for usage errors,
+1 for failures (unreadable input, unwritable output, interruption); no partial output file."""
+from __future__ import annotations
+
+import argparse
+import os
+import signal
+import sys
+import warnings
+
+from ..base.errors import M3C2Error, M3C2Warning, UsageError, printable
+from ..io import laspy_local
+from ..io.input_file import os_error_message
+from .analysis import analysis_parsers
+from .classify import classify_parsers
+from .commands import info_parser, normals_parser, subsample_parser
+from .compare import compare_parser
+from .parser import ArgumentParser
+
+
+class Interrupted(M3C2Error):
+    """SIGINT or SIGTERM during a run."""
+
+
+def make_parser() -> argparse.ArgumentParser:
+    parser = ArgumentParser(prog="m3c2", description="M3C2 point-cloud change detection (Lague et al. 2013)")
+    from .. import __version__
+    parser.add_argument("--version", action="version", version=f"m3c2 (m3c2kit) {__version__}")
+    sub = parser.add_subparsers(dest="command", required=True, parser_class=ArgumentParser)
+    from .series import series_parsers  # noqa: PLC0415 - m3c2 series (docs/series.md)
+    for build in (compare_parser, normals_parser, subsample_parser, info_parser, analysis_parsers, classify_parsers,
+                  series_parsers):
+        build(sub)
+    return parser
+
+
+_CLEAN_EXIT_SIGNALS = tuple(getattr(signal, name) for name in ("SIGHUP", "SIGQUIT", "SIGTERM") if hasattr(signal, name))
+
+
+def _raise_interrupted(signum, frame):
+    raise Interrupted(f"interrupted by {signal.Signals(signum).name}; no output written")
+
+
+def _show_warning(message, category, filename, lineno, file=None, line=None):
+    """M3C2Warning (e.g. QuantisationWarning) as `m3c2: warning: ...`; others as Python shows them."""
+    if issubclass(category, M3C2Warning):
+        print(f"m3c2: warning: {printable(message)}", file=sys.stderr)
+    else:
+        _python_showwarning(message, category, filename, lineno, file, line)
+
+
+_python_showwarning = warnings.showwarning
+
+
+#: Option values that start with "-" and that argparse would take for options: "--orient -z".
+_DASH_VALUES = {"--orient": ("-x", "-y", "-z")}
+
+
+def join_dash_values(argv: list[str]) -> list[str]:
+    """["--orient", "-z"] -> ["--orient=-z"], as --help writes it (argparse reads "-z" as an option)."""
+    out: list[str] = []
+    i = 0
+    while i < len(argv):
+        a = argv[i]
+        if a in _DASH_VALUES and i + 1 < len(argv) and str(argv[i + 1]).lower() in _DASH_VALUES[a]:
+            out.append(f"{a}={argv[i + 1]}")
+            i += 2
+            continue
+        out.append(a)
+        i += 1
+    return out
+
+
+def main(argv=None) -> int:
+    """The `m3c2` command. Without `argv` (the `m3c2` script, ``python -m m3c2kit``) the process
+    is the command line's own: laspy is imported without the modules a local file never uses
+    (m3c2kit.io.laspy_local) when the arguments name a LAS/LAZ file."""
+    if argv is None and laspy_local.names_las_file(sys.argv[1:]):
+        laspy_local.import_laspy_for_local_files()
+    # SIGHUP, SIGQUIT and SIGTERM end the run as SIGINT does: an exception that unwinds through
+    # the atomic writer, which removes its private folders (no partial output, no leftover).
+    previous = {s: signal.signal(s, _raise_interrupted) for s in _CLEAN_EXIT_SIGNALS}
+    with warnings.catch_warnings():
+        warnings.simplefilter("always", M3C2Warning)
+        warnings.showwarning = _show_warning
+        try:
+            return _main(argv)
+        finally:
+            for number, handler in previous.items():
+                signal.signal(number, handler)
+
+
+def _main(argv) -> int:
+    try:
+        with warnings.catch_warnings():
+            warnings.showwarning = _show_warning
+            argv = join_dash_values([str(a) for a in (sys.argv[1:] if argv is None else argv)])
+            args = make_parser().parse_args(argv)
+            code = args.run(args)
+            sys.stdout.flush()  # a closed stdout raises here, not in the interpreter's final flush
+            return code
+    except UsageError as e:
+        print(f"m3c2: error: {printable(e)}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        print("m3c2: error: interrupted by SIGINT; no output written", file=sys.stderr)
+        return 1
+    except M3C2Error as e:
+        print(f"m3c2: error: {printable(e)}", file=sys.stderr)
+        return 1
+    except MemoryError:
+        print("m3c2: error: out of memory; use fewer or subsampled core points", file=sys.stderr)
+        return 1
+    except BrokenPipeError:
+        # stdout closed by the reader (`m3c2 info x.las | head -1`): stop quietly, as Unix tools
+        # do, and point stdout at /dev/null so that the interpreter's final flush stays quiet.
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        return 1
+    except OSError as e:
+        # An OS error no reader or writer turned into a message: e.g. a name over 255 bytes, which
+        # pathlib's checks (exists, is_file) raise instead of answering. Writers remove their
+        # temporaries on any exception (io.atomic), so nothing half-written is left.
+        print(f"m3c2: error: {printable(os_error_message(e))}", file=sys.stderr)
+        return 1
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,382 @@
+"""The `m3c2 series` command line (docs/series.md), registered by m3c2kit.cli.main.make_parser:
+
+    m3c2 series REFERENCE EPOCH... -o STORE [compare options]   create a store
+    m3c2 series add STORE EPOCH...                               append epochs (resumes a killed run)
+    m3c2 series smooth STORE --window N                          temporal median -> smoothed_distance
+    m3c2 series changepoints STORE --core I                      change points of one core point
+    m3c2 series objects STORE -o OBJECTS.csv                     4D objects-by-change
+    m3c2 series report STORE -o REPORT.html                      time series and object plots
+    m3c2 series import ARCHIVE.zip -o STORE                      a py4dgeo analysis archive
+    m3c2 series check STORE                                      is the store whole? (exit 1 naming each damage)
+
+The first word after `series` decides the form: one of the action words, or else the reference
+of a new store (a reference file literally named like an action is written ./add)."""
+from __future__ import annotations
+
+import argparse
+import sys
+from contextlib import contextmanager
+from pathlib import Path
+
+from .integers import COUNT_MAX, THREADS_MAX, integer
+from ..base.errors import UsageError
+
+ACTIONS = ("add", "smooth", "changepoints", "objects", "report", "import", "check")
+STORE_HELP = "the series store (a Zarr directory)"
+THREADS_HELP = "worker threads (default: every core); the results do not depend on it"
+SCALE_HELP = "D, the normal scale: a DIAMETER (one value, a list 'a,b' or 'MIN:MAX:STEP')"
+#: The compare parameters a series takes: the parameter table's engine parameters (their flags,
+#: types, ranges and help), the core spacing and --compat; not the per-point uncertainty's inputs
+#: nor the output options, which concern one pair's files.
+SERIES_SCOPES = ("engine", "alias")
+SERIES_RUN_PARAMETERS = ("core_spacing", "compat")
+#: The largest core point index an option takes (numpy's int64 indices).
+INDEX_MAX = 2**63 - 1
+
+
+def _parser(prog: str, description: str):
+    from .parser import ArgumentParser  # usage errors exit 2 with one line
+    return ArgumentParser(prog=prog, description=description)
+
+
+def series_parameters():
+    from ..settings.table import parameters_of
+    return [p for p in parameters_of("compare") if p.scope in SERIES_SCOPES or p.name in SERIES_RUN_PARAMETERS]
+
+
+def _compare_options(p, required: bool, core_group=None) -> None:
+    """The table's options (as m3c2 compare's); --projection-scale and --max-depth are required
+    to create a store, optional (checked against the store's) for add."""
+    g = p.add_argument_group("M3C2 parameters (those of m3c2 compare; stored in the store)")
+    for param in series_parameters():
+        target = core_group if param.name == "core_spacing" and core_group is not None else g
+        kw = {"dest": param.name, "help": param.help_text()}
+        if param.cli_type is None:
+            target.add_argument(param.flag, action="store_true", default=None, **kw)
+        else:
+            target.add_argument(param.flag, type=param.cli_type, choices=param.choices, metavar=param.metavar,
+                                required=required and param.name in ("projection_scale", "max_depth"), **kw)
+
+
+def _run_options(p) -> None:
+    p.add_argument("--threads", type=integer(0, THREADS_MAX),
+                   help="threads (default all); results are identical for any count")
+    p.add_argument("--dask-scheduler", metavar="ADDRESS",
+                   help="compare the epochs as tasks on this Dask distributed scheduler (same store bit for bit); "
+                        "every worker must read the reference, the epochs and the store")
+    p.add_argument("--drop-nonfinite", action="store_true", help="drop points with NaN/Inf coordinates")
+    p.add_argument("--ignore-crs", action="store_true", help="accept epochs whose CRS or units differ from the reference's")
+    p.add_argument("--quiet", action="store_true", help="no progress lines")
+
+
+def create_parser():
+    p = _parser("m3c2 series", "Create a time-series store: core points and normals from REFERENCE once, then every "
+                               "EPOCH compared with it (each equal to m3c2 compare REFERENCE EPOCH) and committed. "
+                               "Other forms: m3c2 series {add,smooth,changepoints,objects,report,import,check} ... "
+                               "(docs/series.md).")
+    p.add_argument("reference", type=Path, help="reference cloud")
+    p.add_argument("epochs", nargs="+", help="epoch files, globs ('scans/*.laz'), or a list file of 'PATH, TIME' lines")
+    p.add_argument("-o", "--output", type=Path, required=True, help="the store (a Zarr directory)")
+    core = p.add_mutually_exclusive_group()
+    core.add_argument("--core", type=Path, help="core points file (default: every reference point)")
+    p.add_argument("--core-normals", type=Path, help="with --normal-source core: nx,ny,nz per core point")
+    _compare_options(p, required=True, core_group=core)
+    p.add_argument("--core-chunk", type=integer(1, COUNT_MAX), default=16384,
+                   help="core points per chunk (default 16384)")
+    p.add_argument("--epoch-chunk", type=integer(1, COUNT_MAX), default=8, help="epochs per chunk (default 8)")
+    _run_options(p)
+    return p
+
+
+def add_parser():
+    p = _parser("m3c2 series add", "Append epochs to a store with its stored parameters; epochs already in it are "
+                                   "skipped, so rerunning a killed command resumes it.")
+    p.add_argument("store", type=Path, help=STORE_HELP)
+    p.add_argument("epochs", nargs="+", help="epoch files, globs or a list file of 'PATH, TIME' lines")
+    _compare_options(p, required=False)
+    _run_options(p)
+    return p
+
+
+def smooth_parser():
+    p = _parser("m3c2 series smooth", "Temporal median of distance over WINDOW epochs, written to the store as "
+                                      "smoothed_distance (Anders et al. 2021, 2.2), chunk by chunk.")
+    p.add_argument("store", type=Path, help=STORE_HELP)
+    p.add_argument("--window", type=integer(1, COUNT_MAX), default=24,
+                   help="epochs in the median window, centred (default 24)")
+    p.add_argument("--threads", type=integer(0, THREADS_MAX), help=THREADS_HELP)
+    return p
+
+
+def _objects_options(p) -> None:
+    g = p.add_argument_group("seeds: change points (Anders et al. 2021, 2.3.1; py4dgeo's defaults)")
+    g.add_argument("--window-width", type=int, default=24, help="sliding window of the change-point detection")
+    g.add_argument("--window-min-size", type=int, default=12, help="fewest epochs between two change points")
+    g.add_argument("--window-jump", type=int, default=1, help="epochs between the change-point candidates")
+    g.add_argument("--window-penalty", type=float, default=1.0, help="> 0: least cost decrease of a change point")
+    g.add_argument("--min-period", type=int, default=24, help="fewest epochs of a seed's change")
+    g.add_argument("--height-threshold", type=float, default=0.0, help="least magnitude of a seed's change")
+    g.add_argument("--finished-only", action="store_true", help="drop seeds still growing at the last epoch")
+    g.add_argument("--seed-subsampling", type=int, default=1, help="search every k-th core point for seeds")
+
+
+def objects_parser():
+    p = _parser("m3c2 series objects", "4D objects-by-change (Anders et al. 2021): seeds, region growing on the "
+                                       "normalised DTW with adaptive thresholds, filters. Writes OBJECTS (CSV), "
+                                       "OBJECTS_members.csv and the store's `object` label per core point and epoch.")
+    p.add_argument("store", type=Path, help=STORE_HELP)
+    p.add_argument("-o", "--output", type=Path, required=True, help="objects table (CSV)")
+    _objects_options(p)
+    g = p.add_argument_group("region growing (2.3.2) and filters (2.3.3)")
+    g.add_argument("--neighbourhood-radius", type=float, default=1.0, help="core points this close are adjacent")
+    g.add_argument("--thresholds", default="0.1,0.2,0.3,0.4,0.5,0.6,0.7,0.8,0.9", help="DTW thresholds to choose from")
+    g.add_argument("--min-segments", type=int, default=20, help="fewest core points of an object")
+    g.add_argument("--max-segments", type=int, default=0, help="most core points of an object (0: no limit)")
+    g.add_argument("--max-cv", type=float, default=0.8, help="largest coefficient of variation of an object's DTW")
+    g.add_argument("--whole-series", action="store_true",
+                   help="py4dgeo's DTW: whole series from the first epoch (default: the seed's epochs, the paper's)")
+    p.add_argument("--use", choices=("auto", "smoothed", "raw"), default="auto",
+                   help="series to segment: smoothed_distance when present (auto), or distance (raw)")
+    p.add_argument("--threads", type=integer(0, THREADS_MAX), help=THREADS_HELP)
+    p.add_argument("--quiet", action="store_true", help="no progress lines")
+    return p
+
+
+def changepoints_parser():
+    p = _parser("m3c2 series changepoints", "Change points of core points' series (the detection 4D-OBC's seeds use).")
+    p.add_argument("store", type=Path, help=STORE_HELP)
+    p.add_argument("--core", type=integer(0, INDEX_MAX), action="append", required=True,
+                   help="core point index (repeatable)")
+    _objects_options(p)
+    p.add_argument("--use", choices=("auto", "smoothed", "raw"), default="auto",
+                   help="series to use: smoothed_distance when present (auto), or distance (raw)")
+    return p
+
+
+def report_parser():
+    p = _parser("m3c2 series report", "HTML report of a store: time series with LOD band per core point, object "
+                                      "extents and their series (after m3c2 series objects).")
+    p.add_argument("store", type=Path, help=STORE_HELP)
+    p.add_argument("-o", "--output", type=Path, required=True, help="the report (HTML)")
+    p.add_argument("--core", type=integer(0, INDEX_MAX), action="append",
+                   help="core point to plot (repeatable; default: a few)")
+    p.add_argument("--objects", type=Path, help="objects table of m3c2 series objects (default: none)")
+    return p
+
+
+def import_parser():
+    p = _parser("m3c2 series import", "Convert a py4dgeo SpatiotemporalAnalysis archive (.zip) into a store.")
+    p.add_argument("archive", type=Path, help="a py4dgeo SpatiotemporalAnalysis archive (.zip)")
+    p.add_argument("-o", "--output", type=Path, required=True, help="the store to write (a Zarr directory)")
+    return p
+
+
+def check_parser():
+    p = _parser("m3c2 series check", "Verify a store: committed root metadata, each array's shape against the "
+                                     "commit, every chunk present and decoding (its checksum), no half-written "
+                                     "variable. Exit 0 when sound, 1 naming each damage; reads only.")
+    p.add_argument("store", type=Path, help=STORE_HELP)
+    return p
+
+
+PARSERS = {"add": add_parser, "smooth": smooth_parser, "changepoints": changepoints_parser,
+           "objects": objects_parser, "report": report_parser, "import": import_parser, "check": check_parser}
+
+
+def series_parsers(sub) -> None:
+    """Adds `series`: its words are parsed by the form's own parser (see the module docstring)."""
+    p = sub.add_parser("series", help="M3C2 time series: a store of many epochs, 4D objects-by-change",
+                       add_help=False, prefix_chars="\0",
+                       usage="m3c2 series REFERENCE EPOCH... -o STORE | m3c2 series {add,smooth,changepoints,"
+                             "objects,report,import,check} ...")
+    p.add_argument("words", nargs=argparse.REMAINDER, help="REFERENCE EPOCH... -o STORE, or an action and its "
+                                                           "arguments (m3c2 series ACTION --help)")
+    p.set_defaults(run=run_series)
+
+
+def _settings(args) -> dict:
+    return {p.name: getattr(args, p.name) for p in series_parameters() if getattr(args, p.name, None) is not None}
+
+
+def _log(args):
+    return (lambda *a: None) if getattr(args, "quiet", False) else print
+
+
+def run_series(outer) -> int:
+    words = list(outer.words)
+    if not words or words[0] in ("-h", "--help"):
+        create_parser().print_help()
+        print("\nother forms:\n" + "\n".join(f"  m3c2 series {a} ..." for a in ACTIONS))
+        return 0 if words else 2
+    action = words[0] if words[0] in ACTIONS else None
+    args = PARSERS[action]().parse_args(words[1:]) if action else create_parser().parse_args(words)
+    return globals()[f"_run_{action or 'create'}"](args)
+
+
+def _core_normals(args):
+    if getattr(args, "normal_source", None) != "core":
+        return None
+    from ..base.errors import UsageError
+    from ..io import read_cloud
+    if getattr(args, "core_normals", None) is not None:
+        return read_cloud(args.core_normals).xyz
+    normals = read_cloud(args.core).normals() if args.core is not None else None
+    if normals is None:
+        raise UsageError("--normal-source core needs --core with normal fields (nx, ny, nz) or --core-normals FILE")
+    return normals
+
+
+def _check_outputs(outputs: dict, inputs: dict, *, store: bool = False, reads_store=None) -> None:
+    """No output may be an input (m3c2kit.io.collisions), checked before any work, as for every
+    command (docs/errors.md, "Output"). `store`: the outputs are stores (folders), so an existing
+    folder there is not refused as a folder. `reads_store`: a store the command reads; then the
+    store itself, every path inside it, its reference and its epochs' recorded sources are inputs
+    too (`report -o STORE/zarr.json` destroyed the store, `-o` the reference's path overwrote it)."""
+    from ..io.collisions import check_outputs
+    if store:
+        outputs = {k: v for k, v in outputs.items() if v is not None and not Path(v).is_dir()}
+    check_outputs(outputs, inputs)  # the inputs named on the command line first: no store needs opening
+    from ..series.outputs import refuse_inside_any_store
+    refuse_inside_any_store(outputs)  # no output inside any series store, read by this command or not
+    if reads_store is not None:
+        from ..series.outputs import refuse_inside, store_inputs
+        refuse_inside(outputs, Path(reads_store))
+        check_outputs(outputs, store_inputs(Path(reads_store)))
+
+
+def _epoch_files(epochs) -> dict:
+    """The epochs given as existing file paths (globs and list files name others)."""
+    return {f"epoch {e}": Path(e) for e in epochs if Path(e).is_file()}
+
+
+@contextmanager
+def _dask_client(args):
+    """A client of --dask-scheduler (None without it), connected before anything is read or created:
+    an address that never answers fails within run.dask.DASK_CONNECT_TIMEOUT, leaving no store."""
+    if getattr(args, "dask_scheduler", None) is None:
+        yield None
+        return
+    from ..run.dask import connect
+    client = connect(args.dask_scheduler)
+    try:
+        yield client
+    finally:
+        client.close()
+
+
+def _run_create(args) -> int:
+    _check_outputs({"-o": args.output}, {"reference cloud": args.reference, **_epoch_files(args.epochs),
+                                         "core points file": args.core, "core normals file": args.core_normals}, store=True)
+    from ..series import run
+    with _dask_client(args) as client:
+        added = run.create(args.reference, args.epochs, args.output, _settings(args), core_path=args.core,
+                           core_normals=_core_normals(args), threads=args.threads or 0,
+                           dask_scheduler=args.dask_scheduler, client=client, core_chunk=args.core_chunk,
+                           epoch_chunk=args.epoch_chunk, drop_nonfinite=args.drop_nonfinite,
+                           ignore_crs=args.ignore_crs, log=_log(args))
+    _log(args)(f"{args.output}: {added} epoch(s)")
+    return 0
+
+
+def _run_add(args) -> int:
+    from ..series import run
+    with _dask_client(args) as client:
+        added = run.add(args.store, args.epochs, given_settings=_settings(args), threads=args.threads or 0,
+                        dask_scheduler=args.dask_scheduler, client=client, drop_nonfinite=args.drop_nonfinite,
+                        ignore_crs=args.ignore_crs, log=_log(args))
+    _log(args)(f"{args.store}: {added} epoch(s) added")
+    return 0
+
+
+def _run_smooth(args) -> int:
+    from ..series.analysis import smooth
+    n = smooth(args.store, args.window, args.threads or 0)
+    print(f"{args.store}: smoothed_distance over {n} epochs (window {args.window})")
+    return 0
+
+
+def _thresholds(text: str) -> list[float]:
+    try:
+        return [float(t) for t in text.split(",") if t.strip()]
+    except ValueError:
+        raise UsageError(f"--thresholds must be a list of numbers like 0.1,0.2, got {text!r}") from None
+
+
+def objects_params(args):
+    from ..series import engine
+    kw = dict(window_width=args.window_width, window_min_size=args.window_min_size, window_jump=args.window_jump,
+              window_penalty=args.window_penalty, min_period=args.min_period, height_threshold=args.height_threshold,
+              use_unfinished=not args.finished_only, seed_subsampling=args.seed_subsampling)
+    for name in ("neighbourhood_radius", "min_segments", "max_segments", "max_cv", "whole_series"):
+        if hasattr(args, name):
+            kw[name] = getattr(args, name)
+    if hasattr(args, "thresholds"):
+        kw["thresholds"] = _thresholds(args.thresholds)
+    for name, value in kw.items():
+        if isinstance(value, int) and not isinstance(value, bool) and value < 0:
+            raise UsageError(f"--{name.replace('_', '-')} must be >= 0, got {value}")
+    return engine.objects_params(**kw)
+
+
+def _run_objects(args) -> int:
+    from ..series.outputs import members_path
+    _check_outputs({"-o": args.output, "-o's members table": members_path(args.output)}, {"store": args.store},
+                   reads_store=args.store)
+    from ..series.analysis import objects
+    out = objects(args.store, args.output, objects_params(args), use=args.use, threads=args.threads or 0)
+    if not args.quiet:
+        print(f"{args.output}: {len(out['object_seed'])} object(s) from {len(out['seed_core'])} seed(s) "
+              f"on {out['variable']}; labels in {args.store} (variable object)")
+    return 0
+
+
+def _run_check(args) -> int:
+    from ..base.errors import printable
+    from ..series.integrity import check
+    from ..series.store import StoreError
+    found, damages = check(args.store)
+    for line in found:
+        print(printable(f"{args.store}: {line}"))
+    for line in damages:
+        print(printable(f"{args.store}: damaged: {line}"))
+    if damages:
+        raise StoreError(f"{args.store}: {len(damages)} damage(s) found, the first: {damages[0]}")
+    print(printable(f"{args.store}: sound"))
+    return 0
+
+
+def _run_changepoints(args) -> int:
+    import numpy as np
+    from ..series import engine
+    from ..series.analysis import series_of
+    for c in args.core:
+        ts, name = series_of(args.store, c, args.use)
+        good = ~np.isnan(ts)
+        if good.sum() < 3:
+            print(f"core {c}: fewer than 3 epochs with a distance")
+            continue
+        ts = np.interp(np.arange(len(ts)), np.flatnonzero(good), ts[good])
+        cps = engine.change_points(ts, args.window_width, args.window_min_size, args.window_jump, args.window_penalty)
+        print(f"core {c} ({name}): change points at epochs {', '.join(map(str, cps)) or 'none'}")
+    return 0
+
+
+def _run_report(args) -> int:
+    from ..series.outputs import members_path
+    from ..series.report import write_report
+    tables = {"objects table": args.objects,
+              "objects' members table": members_path(args.objects) if args.objects is not None else None}
+    _check_outputs({"-o": args.output}, {"store": args.store, **tables}, reads_store=args.store)
+    from ..series.integrity import require_present
+    require_present(args.store)  # a damaged store is refused, not drawn from fill values
+    write_report(args.store, args.output, cores=args.core, objects_table=args.objects)
+    print(f"wrote {args.output}")
+    return 0
+
+
+def _run_import(args) -> int:
+    _check_outputs({"-o": args.output}, {"archive": args.archive}, store=True)
+    from ..series.py4dgeo_archive import import_archive
+    n = import_archive(args.archive, args.output)
+    print(f"{args.output}: {n} epoch(s) imported from {args.archive}")
+    return 0

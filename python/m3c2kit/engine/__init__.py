@@ -1,0 +1,304 @@
+"""The engine facade: the ONLY module that imports the C++ binding ``m3c2kit._core``.
+
+Every engine call goes through a function here, and every engine error is translated once
+(:func:`translated`): the engine's InvalidArgument (a ValueError in Python) and nanobind's
+TypeError for a value its C++ type cannot hold become :class:`~m3c2kit.base.errors.UsageError`, a run
+stopped by the progress callback becomes :class:`~m3c2kit.base.errors.Cancelled`. Geometry the front
+end needs before a run (a tile's halo, the index memory per point, the coordinate range of the
+spatial index, the largest subsampling grid) comes from the engine, never re-derived in Python.
+
+Engine parameters travel as plain values keyed by the C++ field names (:data:`PARAM_FIELDS`);
+enum fields take the enum member's name (``"two_pass"``). See docs/architecture.md.
+"""
+from __future__ import annotations
+
+import enum
+from contextlib import contextmanager
+from typing import Callable, Iterator
+
+import numpy as np
+
+from .. import _core
+from ..base import fault_hook
+from ..base.errors import Cancelled, UsageError
+
+__all__ = ["PARAM_FIELDS", "RESULT_FIELDS", "OPTIONAL_RESULT_FIELDS", "STATUS_NAMES", "MAX_CELLS_PER_AXIS", "MAX_BOOTSTRAP_SAMPLES", "INDEX_MEMORY", "Params",
+           "translated", "make_params", "default_fields", "params_fields", "compute", "compute_normals",
+           "subsample_min_spacing", "match_rows", "CylinderIndex", "grid_core_points", "roughness_by_scale", "dimensionality", "c2c", "max_abs_coordinate",
+           "neighbourhood_reach", "tile_halo"]
+
+Params = _core.Params
+#: Fields of the engine's Params, in the struct's order (include/m3c2/params.hpp visit_param_fields).
+PARAM_FIELDS: tuple[str, ...] = tuple(_core.PARAM_FIELDS)
+#: Per-core-point arrays of the engine's Result (include/m3c2/result.hpp visit_result_fields),
+#: always present, and those present only when a parameter asks for them (uncertainty models).
+RESULT_FIELDS: tuple[str, ...] = tuple(_core.RESULT_FIELDS)
+OPTIONAL_RESULT_FIELDS: tuple[str, ...] = tuple(_core.OPTIONAL_RESULT_FIELDS)
+#: Reason codes of the `status` column, by code.
+STATUS_NAMES: tuple[str, ...] = tuple(_core.status_names())
+#: Most cells along an axis of the subsampling and 2D grids (extent / cell).
+MAX_CELLS_PER_AXIS: float = float(_core.MAX_CELLS_PER_AXIS)
+#: Bootstrap resamples per core point the engine accepts (m3c2::kMaxBootstrapSamples, params.hpp).
+MAX_BOOTSTRAP_SAMPLES: int = int(_core.MAX_BOOTSTRAP_SAMPLES)
+#: What compute() allocates beyond its inputs (m3c2::IndexMemory): bytes_per_point (each cloud),
+#: copy_bytes_per_point (each cloud copied, not ordered in place),
+#: moments_bytes_per_point (each cloud whose normals are computed), overhead, bytes_per_core_point.
+INDEX_MEMORY: dict = dict(_core.index_memory())
+
+
+@contextmanager
+def translated(option: str | None = None) -> Iterator[None]:
+    """Runs an engine call, turning its errors into the package's: a bad argument is a
+    UsageError (prefixed by `option`, the user's name for the value, when given), a cancelled run
+    Cancelled. Python errors raised by a progress callback pass through unchanged."""
+    try:
+        yield
+    except _core.Cancelled:
+        raise Cancelled("computation cancelled by the progress callback") from None
+    except (ValueError, TypeError) as e:
+        message = _user_message(e)
+        raise UsageError(f"{option}: {message}" if option else message) from None
+
+
+#: nanobind's words for a value its C++ type cannot hold, and the C++ library's for an allocation
+#: past max_size(): neither may reach a user (their text names the binding's signature or std::).
+_BINDING_TYPE_ERROR = "incompatible function arguments"
+_CPP_WORDS = ("std::", "max_size()", "vector::", "basic_string::", "_M_")  # libstdc++'s std::length_error texts
+
+
+def _user_message(err: Exception) -> str:
+    text = str(err)
+    if isinstance(err, TypeError) and _BINDING_TYPE_ERROR in text:
+        return ("a value the engine cannot take: integers must be >= 0 and below 2^32 (threads below 2^31), "
+                "coordinates and lengths real numbers")
+    if any(word in text for word in _CPP_WORDS):
+        return "the sizes asked for are larger than any allocation can hold; use smaller counts or inputs"
+    return text
+
+
+def _count(name: str, value, high: int = 2**32 - 1) -> int:
+    """`value` as an integer the binding's std::uint32_t takes, else a UsageError naming `name`
+    (nanobind would raise a TypeError quoting its signature)."""
+    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or not 0 <= int(value) <= high:
+        raise UsageError(f"{name} must be an integer from 0 to {high}, got {value!r}")
+    return int(value)
+
+
+def _threads(value) -> int:
+    return _count("threads", value, 2**31 - 1)  # the binding's int
+
+
+def _progress(progress):
+    if progress is not None and not callable(progress):
+        raise TypeError(f"progress must be a callable progress(done, total) or None, got {type(progress).__name__}")
+    return progress
+
+
+def _enum_type(name: str):
+    value = getattr(_DEFAULT, name)
+    return type(value) if isinstance(value, enum.Enum) else None
+
+
+def make_params(fields: dict) -> _core.Params:
+    """Engine Params from plain values keyed by field name (unknown names are a UsageError)."""
+    p = _core.Params()
+    for name, value in fields.items():
+        if name not in PARAM_FIELDS:
+            raise UsageError(f"the engine has no parameter {name!r}")
+        kind = _enum_type(name)
+        with translated(name):
+            setattr(p, name, kind[value] if kind is not None and isinstance(value, str) else value)
+    return p
+
+
+def params_fields(p: _core.Params) -> dict:
+    """Plain values of every field of `p` (enum fields by member name)."""
+    out = {}
+    for name in PARAM_FIELDS:
+        value = getattr(p, name)
+        out[name] = value.name if isinstance(value, enum.Enum) else value
+    return out
+
+
+def default_fields() -> dict:
+    """The engine's defaults (params.hpp), the one place every default of the front end comes from."""
+    return params_fields(_core.Params())
+
+
+def compute(reference: np.ndarray, compared: np.ndarray, core: np.ndarray, params: _core.Params,
+            core_normals: np.ndarray | None = None, *, threads: int = 0,
+            progress: Callable[[int, int], object] | None = None, order_in_place: bool = False,
+            **uncertainty_inputs) -> dict:
+    """M3C2 at each core point: a dict of RESULT_FIELDS arrays (and OPTIONAL_RESULT_FIELDS ones).
+    `uncertainty_inputs`: the per-point inputs of params.uncertainty (m3c2kit.run.uncertainty_inputs).
+    `order_in_place`: the engine may order the two clouds' arrays in place instead of copying
+    them, every row back before it returns (RunOptions::order_clouds_in_place); taken only where
+    both are writeable."""
+    progress = _with_fault_checkpoint(_progress(progress))
+    threads = _threads(threads)
+    order_in_place = bool(order_in_place) and all(np.asarray(a).flags.writeable for a in (reference, compared))
+    with translated():
+        return _core.compute(reference, compared, core, params, core_normals, threads=threads, progress=progress,
+                             order_in_place=order_in_place, **uncertainty_inputs)
+
+
+def _with_fault_checkpoint(progress):
+    """The testing aid's "computing" phase (m3c2kit.base.fault_hook): at the first progress callback,
+    inside the computation, or now when there is no callback. Unarmed: `progress` unchanged."""
+    if not fault_hook.armed("computing"):
+        return progress
+    if progress is None:
+        fault_hook.checkpoint("computing")
+        return None
+
+    def checked(done, total):
+        fault_hook.checkpoint("computing")
+        return progress(done, total)
+
+    return checked
+
+
+def compute_normals(cloud: np.ndarray, core: np.ndarray, params: _core.Params, *, threads: int = 0,
+                    progress=None) -> dict:
+    with translated():
+        return _core.compute_normals(cloud, core, params, threads=_threads(threads), progress=_progress(progress))
+
+
+def subsample_min_spacing(points: np.ndarray, spacing: float, option: str = "min_spacing") -> np.ndarray:
+    """Indices of the points kept with no two closer than `spacing` (greedy in input order)."""
+    with translated(option):
+        return np.asarray(_core.subsample_min_spacing(points, spacing))
+
+
+def match_rows(points: np.ndarray, queries: np.ndarray) -> np.ndarray | None:
+    """For each row of `queries` ((m, 3)), the index of the first row of `points` ((n, 3)) equal to
+    it as numbers (-0.0 equals 0.0, NaN equals nothing), or None when some query is no row
+    (m3c2::match_rows: a table of the distinct queries and one pass over the points)."""
+    as_rows = lambda a: np.ascontiguousarray(a, dtype=np.float64).reshape(-1, 3)  # noqa: E731
+    with translated():
+        return _core.match_rows(as_rows(points), as_rows(queries))
+
+
+def grid_core_points(points: np.ndarray, cell: float, option: str = "cell") -> dict:
+    with translated(option):
+        return _core.grid_core_points(points, cell)
+
+
+def roughness_by_scale(cloud, core, diameters, variance: str = "sample", min_points: int = 3, *, threads: int = 0,
+                       progress=None) -> np.ndarray:
+    diameters = list(diameters)
+    with translated():
+        out = _core.roughness_by_scale(cloud, core, diameters, _core.Variance[variance],
+                                       _count("min_points", min_points), threads=_threads(threads),
+                                       progress=_progress(progress))
+    return np.asarray(out).reshape(-1, len(diameters))  # (core points, scales): the binding drops a single scale's axis
+
+
+def dimensionality(cloud: np.ndarray, core: np.ndarray, diameters, min_points: int = 3, *, threads: int = 0,
+                   progress=None) -> dict:
+    """Multi-scale dimensionality features (Brodu & Lague 2012; include/m3c2/dimensionality.hpp)."""
+    with translated():
+        return _core.dimensionality(cloud, core, [float(d) for d in diameters], _count("min_points", min_points),
+                                    _threads(threads), _progress(progress))
+
+
+def c2c(reference, compared, **kwargs) -> dict:
+    """Closest-point distances (include/m3c2/baselines.hpp); keywords as the binding's."""
+    if "model_neighbours" in kwargs:
+        kwargs["model_neighbours"] = _count("model_neighbours", kwargs["model_neighbours"])
+    if "threads" in kwargs:
+        kwargs["threads"] = _threads(kwargs["threads"])
+    if "progress" in kwargs:
+        kwargs["progress"] = _progress(kwargs["progress"])
+    with translated():
+        return _core.c2c(reference, compared, **kwargs)
+
+
+def max_abs_coordinate(params: _core.Params) -> float:
+    """The largest |coordinate| compute() accepts with these parameters (its spatial index)."""
+    return float(_core.max_abs_coordinate(params))
+
+
+def neighbourhood_reach(params: _core.Params) -> float:
+    """Largest distance from a core point to a point that can change its result."""
+    return float(_core.neighbourhood_reach(params))
+
+
+def memory_estimate(n_reference: int, n_compared: int, n_core: int, params: _core.Params,
+                    order_in_place: bool = False) -> int:
+    """Bytes compute() allocates beyond its inputs for clouds of these sizes (INDEX_MEMORY; an
+    upper estimate), with `order_in_place` as compute() is given it."""
+    return int(_core.memory_estimate(int(n_reference), int(n_compared), int(n_core), params, bool(order_in_place)))
+
+
+class CylinderIndex:
+    """One cloud's index, queried with cylinders of any diameter >= `smallest_diameter` along given
+    axes (include/m3c2/cylinder_index.hpp): each call gives the points' count and the mean and
+    spread of their offsets along the axis, as compute() summarises a cylinder."""
+
+    def __init__(self, cloud: np.ndarray, smallest_diameter: float, *, threads: int = 0):
+        with translated():
+            self._impl = _core.CylinderIndex(cloud, smallest_diameter, threads=threads)
+
+    def statistics(self, core: np.ndarray, normals: np.ndarray, diameter: float, half_length: float, *,
+                   threads: int = 0) -> dict:
+        with translated():
+            return self._impl.statistics(core, normals, diameter, half_length, threads=threads)
+
+
+def tile_halo(params: _core.Params) -> float:
+    """The halo a tile of core points needs: the reach plus a hair of margin."""
+    return float(_core.tile_halo(params))
+
+
+_DEFAULT = _core.Params()
+
+
+# ----------------------------------------------------------------------------------------------
+# Time series (include/m3c2/series.hpp, include/m3c2/objects_by_change.hpp; docs/series.md)
+
+
+class Comparison:
+    """A reference prepared once (its index, the core points' normals) to compare epochs one at a
+    time; each compare() equals compute(reference, epoch, core) bit for bit."""
+
+    def __init__(self, reference: np.ndarray, core: np.ndarray, params: _core.Params, core_normals=None, *,
+                 threads: int = 0):
+        with translated():
+            self._impl = _core.Comparison(reference, core, params, core_normals, threads=threads)
+
+    def compare(self, compared: np.ndarray, *, threads: int = 0) -> dict:
+        with translated():
+            return self._impl.compare(compared, threads=threads)
+
+    def normals(self) -> dict:
+        return self._impl.normals()
+
+
+def temporal_median(values: np.ndarray, window: int, *, threads: int = 0) -> np.ndarray:
+    with translated("--window"):
+        return _core.temporal_median(values, window, threads=threads)
+
+
+def change_points(series: np.ndarray, width: int, min_size: int, jump: int, penalty: float) -> np.ndarray:
+    with translated():
+        return _core.change_points(series, width, min_size, jump, penalty)
+
+
+def normalised_dtw(a: np.ndarray, b: np.ndarray, norm_a=0.0, norm_b=0.0, dmax_origin=0.0) -> float:
+    with translated():
+        return float(_core.normalised_dtw(a, b, norm_a, norm_b, dmax_origin))
+
+
+def objects_params(**fields):
+    p = _core.ObjectsParams()
+    with translated():
+        for name, value in fields.items():
+            if value is not None:
+                setattr(p, name, value)
+    return p
+
+
+def objects_by_change(distances: np.ndarray, core: np.ndarray, params, *, threads: int = 0, progress=None) -> dict:
+    with translated():
+        return _core.objects_by_change(distances, core, params, threads=threads, progress=progress)

@@ -1,0 +1,45 @@
+#pragma once
+// Spatial index over one cloud for the C2C baselines: ball queries with exact, inclusive
+// boundaries. The M3C2 pipeline uses octree.hpp.
+
+#include "index/distance.hpp"
+
+#include <m3c2/points_view.hpp>
+
+#include <array>
+#include <cstdint>
+#include <vector>
+
+namespace m3c2::detail {
+
+/// Immutable kd-tree over a cloud for fixed-radius balls. The points are copied once in leaf
+/// order, so a query reads contiguous memory whatever the order of the input; the copies are
+/// the same float64 values, so membership is exactly that of the input coordinates. Queries are
+/// const and may run concurrently from any number of threads.
+class KdTree {
+ public:
+  explicit KdTree(PointsView points);
+
+  /// The caller's points, by original index.
+  PointsView points() const { return points_; }
+
+  /// Appends the original indices of the points with squared_distance <= radius^2 (tree order).
+  void ball(const Vec3& centre, double radius, std::vector<std::uint32_t>& out) const;
+
+ private:
+  struct Node {
+    std::array<double, 3> lo, hi;  // bounding box of the node's points
+    std::uint32_t begin, end;      // slots
+    std::uint32_t left = 0;        // children: left and left + 1 (0 for a leaf)
+  };
+  void build(std::vector<std::uint32_t>& order);
+  template <class Prune, class Accept>
+  void visit(Prune&& prune, Accept&& accept) const;
+
+  PointsView points_;
+  std::vector<double> xyz_;           // 3 per slot, in leaf order
+  std::vector<std::uint32_t> index_;  // original index of each slot
+  std::vector<Node> nodes_;
+};
+
+}  // namespace m3c2::detail
