@@ -245,7 +245,7 @@ def run_m3c2_tiled(folder: Path, D, d, L, normals: str, threads: int, tag: str, 
     """The out-of-core path from files: what `m3c2 compare ref.laz cmp.laz --core core.npy
     -o change.laz --memory-limit SIZE` (or --tile-size S) runs."""
     from m3c2kit.io import read_cloud
-    from m3c2kit.run.tiled import run_tiled
+    from m3c2kit.run.tiled import TiledOptions, run_tiled
 
     params = dict(normal_scale=D, projection_scale=d, max_depth=L, min_points=1, lod=PEER_LOD, threads=threads)
     if normals == "vertical":
@@ -254,8 +254,9 @@ def run_m3c2_tiled(folder: Path, D, d, L, normals: str, threads: int, tag: str, 
     output = folder / f"change-{tag}.{stream_format}"
     t0 = time.perf_counter()
     core = read_cloud(folder / "core.npy").xyz  # as the command line reads --core
-    rep = run_tiled(str(folder / f"ref.{stream_format}"), str(folder / f"cmp.{stream_format}"), output=str(output),
-                    core=core, tile_size=tile_size, memory_limit=None if tile_size else memory_limit, **params)
+    tiling = TiledOptions(tile_size=tile_size, memory_limit=None if tile_size else memory_limit)
+    rep = run_tiled(str(folder / f"ref.{stream_format}"), str(folder / f"cmp.{stream_format}"), core,
+                    output=str(output), tiling=tiling, **params)
     wall = time.perf_counter() - t0
     peak = peak_rss_bytes()
     # Read back after the peak was taken: the checks' memory is not the run's.

@@ -136,14 +136,14 @@ def main() -> int:
         # 2. the same tiles on a Dask LocalCluster
         if not args.skip_dask:
             from distributed import Client, LocalCluster
-            from m3c2kit.run.tiled import run_tiled
+            from m3c2kit.run.tiled import TiledOptions, run_tiled
             out2 = work / "dask.laz"
             sampler = TreeSampler()
             sampler.start()
             with LocalCluster(n_workers=args.workers, threads_per_worker=1, processes=True,
                               dashboard_address=None, silence_logs=50) as cluster, Client(cluster) as client:
                 t0 = time.perf_counter()
-                rep = run_tiled(ref, cmp_, client=client, output=out2, tile_size=tile_size,
+                rep = run_tiled(ref, cmp_, output=out2, tiling=TiledOptions(client=client, tile_size=tile_size),
                                 core_spacing=5, normal_scale="4,8", projection_scale=4, max_depth=6)
                 wall = time.perf_counter() - t0
                 worker_peaks = client.run(lambda: resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024)

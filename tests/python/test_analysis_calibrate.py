@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from m3c2kit.analysis import calibrate
-from m3c2kit.analysis.calibrate import report_lines
+from m3c2kit.analysis.calibrate import CorePoints, report_lines
 from m3c2kit.analysis.calibrate import resolve_spacing
 from m3c2kit.analysis.synthetic import noisy_plane
 from m3c2kit.cli.main import main
@@ -24,7 +24,7 @@ def plane():
 
 @pytest.fixture(scope="module")
 def result(plane):
-    return calibrate(plane, D_LIST, spacings=("raw", "3x"), max_core=300, bootstrap=30, seed=1)
+    return calibrate(plane, D_LIST, spacings=("raw", "3x"), cores=CorePoints(max_count=300), bootstrap=30, seed=1)
 
 
 def test_table(result):

@@ -18,7 +18,7 @@ cloudpickle = pytest.importorskip("cloudpickle")
 from m3c2kit import api  # noqa: E402
 from m3c2kit.io import read_cloud  # noqa: E402
 from m3c2kit.run.tasks import compute_tile
-from m3c2kit.run.tiled import run_tiled  # noqa: E402
+from m3c2kit.run.tiled import TiledOptions, run_tiled  # noqa: E402
 from m3c2kit.output.writing import write  # noqa: E402
 
 REPO = Path(__file__).resolve().parents[2]
@@ -44,7 +44,7 @@ def untiled(tmp_path_factory):
     ref, cmp_ = read_cloud(REF), read_cloud(CMP)
     full = api.compare(ref, cmp_, **PARAMS)
     path = tmp_path_factory.mktemp("untiled") / "untiled.csv"
-    write(path, full, like=ref, attributes=False)  # tiled runs carry no core attributes (docs/scaling.md)
+    write(path, full, like=ref)  # the core points' attributes too: tiled runs carry them (m3c2kit.run.attributes)
     return full, path
 
 
@@ -59,7 +59,8 @@ def test_local_cluster_equals_single_run(cluster, untiled, tmp_path):
     _, client = cluster
     full, expected = untiled
     out = tmp_path / "dask.csv"
-    rep = run_tiled(REF, CMP, client=client, tile_size=90, output=out, return_result=True, **PARAMS)
+    rep = run_tiled(REF, CMP, tiling=TiledOptions(client=client, tile_size=90), output=out, return_result=True,
+                    **PARAMS)
     assert rep.dask and rep.workers == 2 and rep.tiles > 10
     assert_same(full, rep.result)
     assert filecmp.cmp(out, expected, shallow=False)
@@ -102,8 +103,9 @@ def test_failed_tiles_are_retried(cluster, untiled, tmp_path, task_fn):
     markers = tmp_path / "markers"
     markers.mkdir()
     out = tmp_path / "retried.csv"
-    rep = run_tiled(REF, CMP, client=client, tile_size=90, output=out, return_result=True, retries=2,
-                    task_fn=functools.partial(task_fn, marker_dir=str(markers)), **PARAMS)
+    tiling = TiledOptions(client=client, tile_size=90, retries=2,
+                          task_fn=functools.partial(task_fn, marker_dir=str(markers)))
+    rep = run_tiled(REF, CMP, tiling=tiling, output=out, return_result=True, **PARAMS)
     assert any(markers.iterdir()), "the failure was not triggered"
     assert rep.core_points == len(full)
     assert_same(full, rep.result)

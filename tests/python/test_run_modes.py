@@ -54,12 +54,10 @@ def scheduler():
         yield cluster.scheduler_address
 
 
-def run_every_mode(d: Path, tag: str, inputs: list, flags: list, scheduler: str | None,
-                   attributes: bool = False, suffix: str = ".csv") -> bytes:
+def run_every_mode(d: Path, tag: str, inputs: list, flags: list, scheduler: str | None, suffix: str = ".csv") -> bytes:
     """Runs the comparison in memory, tiled at TILES and on Dask; returns the in-memory output after
-    checking that every mode wrote the same bytes. `attributes`: the core points are reference
-    points, whose attributes only the in-memory writer carries (docs/scaling.md): the tiled
-    outputs must then be the in-memory one without those columns."""
+    checking that every mode wrote the same bytes (the reference's attributes of the core points
+    included: m3c2kit.run.attributes)."""
     outputs = {}
     modes = {"memory": []} | {f"tile{s}": ["--tile-size", s] for s in TILES}
     if scheduler is not None:
@@ -70,13 +68,6 @@ def run_every_mode(d: Path, tag: str, inputs: list, flags: list, scheduler: str 
         outputs[mode] = out.read_bytes()
     assert not [p for p in d.iterdir() if p.name.startswith(".")], "a spill folder was left"
     expected = outputs["memory"]
-    if attributes:
-        lines = [line.split(b",") for line in expected.split(b"\n")]
-        names = lines[0]
-        keep = [k for k, n in enumerate(names) if n in outputs[f"tile{TILES[0]}"].split(b"\n", 1)[0].split(b",")]
-        assert len(keep) < len(names)  # the attribute columns are there, and dropped
-        expected = b"\n".join(b",".join(line[k] for k in keep) if len(line) > 1 else b"".join(line)
-                              for line in lines)
     for mode, data in outputs.items():
         if mode != "memory":
             assert data == expected, f"{tag}: {mode} differs from the in-memory run"
@@ -150,8 +141,7 @@ def test_classifier_in_every_mode(tmp_path, scheduler):
     flags = ["--classifier", str(tmp_path / "c.json"), "--keep", "2"]
     inputs = [str(tmp_path / "e1.las"), str(tmp_path / "e2.las")]
     # Core points: the kept reference points subsampled (the core points depend on the filter).
-    cols = columns(run_every_mode(tmp_path, "veg", inputs, flags + ["--core-spacing", "0.5"], scheduler,
-                                  attributes=True))
+    cols = columns(run_every_mode(tmp_path, "veg", inputs, flags + ["--core-spacing", "0.5"], scheduler))
     ok = np.isfinite(cols["distance"])
     assert ok.mean() > 0.8 and abs(np.median(cols["distance"][ok]) - 0.10) < 0.01
 

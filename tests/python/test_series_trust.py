@@ -465,12 +465,14 @@ def test_a_link_planted_as_the_staging_folder_is_never_followed(action, base, tm
         assert xr.open_zarr(store)["smoothed_distance"].attrs["window"] == 5
 
 
-@pytest.mark.parametrize("argv", [["--core-chunk", "0"], ["--epoch-chunk", "-1"], ["--threads", "-2"],
-                                  ["--core-chunk", "9" * 30]])
-def test_a_chunk_or_thread_count_out_of_range_is_a_usage_error(argv, epochs, tmp_path, capsys):
+@pytest.mark.parametrize("argv, words", [(["--core-chunk", "0"], "must be an integer from"),
+                                         (["--epoch-chunk", "-1"], "must be an integer from"),
+                                         (["--threads", "-2"], "must be 0 (all) or a positive integer"),  # the table's
+                                         (["--core-chunk", "9" * 30], "must be an integer from")])
+def test_a_chunk_or_thread_count_out_of_range_is_a_usage_error(argv, words, epochs, tmp_path, capsys):
     out = tmp_path / "s.zarr"
     code, _, err = run(capsys, "series", epochs[0], epochs[1], "-o", out, *PARAMS, *argv, "--quiet")
-    assert code == 2 and argv[0] in err and "must be an integer from" in err, err
+    assert code == 2 and argv[0] in err and words in err, err
     assert not out.exists()
 
 

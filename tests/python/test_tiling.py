@@ -21,7 +21,8 @@ from m3c2kit.engine.result import COLUMNS
 from m3c2kit.engine import neighbourhood_reach as halo
 from m3c2kit.run.cores import streaming_subsample
 from m3c2kit.run.memory import choose_tile_size, parse_memory
-from m3c2kit.run.tiled import run_tiled
+from m3c2kit.io.fields import TableStyle
+from m3c2kit.run.tiled import TiledOptions, run_tiled
 from m3c2kit.output.writing import write
 
 REPO = Path(__file__).resolve().parents[2]
@@ -45,14 +46,13 @@ def tiled_equals_untiled(tmp_path, ref_path, cmp_path, *, core=None, core_normal
                          tile_size, chunk_size=7_000, position="core", projected=False, **kw):
     ref, cmp_ = read_cloud(ref_path), read_cloud(cmp_path)
     full = api.compare(ref, cmp_, core, core_normals=core_normals, **kw)
-    spacing = kw.pop("core_spacing", None)
     out_t, out_u = tmp_path / f"tiled{suffix}", tmp_path / f"untiled{suffix}"
-    rep = run_tiled(ref_path, cmp_path, core=core, core_spacing=spacing, core_normals=core_normals,
-                    tile_size=tile_size, output=out_t, return_result=True, chunk_size=chunk_size,
-                    position=position, projected=projected, **kw)
+    rep = run_tiled(ref_path, cmp_path, core, core_normals=core_normals, output=out_t, return_result=True,
+                    style=TableStyle(position=position, projected=projected),
+                    tiling=TiledOptions(tile_size=tile_size, chunk_size=chunk_size), **kw)
     assert_same(full, rep.result)
-    # Tiled runs stream the reference and do not carry its attributes (docs/scaling.md).
-    write(out_u, full, like=ref, position=position, projected=projected, attributes=False)
+    # The reference's attributes of the core points too, matched by streaming (m3c2kit.run.attributes).
+    write(out_u, full, like=ref, position=position, projected=projected)
     assert filecmp.cmp(out_t, out_u, shallow=False), "output files differ"
     assert not list(tmp_path.glob(".m3c2-tiles-*")), "work folder left behind"
     return full, rep
@@ -164,7 +164,7 @@ def test_streaming_subsample_equals_global(tilted_pair):
 
 def test_refuses_what_it_cannot_reproduce(tmp_path):
     ref, cmp_ = TORONTO / "TTP_15.laz", TORONTO / "TTP_23.laz"
-    kw = dict(normal_scale=3, projection_scale=2, max_depth=4, tile_size=50, core_spacing=5)
+    kw = dict(normal_scale=3, projection_scale=2, max_depth=4, tiling=TiledOptions(tile_size=50), core_spacing=5)
     with pytest.raises(UsageError, match="normal-subsample"):
         run_tiled(ref, cmp_, normal_subsample=1.0, **kw)
     with pytest.raises(UsageError, match="bootstrap"):
@@ -185,21 +185,12 @@ def test_cli_tiled_matches_untiled_bytes(tmp_path):
     limit = f"{(max(tiling.BASE_BYTES, tiling.rss_bytes() + tiling.HEADROOM_BYTES) + 60 * 2**20) // 2**20}MiB"
     assert main(["compare", str(ref), str(cmp_), "-o", str(tmp_path / "m.laz"), "--memory-limit", limit,
                  *common]) == 0
-    # The in-memory run also carries the reference's attributes (intensity, ...), the tiled runs
-    # do not (docs/scaling.md); every M3C2 column and coordinate is the same, bit for bit.
+    # Every mode writes the same bytes, the reference's attributes of the core points (intensity,
+    # ...) included (m3c2kit.run.attributes).
     u = read_cloud(tmp_path / "u.laz")
     assert "intensity" in u.fields and u.fields["intensity"].any()
     for other in ("t.laz", "m.laz"):
-        t = read_cloud(tmp_path / other)
-        np.testing.assert_array_equal(t.xyz, u.xyz)
-        assert set(t.fields) == set(LAS_COLUMNS) | {"return_number", "number_of_returns", "synthetic", "key_point",
-                                                  "withheld", "overlap", "scanner_channel", "scan_direction_flag",
-                                                  "edge_of_flight_line", "classification", "user_data", "scan_angle",
-                                                  "point_source_id", "gps_time", "intensity"}
-        for name in LAS_COLUMNS:
-            assert t.fields[name].dtype == u.fields[name].dtype, name
-            np.testing.assert_array_equal(t.fields[name], u.fields[name], err_msg=name)
-        assert not t.fields["intensity"].any()  # LAS standard dimensions present but not filled
+        assert filecmp.cmp(tmp_path / "u.laz", tmp_path / other, shallow=False), other
 
 
 def test_memory_limit_and_halo():

@@ -18,7 +18,7 @@ from m3c2kit.run import memory as tiling
 from m3c2kit.base.errors import UsageError
 from m3c2kit.io.streaming import DEFAULT_CHUNK
 from m3c2kit.run.memory import MemoryPlan, choose_tile_size, plan_memory
-from m3c2kit.run.tiled import run_tiled
+from m3c2kit.run.tiled import TiledOptions, run_tiled
 
 MiB = 2**20
 PARAMS = dict(normal_scale=1.0, projection_scale=0.5, max_depth=1.0)
@@ -77,21 +77,21 @@ def test_tile_larger_than_the_survey_is_one_tile(pair, tmp_path):
     # The core points' first point is in the middle of the survey; the tiles start at its corner.
     core = np.concatenate([core[np.argsort(np.abs(core[:, 0] - 20) + np.abs(core[:, 1] - 20))[:1]], core])
     for c in (core, None):  # an in-memory core array; every reference point (anchored at the LAS header's minimum)
-        rep = run_tiled(ref, cmp_, core=c, tile_size=45.0, **PARAMS)
+        rep = run_tiled(ref, cmp_, c, tiling=TiledOptions(tile_size=45.0), **PARAMS)
         assert rep.tiles == 1
 
 
 def test_chunks_from_the_plan_keep_the_bytes(pair, tmp_path, monkeypatch):
     ref, cmp_ = pair
     out_plain, out_limited = tmp_path / "plain.laz", tmp_path / "limited.laz"
-    run_tiled(ref, cmp_, output=out_plain, tile_size=12.0, **PARAMS)
+    run_tiled(ref, cmp_, output=out_plain, tiling=TiledOptions(tile_size=12.0), **PARAMS)
     # Tiny chunks: the plan must take its row counts from the (scaled) per-row costs.
     from m3c2kit.run import memory  # the executor's memory planning
     monkeypatch.setattr(memory, "MIN_CHUNK", 64)
     monkeypatch.setattr(memory, "MERGE_BYTES_PER_ROW", 2**20)
     monkeypatch.setattr(memory, "STREAM_BYTES_PER_ROW", 2**19)
     limit = tiling.rss_bytes() + tiling.HEADROOM_BYTES + 4000 * 2**20
-    rep = run_tiled(ref, cmp_, output=out_limited, tile_size=12.0, memory_limit=limit, **PARAMS)
+    rep = run_tiled(ref, cmp_, output=out_limited, tiling=TiledOptions(tile_size=12.0, memory_limit=limit), **PARAMS)
     assert rep.memory_plan.merge_rows < 2000 and rep.memory_plan.stream_rows < 4000
     assert filecmp.cmp(out_plain, out_limited, shallow=False)
 
@@ -99,15 +99,15 @@ def test_chunks_from_the_plan_keep_the_bytes(pair, tmp_path, monkeypatch):
 CHILD = r"""
 import json, sys
 from m3c2kit.run import memory
-from m3c2kit.run.tiled import run_tiled
+from m3c2kit.run.tiled import TiledOptions, run_tiled
 def hwm():
     with open("/proc/self/status") as f:
         return next(int(l.split()[1]) * 1024 for l in f if l.startswith("VmHWM:"))
 ref, cmp_, out, extra = sys.argv[1:5]
 import laspy, numpy  # what a command-line run has loaded when it starts
 limit = memory.rss_bytes() + memory.HEADROOM_BYTES + int(extra)
-rep = run_tiled(ref, cmp_, output=out, memory_limit=limit, normal_scale=1.0, projection_scale=0.5,
-                max_depth=1.0, threads=2)
+rep = run_tiled(ref, cmp_, output=out, tiling=TiledOptions(memory_limit=limit), normal_scale=1.0,
+                projection_scale=0.5, max_depth=1.0, threads=2)
 print(json.dumps(dict(limit=limit, peak=hwm(), tiles=rep.tiles)))
 """
 

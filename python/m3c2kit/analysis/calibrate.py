@@ -20,6 +20,7 @@ the same scales (and with beta - gamma / 2, gamma the measured exponent of n ~ d
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -53,11 +54,43 @@ def _version(points: np.ndarray, spacing: float) -> np.ndarray:
     return points if spacing == 0 else points[in_memory.subsample(points, spacing)]
 
 
-def calibrate(cloud, projection_scales, *, spacings=("raw", "3x"), normal_scale=None, core=None, core_spacing=None,
-              max_core: int | None = 2000, seed: int = 0, max_depth: float | None = None, bootstrap: int = 100,
-              min_points: int = 4, confidence: float = 0.95, orient="+z", fit_range=None, l0: float = L0,
-              threads: int = 0) -> dict:
-    """Runs the calibration; returns {'table': columns per d, 'fit': ..., 'info': ...}."""
+@dataclass(frozen=True)
+class ComparisonSettings:
+    """The M3C2 settings of every comparison of cloud 1 with cloud 2, d aside."""
+
+    normal_scale: object = None  # D (one value, a list or MIN:MAX:STEP); None: vertical normals, as the paper
+    max_depth: float | None = None  # the cylinder's half-length; None: the largest d
+    min_points: int = 4  # points needed in each cylinder for a LOD (5.2.1)
+    confidence: float = 0.95
+    orient: object = "+z"
+
+
+@dataclass(frozen=True)
+class CorePoints:
+    """Where the comparisons are measured: `given` points, else the cloud subsampled to `spacing`,
+    else to the coarser of cloud 1's and cloud 2's spacings (at least 4 times the median point
+    spacing); at most `max_count` of them (None: all), drawn with the run's seed."""
+
+    given: object = None
+    spacing: float | None = None
+    max_count: int | None = 2000
+
+
+@dataclass(frozen=True)
+class FitSettings:
+    """The log-log fits (LOD95 ~ d^alpha, eq. (3)): the d in `range` (MIN, MAX; None: all), l0 of eq. (3)."""
+
+    range: tuple[float, float] | None = None
+    l0: float = L0
+
+
+def calibrate(cloud, projection_scales, *, spacings=("raw", "3x"),
+              comparison: ComparisonSettings = ComparisonSettings(), cores: CorePoints = CorePoints(),
+              bootstrap: int = 100, seed: int = 0, fit: FitSettings = FitSettings(), threads: int = 0) -> dict:
+    """Runs the calibration; returns {'table': columns per d, 'fit': ..., 'info': ...}. `seed`
+    draws the core points and the bootstrap's resamples (`bootstrap`: their number, 0: none)."""
+    normal_scale, confidence = comparison.normal_scale, comparison.confidence
+    fit_range, l0 = fit.range, fit.l0
     pts = as_points("cloud", cloud)
     d_list = np.asarray(projection_scales, float)
     if len(spacings) != 2:
@@ -65,14 +98,16 @@ def calibrate(cloud, projection_scales, *, spacings=("raw", "3x"), normal_scale=
     spacing = median_spacing(pts)
     s1, s2 = (resolve_spacing(s, spacing) for s in spacings)
     cloud1, cloud2 = _version(pts, s1), _version(pts, s2)
-    if core is not None:
-        core_pts = as_points("core", core)
+    if cores.given is not None:
+        core_pts = as_points("core", cores.given)
+    elif cores.spacing:
+        core_pts = pts[in_memory.subsample(pts, cores.spacing)]
     else:
-        core_pts = pts[in_memory.subsample(pts, core_spacing)] if core_spacing else _version(pts, max(s1, s2, 4 * spacing))
-    core_pts = np.ascontiguousarray(core_pts[sample_indices(len(core_pts), max_core, seed)])
-    depth = float(max_depth) if max_depth is not None else float(d_list.max())
-    common = dict(projection_scale=None, max_depth=depth, min_points=min_points, confidence=confidence,
-                  orient=orient, threads=threads)
+        core_pts = _version(pts, max(s1, s2, 4 * spacing))
+    core_pts = np.ascontiguousarray(core_pts[sample_indices(len(core_pts), cores.max_count, seed)])
+    depth = float(comparison.max_depth) if comparison.max_depth is not None else float(d_list.max())
+    common = dict(projection_scale=None, max_depth=depth, min_points=comparison.min_points, confidence=confidence,
+                  orient=comparison.orient, threads=threads)
     if normal_scale is None:
         common["normal_source"] = "vertical"
     else:

@@ -4,18 +4,20 @@ from __future__ import annotations
 
 import os
 import shlex
+from importlib import import_module
 from pathlib import Path
 
 import numpy as np
 
-from .integers import COUNT_MAX, SEED_MAX, THREADS_MAX, integer
 from ..io import read_cloud, write_cloud_table
-from ..io.files import add_drop_nonfinite_option
-from .parser import phases_for
 from ..io.collisions import check_outputs
+from ..io.files import add_drop_nonfinite_option
 from ..run.cores import core_points_for
+from ..settings import by_name
 from ..settings.parsers import positive
-from importlib import import_module
+from .integers import COUNT_MAX, integer
+from .options import add, add_table_option, table_type
+from .parser import phases_for
 
 # m3c2kit.analysis exports functions named like these modules (`from ..analysis import calibrate`
 # and even `import m3c2kit.analysis.calibrate as m` give the function): the modules by name.
@@ -26,17 +28,17 @@ from ..analysis.common import figure_format, scales, value_range, write_csv
 
 D_HELP = "D, the normal scale: a DIAMETER"
 d_HELP = "d, the projection scale: the cylinder's DIAMETER"
-THREADS_HELP = "worker threads (0: every core; the results do not depend on it)"
 
 
 def _read(path: Path, args):
     return read_cloud(path, drop_nonfinite=args.drop_nonfinite)
 
 
-def _core_options(p, what="cloud") -> None:
+def _core_options(p, default: str) -> None:
+    """--core FILE or --core-spacing S; `default`: the command's core points without either."""
     core = p.add_mutually_exclusive_group()
-    core.add_argument("--core", type=Path, help="core points file (default: see the command's help)")
-    core.add_argument("--core-spacing", type=float, help=f"core points = the {what} subsampled to this minimum spacing")
+    add(core, "core", default_text=default)
+    add(core, "cloud_core_spacing")
 
 
 def _check_outputs(args) -> None:
@@ -66,18 +68,17 @@ def analysis_parsers(sub) -> None:
                        description="Mean and standard deviation of sigma(D) over core points per scale D, and the "
                                    "fit of eq. (3) <sigma(D)> = sigma(l0) (D/l0)^beta in log-log.")
     p.add_argument("cloud", type=Path, help="the point cloud")
-    p.add_argument("--normal-scale", required=True, help=D_HELP + " for each scale: 'MIN:MAX:STEP' or a list 'a,b,c'")
-    _core_options(p)
-    p.add_argument("--fit-range", help="MIN:MAX: scales used in the fit (default all)")
+    p.add_argument("--normal-scale", required=True, type=table_type(by_name()["normal_scale"]),  # D's range
+                   help=D_HELP + " for each scale: 'MIN:MAX:STEP' or a list 'a,b,c'")
+    _core_options(p, "every point")
+    add(p, "fit_range", default_text="all")
     p.add_argument("--l0", type=float, default=roughness_mod.L0, help="reference scale l0 of eq. (3) (default 0.5)")
     p.add_argument("--min-points", type=integer(1, COUNT_MAX), default=10, help="fewest neighbours for sigma(D) (default 10)")
-    p.add_argument("--variance", choices=["sample", "population"], default="sample",
-                   help="sigma(D) with the n - 1 (sample) or n (population) denominator")
+    add_table_option(p, "variance", filled=True)
     p.add_argument("-o", "--output", type=Path, required=True, help="CSV table")
-    p.add_argument("--plot", type=Path, help="log-log plot (PNG, PDF, SVG)")
-    p.add_argument("--threads", type=integer(0, THREADS_MAX), default=0, help=THREADS_HELP)
-    p.add_argument("-q", "--quiet", action="store_true",
-                   help="no progress bar or summary (warnings and errors still go to stderr)")
+    add(p, "plot")
+    add_table_option(p, "threads", filled=True)
+    add(p, "quiet")
     add_drop_nonfinite_option(p)
     p.set_defaults(run=run_roughness)
 
@@ -90,20 +91,20 @@ def analysis_parsers(sub) -> None:
     p.add_argument("--spacings", default="raw,3x",
                    help="minimum spacings of cloud 1 and cloud 2: 'raw', a length, or 'Nx' = N times the median "
                         "point spacing (default raw,3x; the paper: raw,0.1 and 0.045,0.05)")
-    p.add_argument("--normal-scale", help=D_HELP + " (default: vertical normals, as the paper: 'We impose a fixed "
-                                                   "normal direction')")
-    _core_options(p)
+    add(p, "derived_normal_scale", default_text="vertical normals, as the paper: 'We impose a fixed normal direction'")
+    _core_options(p, "the cloud subsampled to the larger of --spacings and 4 times the median point spacing")
     p.add_argument("--max-core", type=integer(1, COUNT_MAX), default=2000,
                    help="at most this many core points, drawn with --seed (default 2000)")
-    p.add_argument("--max-depth", type=float, help="cylinder half-length (default: the largest d)")
-    p.add_argument("--bootstrap", type=integer(0, COUNT_MAX), default=100, help="bootstrap resamples (0: skip; default 100)")
-    p.add_argument("--seed", type=integer(0, SEED_MAX), default=0, help="seed of the core-point draw and the bootstrap")
-    p.add_argument("--min-points", type=integer(1, COUNT_MAX), default=4, help="fewest points per cylinder for a LOD")
-    p.add_argument("--fit-range", help="MIN:MAX of d used in the LOD and roughness fits (default all)")
-    p.add_argument("--orient", default="+z", help="normal orientation, as m3c2 compare's --orient")
+    add(p, "derived_max_depth", default_text="the largest d")
+    p.add_argument("--bootstrap", type=integer(0, COUNT_MAX), default=100,
+                   help="resamples of the bootstrap LOD of Appendix B, with --seed (0: skip; default 100)")
+    add(p, "sample_seed", default=0)
+    add_table_option(p, "min_points", filled=True)
+    add(p, "fit_range", default_text="all")
+    add(p, "fixed_orient", default="+z")
     p.add_argument("-o", "--output", type=Path, required=True, help="CSV table")
-    p.add_argument("--plot", type=Path, help="plot of the calibration (PNG, PDF, SVG)")
-    p.add_argument("--threads", type=integer(0, THREADS_MAX), default=0, help=THREADS_HELP)
+    add(p, "plot")
+    add_table_option(p, "threads", filled=True)
     add_drop_nonfinite_option(p)
     p.set_defaults(run=run_calibrate)
 
@@ -114,7 +115,7 @@ def analysis_parsers(sub) -> None:
     p.add_argument("reference", type=Path, help="the reference cloud")
     p.add_argument("compared", type=Path, help="the compared cloud (its points are the query points by default)")
     p.add_argument("-o", "--output", type=Path, required=True, help="output: .csv .txt .ply .las .laz")
-    _core_options(p, "compared cloud")
+    _core_options(p, "every compared point")
     p.add_argument("--model", choices=["none", "plane"], default="none",
                    help="local model: none (C2C) or plane (also C2C_HF)")
     p.add_argument("--model-radius", type=float, help="model neighbours within this radius of the closest point")
@@ -123,29 +124,27 @@ def analysis_parsers(sub) -> None:
     p.add_argument("--rule", choices=RULES,
                    help=f"with --model plane: closer: min(C2C, plane) as CloudCompare >= 2.5; model: the plane "
                         f"distance as CloudCompare 2.3 (default {RULE})")
-    p.add_argument("--threads", type=integer(0, THREADS_MAX), default=0, help=THREADS_HELP)
-    p.add_argument("-q", "--quiet", action="store_true",
-                   help="no progress bar or summary (warnings and errors still go to stderr)")
+    add_table_option(p, "threads", filled=True)
+    add(p, "quiet")
     add_drop_nonfinite_option(p)
     p.set_defaults(run=run_c2c)
 
     p = sub.add_parser("simplify", help="self-comparison: local averaging or outlier removal (section 6.3)",
                        description="Compares the cloud with itself at core points and writes the projected "
                                    "positions core + i n (mean: local averaging; --median: outlier removal) with "
-                                   "roughness, density and normals.")
+                                   "roughness, density and normals; d is the averaging scale.")
     p.add_argument("cloud", type=Path, help="the point cloud")
-    _core_options(p)
-    p.add_argument("--projection-scale", type=float, required=True, help=d_HELP + " (the averaging scale)")
-    p.add_argument("--normal-scale", help=D_HELP + " (default 2 d)")
+    _core_options(p, "every point")
+    add_table_option(p, "projection_scale", required=True)
+    add(p, "derived_normal_scale", default_text="2 d")
     p.add_argument("--vertical", action="store_true", help="impose vertical normals instead")
-    p.add_argument("--median", action="store_true", help="median instead of mean (outlier removal)")
-    p.add_argument("--max-depth", type=float, help="cylinder half-length (default d)")
-    p.add_argument("--orient", default="+z", help="normal orientation, as m3c2 compare's --orient")
+    add_table_option(p, "median", filled=True)
+    add(p, "derived_max_depth", default_text="d")
+    add(p, "fixed_orient", default="+z")
     p.add_argument("-o", "--output", type=Path, required=True,
                    help="the projected points: .csv .txt .ply .las .laz")
-    p.add_argument("--threads", type=integer(0, THREADS_MAX), default=0, help=THREADS_HELP)
-    p.add_argument("-q", "--quiet", action="store_true",
-                   help="no progress bar or summary (warnings and errors still go to stderr)")
+    add_table_option(p, "threads", filled=True)
+    add(p, "quiet")
     add_drop_nonfinite_option(p)
     p.set_defaults(run=run_simplify)
 
@@ -156,8 +155,8 @@ def analysis_parsers(sub) -> None:
     p.add_argument("reference", type=Path, help="the reference cloud")
     p.add_argument("compared", type=Path, help="the compared cloud")
     p.add_argument("--sample", type=integer(1, COUNT_MAX), default=2000, help="sampled core points (default 2000)")
-    p.add_argument("--seed", type=integer(0, SEED_MAX), default=0, help="seed of the core-point sample")
-    p.add_argument("--threads", type=integer(0, THREADS_MAX), default=0, help=THREADS_HELP)
+    add(p, "sample_seed", default=0)
+    add_table_option(p, "threads", filled=True)
     add_drop_nonfinite_option(p)
     p.set_defaults(run=run_suggest)
 
@@ -188,10 +187,12 @@ def run_calibrate(args) -> int:
     ds = scales("--projection-scales", args.projection_scales)
     spacings = [s for s in args.spacings.split(",") if s.strip()]
     core = _read(args.core, args).xyz if args.core is not None else None
-    res = calibrate_mod.calibrate(cloud.xyz, ds, spacings=spacings, normal_scale=args.normal_scale, core=core,
-                                  core_spacing=args.core_spacing, max_core=args.max_core, seed=args.seed,
-                                  max_depth=args.max_depth, bootstrap=args.bootstrap, min_points=args.min_points,
-                                  orient=args.orient, fit_range=value_range("--fit-range", args.fit_range),
+    comparison = calibrate_mod.ComparisonSettings(normal_scale=args.normal_scale, max_depth=args.max_depth,
+                                                  min_points=args.min_points, orient=args.orient)
+    res = calibrate_mod.calibrate(cloud.xyz, ds, spacings=spacings, comparison=comparison,
+                                  cores=calibrate_mod.CorePoints(core, args.core_spacing, args.max_core),
+                                  bootstrap=args.bootstrap, seed=args.seed,
+                                  fit=calibrate_mod.FitSettings(value_range("--fit-range", args.fit_range)),
                                   threads=args.threads)
     write_csv(args.output, res["table"])
     if args.plot is not None:

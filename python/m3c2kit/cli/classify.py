@@ -9,7 +9,8 @@ from pathlib import Path
 import numpy as np
 
 from ..analysis.common import figure_format
-from .integers import COUNT_MAX, SEED_MAX, THREADS_MAX, integer
+from .integers import COUNT_MAX, integer
+from .options import add, add_table_option
 from ..base.errors import UsageError
 from ..io import read_cloud, write_cloud_table
 from ..io.collisions import check_outputs
@@ -22,9 +23,6 @@ from ..classify.model import read_classifier, write_classifier
 DEFAULT_SCALE_FACTORS = (4, 6, 8, 12, 16, 24, 32)  # times the point spacing sqrt(XY area / N)
 
 
-THREADS_HELP = "worker threads (0: every core; the results do not depend on it)"
-
-
 def classify_parsers(sub) -> None:
     """Adds `classify` with its `train` and `apply` subcommands."""
     p = sub.add_parser("classify", help="CANUPO multi-scale dimensionality classification (Brodu & Lague 2012)",
@@ -34,7 +32,8 @@ def classify_parsers(sub) -> None:
 
     t = csub.add_parser("train", help="train a classifier from labelled samples",
                         description="A SAMPLE is FILE=LABEL (every point of FILE has that label) or a FILE "
-                                    "whose --label-field (or --polygons) gives per-point labels.")
+                                    "whose --label-field (or --polygons) gives per-point labels. --seed draws "
+                                    "the training points; --plot draws the samples in the classifier's plane.")
     t.add_argument("samples", nargs="+", metavar="SAMPLE",
                    help="labelled samples: FILE=LABEL (every point of FILE has that label), or a FILE with "
                         "--label-field or --polygons")
@@ -51,11 +50,10 @@ def classify_parsers(sub) -> None:
     t.add_argument("--min-points", type=integer(1, COUNT_MAX), default=3, help="fewest neighbours of a scale (default 3)")
     t.add_argument("--max-per-class", type=integer(0, COUNT_MAX), default=50_000,
                    help="training points drawn per class and sample, seeded (default 50000; 0: all)")
-    t.add_argument("--seed", type=integer(0, SEED_MAX), default=0, help="seed of the per-class sample draw")
-    t.add_argument("--plot", type=Path, metavar="FILE", help="PNG of the samples in the classifier's plane")
-    t.add_argument("--threads", type=integer(0, THREADS_MAX), default=0, help=THREADS_HELP)
-    t.add_argument("-q", "--quiet", action="store_true",
-                   help="no progress bar or summary (warnings and errors still go to stderr)")
+    add(t, "sample_seed", default=0)
+    add(t, "plot")  # the samples in the classifier's plane
+    add_table_option(t, "threads", filled=True)
+    add(t, "quiet")
     add_drop_nonfinite_option(t)
     t.set_defaults(run=run_train)
 
@@ -73,9 +71,8 @@ def classify_parsers(sub) -> None:
                                        "integer labels are their own codes)")
     a.add_argument("--unclassified", type=integer(CODE_MIN, CODE_MAX), default=0,
                    help="code of points without features (too few neighbours at the largest scale; default 0)")
-    a.add_argument("--threads", type=integer(0, THREADS_MAX), default=0, help=THREADS_HELP)
-    a.add_argument("-q", "--quiet", action="store_true",
-                   help="no progress bar or summary (warnings and errors still go to stderr)")
+    add_table_option(a, "threads", filled=True)
+    add(a, "quiet")
     add_drop_nonfinite_option(a)
     a.set_defaults(run=run_apply)
 

@@ -13,13 +13,16 @@ from ..io.files import add_drop_nonfinite_option
 from ..run import in_memory
 from ..settings import orientation, parameters_of, resolve
 from .inputs import input_files, orient_spec, read_input
-from .parser import add_progress_option, add_table_options, add_verbosity_options, phases_for
+from .options import add, add_progress_option, add_table_options, add_verbosity_options
+from .parser import phases_for
+
+
 def normals_parser(sub) -> None:
     p = sub.add_parser("normals", help="normals at the most planar scale, with roughness (section 6.3)")
     p.add_argument("input", type=Path, help="the point cloud")
     p.add_argument("-o", "--output", type=Path, required=True,
                    help="output: .csv .txt .ply .las .laz (nx, ny, nz, normal_scale, roughness, count, status)")
-    p.add_argument("--core", type=Path, help="core points (default: every point)")
+    add(p, "core", default_text="every point")
     add_table_options(p, "normals")
     add_drop_nonfinite_option(p)
     add_verbosity_options(p)

@@ -11,6 +11,7 @@ from ..classify.vegetation import vegetation_filter
 from ..io import crs as crs_mod
 from ..io import laz_threads, read_cloud
 from ..io.collisions import check_outputs
+from ..io.fields import TableStyle
 from ..io.files import add_drop_nonfinite_option
 from ..output.report.outputs import CompareOutputs, write_compare_outputs
 from ..output.summary import summary_lines
@@ -20,7 +21,8 @@ from ..settings import by_name, orientation, parameters_of, resolve
 from ..settings.cloudcompare_params import read_cloudcompare_params
 from ..settings.resolve import without_inapplicable
 from .inputs import input_files, orient_spec, print_notes, read_input
-from .parser import add_progress_option, add_table_options, add_verbosity_options, phases_for
+from .options import add_progress_option, add_table_options, add_verbosity_options
+from .parser import phases_for
 def compare_parser(sub) -> None:
     p = sub.add_parser("compare", help="M3C2 distances between two clouds",
                        description="M3C2 change between REFERENCE and COMPARED at core points. "
@@ -90,69 +92,71 @@ def compare_settings(args) -> dict:
     return settings
 
 
-def run_compare_tiled(args, settings: dict, grid=None) -> int:
-    """`m3c2 compare ... --tile-size S | --memory-limit M [--dask-scheduler ADDRESS]` (m3c2kit.run.tiled)."""
-    from ..run.dask import connect
-    from ..run.tiled import preflight
+def run_compare_tiled(args, settings: dict, outputs: CompareOutputs) -> int:
+    """`m3c2 compare ... --tile-size S | --memory-limit M [--dask-scheduler ADDRESS]` (m3c2kit.run.tiled):
+    every option of the in-memory run, the same bytes in every file and the same warnings."""
+    from dataclasses import replace
 
-    for flag, value in (("--grid", grid), ("--report", getattr(args, "report", None)),
-                        ("--report-png", getattr(args, "report_png", None))):
-        if value is not None:
-            raise UsageError(f"{flag} cannot be combined with tiling (--tile-size, --memory-limit, --dask-scheduler)")
+    from ..run.dask import connect
+    from ..run.tiled import TiledOptions, prepare
+
     if args.tile_size is None and args.memory_limit is None:
         raise UsageError("--dask-scheduler needs --tile-size S or --memory-limit SIZE to cut the work into tiles")
-
-    settings = dict(settings)
-    field_names = settings.pop("field_names", "m3c2") or "m3c2"
-    float64 = bool(settings.pop("float64", False))
-    all_fields = bool(settings.pop("all_fields", False))
-    position = settings.pop("position", "core")
-    threads = settings.pop("threads", 0)
-    core_spacing = settings.pop("core_spacing", None)
     drop = bool(getattr(args, "drop_nonfinite", False))
-    # The executor's checks and the Dask connection (bounded in time) before any file is read.
-    checked = dict(settings, threads=threads, core_spacing=core_spacing)
-    if orientation.needs_scan_positions(checked.get("orient")):
-        checked.pop("orient")  # read with the files; it does not change the halo
-    vegetation = vegetation_filter(settings.get("classifier"), settings.get("keep"))
-    plan = preflight(checked, args.tile_size, args.memory_limit,
-                     read_points=lambda p: read_cloud(p, drop_nonfinite=drop).xyz, vegetation=vegetation)[0]
-    client = connect(args.dask_scheduler) if args.dask_scheduler is not None else None
+    say = (lambda s: None) if args.quiet else (lambda s: print(f"m3c2: {s}", flush=True))
+    tiling = TiledOptions(tile_size=args.tile_size, memory_limit=args.memory_limit, drop_nonfinite=drop, log=say)
+    # The one plan of the run, checked (tile size, memory limit) before any file is read; --orient
+    # sensor is resolved with the files' scanner positions once they are (as in memory).
+    sensor = orientation.needs_scan_positions(settings.get("orient"))
+    prepared = prepare({k: v for k, v in settings.items() if not (sensor and k == "orient")}, tiling,
+                       vegetation=vegetation_filter(settings.get("classifier"), settings.get("keep")),
+                       read_points=lambda p: read_cloud(p, drop_nonfinite=drop).xyz)
+    client = connect(args.dask_scheduler) if args.dask_scheduler is not None else None  # bounded in time
     try:
-        code = _compare_tiled(args, dict(settings, vegetation=vegetation), client, position, threads, core_spacing, drop,
-                              dict(field_names=field_names, float64=float64, all_fields=all_fields))
+        _compare_tiled(args, settings, outputs, prepared, replace(tiling, client=client))
     finally:
         if client is not None:
             client.close()
     if args.verbose:  # as the in-memory run: the parameters the run was given, with D as a list
-        for name, value in sorted(plan.record.items()):
+        for name, value in sorted(prepared.plan.record.items()):
             print(f"parameter {name}: {value}")
-    return code
+    return 0
 
 
-def _compare_tiled(args, settings, client, position, threads, core_spacing, drop, storage: dict) -> int:
+def _compare_tiled(args, settings: dict, outputs: CompareOutputs, prepared, tiling) -> None:
+    """Reads what the run reads whole (the core file), checks the inputs as in memory (--crs, the
+    CRSs, --orient sensor), runs the tiles, and writes the outputs: the point table streamed by
+    the merge, or with rasters or a report, every file from the gathered Result exactly as in
+    memory (m3c2kit.output.report.outputs: O(core points) in memory, docs/scaling.md)."""
     from ..io.streaming import PointSource
-    from ..run import run_tiled
+    from ..output.report.outputs import ReferenceInfo
+    from ..run.tiled import GridCores, run_tiled
 
+    drop = tiling.drop_nonfinite
     ref_src = PointSource(args.reference, drop_nonfinite=drop)
     cmp_src = PointSource(args.compared, drop_nonfinite=drop)
     core_cloud = read_cloud(args.core, drop_nonfinite=drop) if args.core is not None else None
-    if settings.get("normal_source") != "core":  # given normals are used as they are
-        settings["orient"] = orient_spec(args, settings, ref_src.cloud, core_cloud)
+    if getattr(args, "crs", None) is not None:  # '' too: refused as no CRS, not ignored
+        assign_crs(args.crs, ref_src.like(), cmp_src.like(), core_cloud)  # the LAS outputs and rasters copy it
     check_same_crs(ref_src.like(), cmp_src.like(), core_cloud, ignore=getattr(args, "ignore_crs", False),
                    allow_angular=getattr(args, "allow_angular", False))
+    if orientation.needs_scan_positions(settings.get("orient")):  # the files named when none has a pose
+        prepared.orient(orient_spec(args, settings, ref_src.cloud, core_cloud))
     core_normals = _core_normals(args, core_cloud) if settings.get("normal_source") == "core" else None
-    say = (lambda s: None) if args.quiet else (lambda s: print(f"m3c2: {s}", flush=True))
-    report = run_tiled(ref_src, cmp_src, output=args.output,
-                       core=core_cloud.xyz if core_cloud is not None else None, core_spacing=core_spacing,
-                       core_normals=core_normals, tile_size=args.tile_size, memory_limit=args.memory_limit,
-                       client=client, threads=threads or 0, projected=args.projected,
-                       position=position, **storage, drop_nonfinite=drop, log=say,
-                       read_points=lambda p: read_cloud(p, drop_nonfinite=drop).xyz, **settings)
+    whole = args.grid is not None or outputs.extras  # rasters and the report are drawn from the whole Result
+    report = run_tiled(ref_src, cmp_src, GridCores(args.grid) if args.grid is not None else core_cloud,
+                       core_normals=core_normals, output=None if whole else args.output, style=outputs.style,
+                       tiling=tiling, return_result=whole, prepared=prepared)
+    extra = []
+    if whole:
+        reference = ReferenceInfo(ref_src.like(), report.reference_points, report.attributes)
+        extra = write_compare_outputs(outputs, report.result, reference, grid=report.grid)
     if not args.quiet:
         for line in report.lines(args.output):
             print(line)
-    return 0
+        for path in extra:
+            print(f"wrote {path}")
+    print_notes((core_cloud,))  # what reading the core file changed (the streamed clouds are not counted)
 
 
 def _compare_outputs(args) -> dict:
@@ -178,11 +182,13 @@ def run_compare(args) -> int:
     laz_threads.set_threads(threads_count(settings.get("threads")))  # LAZ coding: --threads too (checked first)
     check_outputs(_compare_outputs(args), input_files(args, settings))  # before any work (docs/errors.md)
     phases = phases_for(args)  # -q with --progress refused here, in every mode
+    # How the table is written: taken out of the run's parameters, the same in every mode.
+    style = TableStyle.taken_from(settings, projected=args.projected)
+    outputs = CompareOutputs(table=args.output, report=args.report, report_png=args.report_png, style=style,
+                             core_spacing=settings.get("core_spacing"),
+                             inputs={"reference": args.reference, "compared": args.compared})
     if args.tile_size is not None or args.memory_limit is not None or args.dask_scheduler is not None:
-        if getattr(args, "crs", None) is not None:  # an empty --crs '' was dropped silently
-            raise UsageError("--crs is not available with --tile-size, --memory-limit or --dask-scheduler; "
-                             "give the inputs a CRS (e.g. convert them to LAS with one) or run in memory")
-        return run_compare_tiled(args, settings, grid=cell)  # out-of-core / Dask (docs/scaling.md)
+        return run_compare_tiled(args, settings, outputs)  # out-of-core / Dask (docs/scaling.md)
     files = [f for f in (args.reference, args.compared, args.core) if f is not None]
     with phases.phase("reading", total=len(files)) as step:
         reference = read_input(args.reference, args)
@@ -201,10 +207,6 @@ def run_compare(args) -> int:
         core_cloud = grid.core_points
     if orientation.needs_scan_positions(settings.get("orient")):  # the files named when none has a pose
         settings["orient"] = orient_spec(args, settings, reference, core_cloud)
-    position = settings.pop("position", "core")
-    field_names = settings.pop("field_names", "m3c2")
-    float64 = bool(settings.pop("float64", False))
-    all_fields = bool(settings.pop("all_fields", False))
     threads = settings.pop("threads", 0)
     core_normals = None
     if settings.get("normal_source") == "core":
@@ -216,10 +218,6 @@ def run_compare(args) -> int:
         result = api.compare(reference, compared, core_cloud, core_normals=core_normals, threads=threads,
                              progress=step, read_points=lambda p: read_input(p, args).xyz, reorder_inputs=True,
                              **settings)
-    outputs = CompareOutputs(table=args.output, report=args.report, report_png=args.report_png,
-                             projected=args.projected, position=position, field_names=field_names,
-                             float64=float64, all_fields=all_fields, core_spacing=settings.get("core_spacing"),
-                             inputs={"reference": args.reference, "compared": args.compared})
     with phases.phase("writing", total=1) as step:
         extra = write_compare_outputs(outputs, result, reference, grid=grid)
         step(1, 1)

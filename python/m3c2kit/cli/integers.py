@@ -1,17 +1,18 @@
-"""Integer options of the analysis and classify subcommands, bounded where argparse reads them.
+"""Numeric options of the analysis, classify and series subcommands, bounded where argparse reads them.
 
 argparse's ``type=int`` takes any integer; one past what its consumer holds (the engine's
-32-bit counts and thread count, numpy's unsigned 64-bit seeds) surfaced as a binding's
-TypeError or a numpy ValueError deep in the run. Each option instead names its range, and a
-value outside it is a usage error naming the option (exit 2)."""
+32-bit counts, numpy's unsigned 64-bit seeds) surfaced as a binding's TypeError or a numpy
+ValueError deep in the run. Each option instead names its range, and a value outside it is a
+usage error naming the option (exit 2). `--threads` is the parameter table's in every command,
+with the table's range (m3c2kit.cli.options)."""
 from __future__ import annotations
 
 import argparse
+import math
 
-__all__ = ["COUNT_MAX", "THREADS_MAX", "SEED_MAX", "integer"]
+__all__ = ["COUNT_MAX", "SEED_MAX", "integer", "positive_real", "fraction_list"]
 
 COUNT_MAX = 2**32 - 1  # the engine's std::uint32_t counts
-THREADS_MAX = 2**31 - 1  # the engine's int thread count
 SEED_MAX = 2**64 - 1  # numpy's seeds are unsigned
 
 
@@ -27,3 +28,25 @@ def integer(low: int, high: int):
         return value
     parse.__name__ = "integer"  # argparse names the type in its messages
     return parse
+
+
+def positive_real(text: str) -> float:
+    """An argparse ``type`` reading a finite real number > 0."""
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"must be a number, got {text!r}") from None
+    if not (value > 0 and math.isfinite(value)):
+        raise argparse.ArgumentTypeError(f"must be a finite number > 0, got {text}")
+    return value
+
+
+def fraction_list(text: str) -> list[float]:
+    """An argparse ``type`` reading comma-separated numbers in (0, 1], at least one."""
+    try:
+        values = [float(t) for t in text.split(",") if t.strip()]
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"must be a list of numbers like 0.1,0.2, got {text!r}") from None
+    if not values or not all(0 < v <= 1 for v in values):
+        raise argparse.ArgumentTypeError(f"must be numbers in (0, 1], at least one, got {text!r}")
+    return values

@@ -9,7 +9,7 @@ import sys
 import warnings
 
 from ..base.errors import M3C2Error, M3C2Warning, UsageError, printable
-from ..io import laspy_local
+from ..io import laspy_local, laz_threads
 from ..io.input_file import os_error_message
 from .analysis import analysis_parsers
 from .classify import classify_parsers
@@ -52,25 +52,6 @@ def _show_warning(message, category, filename, lineno, file=None, line=None):
 _python_showwarning = warnings.showwarning
 
 
-#: Option values that start with "-" and that argparse would take for options: "--orient -z".
-_DASH_VALUES = {"--orient": ("-x", "-y", "-z")}
-
-
-def join_dash_values(argv: list[str]) -> list[str]:
-    """["--orient", "-z"] -> ["--orient=-z"], as --help writes it (argparse reads "-z" as an option)."""
-    out: list[str] = []
-    i = 0
-    while i < len(argv):
-        a = argv[i]
-        if a in _DASH_VALUES and i + 1 < len(argv) and str(argv[i + 1]).lower() in _DASH_VALUES[a]:
-            out.append(f"{a}={argv[i + 1]}")
-            i += 2
-            continue
-        out.append(a)
-        i += 1
-    return out
-
-
 def main(argv=None) -> int:
     """The `m3c2` command. Without `argv` (the `m3c2` script, ``python -m m3c2kit``) the process
     is the command line's own: laspy is imported without the modules a local file never uses
@@ -94,8 +75,10 @@ def _main(argv) -> int:
     try:
         with warnings.catch_warnings():
             warnings.showwarning = _show_warning
-            argv = join_dash_values([str(a) for a in (sys.argv[1:] if argv is None else argv)])
-            args = make_parser().parse_args(argv)
+            # A value starting with "-" (`--orient -z`) is its option's: m3c2kit.cli.parser.ArgumentParser.
+            args = make_parser().parse_args([str(a) for a in (sys.argv[1:] if argv is None else argv)])
+            # --threads bounds LAZ coding too, as its help says (compare adds its --params file's).
+            laz_threads.set_threads(getattr(args, "threads", None) or 0)
             code = args.run(args)
             sys.stdout.flush()  # a closed stdout raises here, not in the interpreter's final flush
             return code

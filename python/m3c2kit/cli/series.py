@@ -14,17 +14,15 @@ of a new store (a reference file literally named like an action is written ./add
 from __future__ import annotations
 
 import argparse
-import sys
 from contextlib import contextmanager
 from pathlib import Path
 
-from .integers import COUNT_MAX, THREADS_MAX, integer
-from ..base.errors import UsageError
+from .integers import COUNT_MAX, fraction_list, integer, positive_real
+from .options import add, add_table_option
+from ..io.files import add_drop_nonfinite_option
 
 ACTIONS = ("add", "smooth", "changepoints", "objects", "report", "import", "check")
 STORE_HELP = "the series store (a Zarr directory)"
-THREADS_HELP = "worker threads (default: every core); the results do not depend on it"
-SCALE_HELP = "D, the normal scale: a DIAMETER (one value, a list 'a,b' or 'MIN:MAX:STEP')"
 #: The compare parameters a series takes: the parameter table's engine parameters (their flags,
 #: types, ranges and help), the core spacing and --compat; not the per-point uncertainty's inputs
 #: nor the output options, which concern one pair's files.
@@ -50,23 +48,16 @@ def _compare_options(p, required: bool, core_group=None) -> None:
     g = p.add_argument_group("M3C2 parameters (those of m3c2 compare; stored in the store)")
     for param in series_parameters():
         target = core_group if param.name == "core_spacing" and core_group is not None else g
-        kw = {"dest": param.name, "help": param.help_text()}
-        if param.cli_type is None:
-            target.add_argument(param.flag, action="store_true", default=None, **kw)
-        else:
-            target.add_argument(param.flag, type=param.cli_type, choices=param.choices, metavar=param.metavar,
-                                required=required and param.name in ("projection_scale", "max_depth"), **kw)
+        add_table_option(target, param, compat=True,
+                         required=required and param.name in ("projection_scale", "max_depth"))
 
 
 def _run_options(p) -> None:
-    p.add_argument("--threads", type=integer(0, THREADS_MAX),
-                   help="threads (default all); results are identical for any count")
-    p.add_argument("--dask-scheduler", metavar="ADDRESS",
-                   help="compare the epochs as tasks on this Dask distributed scheduler (same store bit for bit); "
-                        "every worker must read the reference, the epochs and the store")
-    p.add_argument("--drop-nonfinite", action="store_true", help="drop points with NaN/Inf coordinates")
-    p.add_argument("--ignore-crs", action="store_true", help="accept epochs whose CRS or units differ from the reference's")
-    p.add_argument("--quiet", action="store_true", help="no progress lines")
+    add_table_option(p, "threads", filled=True)
+    add(p, "dask_scheduler")  # the epochs as tasks; every worker reads the reference, the epochs and the store
+    add_drop_nonfinite_option(p)
+    add(p, "ignore_crs")
+    add(p, "quiet")
 
 
 def create_parser():
@@ -78,8 +69,8 @@ def create_parser():
     p.add_argument("epochs", nargs="+", help="epoch files, globs ('scans/*.laz'), or a list file of 'PATH, TIME' lines")
     p.add_argument("-o", "--output", type=Path, required=True, help="the store (a Zarr directory)")
     core = p.add_mutually_exclusive_group()
-    core.add_argument("--core", type=Path, help="core points file (default: every reference point)")
-    p.add_argument("--core-normals", type=Path, help="with --normal-source core: nx,ny,nz per core point")
+    add(core, "core", default_text="every reference point")
+    add(p, "core_normals")
     _compare_options(p, required=True, core_group=core)
     p.add_argument("--core-chunk", type=integer(1, COUNT_MAX), default=16384,
                    help="core points per chunk (default 16384)")
@@ -104,20 +95,31 @@ def smooth_parser():
     p.add_argument("store", type=Path, help=STORE_HELP)
     p.add_argument("--window", type=integer(1, COUNT_MAX), default=24,
                    help="epochs in the median window, centred (default 24)")
-    p.add_argument("--threads", type=integer(0, THREADS_MAX), help=THREADS_HELP)
+    add_table_option(p, "threads", filled=True)
     return p
 
 
 def _objects_options(p) -> None:
     g = p.add_argument_group("seeds: change points (Anders et al. 2021, 2.3.1; py4dgeo's defaults)")
-    g.add_argument("--window-width", type=int, default=24, help="sliding window of the change-point detection")
-    g.add_argument("--window-min-size", type=int, default=12, help="fewest epochs between two change points")
-    g.add_argument("--window-jump", type=int, default=1, help="epochs between the change-point candidates")
-    g.add_argument("--window-penalty", type=float, default=1.0, help="> 0: least cost decrease of a change point")
-    g.add_argument("--min-period", type=int, default=24, help="fewest epochs of a seed's change")
+    g.add_argument("--window-width", type=integer(2, COUNT_MAX), default=24, help="sliding window of the change-point detection")
+    g.add_argument("--window-min-size", type=integer(0, COUNT_MAX), default=12, help="fewest epochs between two change points")
+    g.add_argument("--window-jump", type=integer(1, COUNT_MAX), default=1, help="epochs between the change-point candidates")
+    g.add_argument("--window-penalty", type=positive_real, default=1.0, help="least cost decrease of a change point")
+    g.add_argument("--min-period", type=integer(1, COUNT_MAX), default=24, help="fewest epochs of a seed's change")
     g.add_argument("--height-threshold", type=float, default=0.0, help="least magnitude of a seed's change")
     g.add_argument("--finished-only", action="store_true", help="drop seeds still growing at the last epoch")
-    g.add_argument("--seed-subsampling", type=int, default=1, help="search every k-th core point for seeds")
+    g.add_argument("--seed-subsampling", type=integer(1, COUNT_MAX), default=1, help="search every k-th core point for seeds")
+
+
+def _use_option(p) -> None:
+    p.add_argument("--use", choices=("auto", "smoothed", "raw"), default="auto",
+                   help="the series: smoothed_distance when present (auto), or distance (raw)")
+
+
+def _core_index_option(p, *, required: bool = False, default_text: str | None = None) -> None:
+    text = "core point index (repeatable)"
+    p.add_argument("--core", type=integer(0, INDEX_MAX), action="append", required=required,
+                   help=text if default_text is None else f"{text} (default: {default_text})")
 
 
 def objects_parser():
@@ -128,28 +130,26 @@ def objects_parser():
     p.add_argument("-o", "--output", type=Path, required=True, help="objects table (CSV)")
     _objects_options(p)
     g = p.add_argument_group("region growing (2.3.2) and filters (2.3.3)")
-    g.add_argument("--neighbourhood-radius", type=float, default=1.0, help="core points this close are adjacent")
-    g.add_argument("--thresholds", default="0.1,0.2,0.3,0.4,0.5,0.6,0.7,0.8,0.9", help="DTW thresholds to choose from")
-    g.add_argument("--min-segments", type=int, default=20, help="fewest core points of an object")
-    g.add_argument("--max-segments", type=int, default=0, help="most core points of an object (0: no limit)")
+    g.add_argument("--neighbourhood-radius", type=positive_real, default=1.0, help="core points this close are adjacent")
+    g.add_argument("--thresholds", type=fraction_list, default="0.1,0.2,0.3,0.4,0.5,0.6,0.7,0.8,0.9",
+                   help="DTW thresholds to choose from, in (0, 1]")
+    g.add_argument("--min-segments", type=integer(0, COUNT_MAX), default=20, help="fewest core points of an object")
+    g.add_argument("--max-segments", type=integer(0, COUNT_MAX), default=0, help="most core points of an object (0: no limit)")
     g.add_argument("--max-cv", type=float, default=0.8, help="largest coefficient of variation of an object's DTW")
     g.add_argument("--whole-series", action="store_true",
                    help="py4dgeo's DTW: whole series from the first epoch (default: the seed's epochs, the paper's)")
-    p.add_argument("--use", choices=("auto", "smoothed", "raw"), default="auto",
-                   help="series to segment: smoothed_distance when present (auto), or distance (raw)")
-    p.add_argument("--threads", type=integer(0, THREADS_MAX), help=THREADS_HELP)
-    p.add_argument("--quiet", action="store_true", help="no progress lines")
+    _use_option(p)  # the series segmented
+    add_table_option(p, "threads", filled=True)
+    add(p, "quiet")
     return p
 
 
 def changepoints_parser():
     p = _parser("m3c2 series changepoints", "Change points of core points' series (the detection 4D-OBC's seeds use).")
     p.add_argument("store", type=Path, help=STORE_HELP)
-    p.add_argument("--core", type=integer(0, INDEX_MAX), action="append", required=True,
-                   help="core point index (repeatable)")
+    _core_index_option(p, required=True)
     _objects_options(p)
-    p.add_argument("--use", choices=("auto", "smoothed", "raw"), default="auto",
-                   help="series to use: smoothed_distance when present (auto), or distance (raw)")
+    _use_option(p)
     return p
 
 
@@ -158,8 +158,7 @@ def report_parser():
                                       "extents and their series (after m3c2 series objects).")
     p.add_argument("store", type=Path, help=STORE_HELP)
     p.add_argument("-o", "--output", type=Path, required=True, help="the report (HTML)")
-    p.add_argument("--core", type=integer(0, INDEX_MAX), action="append",
-                   help="core point to plot (repeatable; default: a few)")
+    _core_index_option(p, default_text="a few")  # the core points plotted
     p.add_argument("--objects", type=Path, help="objects table of m3c2 series objects (default: none)")
     return p
 
@@ -213,19 +212,6 @@ def run_series(outer) -> int:
     return globals()[f"_run_{action or 'create'}"](args)
 
 
-def _core_normals(args):
-    if getattr(args, "normal_source", None) != "core":
-        return None
-    from ..base.errors import UsageError
-    from ..io import read_cloud
-    if getattr(args, "core_normals", None) is not None:
-        return read_cloud(args.core_normals).xyz
-    normals = read_cloud(args.core).normals() if args.core is not None else None
-    if normals is None:
-        raise UsageError("--normal-source core needs --core with normal fields (nx, ny, nz) or --core-normals FILE")
-    return normals
-
-
 def _check_outputs(outputs: dict, inputs: dict, *, store: bool = False, reads_store=None) -> None:
     """No output may be an input (m3c2kit.io.collisions), checked before any work, as for every
     command (docs/errors.md, "Output"). `store`: the outputs are stores (folders), so an existing
@@ -264,26 +250,34 @@ def _dask_client(args):
         client.close()
 
 
+def _reading(args):
+    """How the series reads and compares its clouds (series.run_options.EpochReading)."""
+    from ..series.run_options import EpochReading
+    return EpochReading(drop_nonfinite=args.drop_nonfinite, ignore_crs=args.ignore_crs, threads=args.threads or 0)
+
+
 def _run_create(args) -> int:
     _check_outputs({"-o": args.output}, {"reference cloud": args.reference, **_epoch_files(args.epochs),
                                          "core points file": args.core, "core normals file": args.core_normals}, store=True)
     from ..series import run
+    from ..series.run_options import CoreInput, DaskTarget, StoreLayout
+    core = CoreInput(path=args.core, normals=args.core_normals)
+    run.preflight(_settings(args), core)  # as m3c2 compare: every option checked before the Dask connection
     with _dask_client(args) as client:
-        added = run.create(args.reference, args.epochs, args.output, _settings(args), core_path=args.core,
-                           core_normals=_core_normals(args), threads=args.threads or 0,
-                           dask_scheduler=args.dask_scheduler, client=client, core_chunk=args.core_chunk,
-                           epoch_chunk=args.epoch_chunk, drop_nonfinite=args.drop_nonfinite,
-                           ignore_crs=args.ignore_crs, log=_log(args))
+        added = run.create(args.reference, args.epochs, args.output, _settings(args), core=core,
+                           layout=StoreLayout(core_chunk=args.core_chunk, epoch_chunk=args.epoch_chunk),
+                           reading=_reading(args), dask=DaskTarget(address=args.dask_scheduler, client=client),
+                           log=_log(args))
     _log(args)(f"{args.output}: {added} epoch(s)")
     return 0
 
 
 def _run_add(args) -> int:
     from ..series import run
+    from ..series.run_options import DaskTarget
     with _dask_client(args) as client:
-        added = run.add(args.store, args.epochs, given_settings=_settings(args), threads=args.threads or 0,
-                        dask_scheduler=args.dask_scheduler, client=client, drop_nonfinite=args.drop_nonfinite,
-                        ignore_crs=args.ignore_crs, log=_log(args))
+        added = run.add(args.store, args.epochs, given_settings=_settings(args), reading=_reading(args),
+                        dask=DaskTarget(address=args.dask_scheduler, client=client), log=_log(args))
     _log(args)(f"{args.store}: {added} epoch(s) added")
     return 0
 
@@ -295,13 +289,6 @@ def _run_smooth(args) -> int:
     return 0
 
 
-def _thresholds(text: str) -> list[float]:
-    try:
-        return [float(t) for t in text.split(",") if t.strip()]
-    except ValueError:
-        raise UsageError(f"--thresholds must be a list of numbers like 0.1,0.2, got {text!r}") from None
-
-
 def objects_params(args):
     from ..series import engine
     kw = dict(window_width=args.window_width, window_min_size=args.window_min_size, window_jump=args.window_jump,
@@ -311,10 +298,7 @@ def objects_params(args):
         if hasattr(args, name):
             kw[name] = getattr(args, name)
     if hasattr(args, "thresholds"):
-        kw["thresholds"] = _thresholds(args.thresholds)
-    for name, value in kw.items():
-        if isinstance(value, int) and not isinstance(value, bool) and value < 0:
-            raise UsageError(f"--{name.replace('_', '-')} must be >= 0, got {value}")
+        kw["thresholds"] = args.thresholds  # checked by the parser (fraction_list)
     return engine.objects_params(**kw)
 
 

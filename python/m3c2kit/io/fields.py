@@ -33,8 +33,8 @@ import numpy as np
 
 from .quantised import Quantised, quantised
 
-__all__ = ["Field", "FIELDS", "FIELD_NAME_SETS", "FieldNames", "output_name", "typed_columns",
-           "core_attributes", "markdown_table", "FLOAT32_RELATIVE_PRECISION"]
+__all__ = ["Field", "FIELDS", "FIELD_NAME_SETS", "FieldNames", "TableStyle", "output_name", "typed_columns",
+           "core_attributes", "carried_columns", "markdown_table", "FLOAT32_RELATIVE_PRECISION"]
 
 FieldNames = Literal["m3c2", "cloudcompare", "pdal"]
 FIELD_NAME_SETS = ("m3c2", "cloudcompare", "pdal")
@@ -126,6 +126,52 @@ def typed_columns(table: dict[str, np.ndarray], *, field_names: str = "m3c2", fl
     return {output_name(k, field_names, spaces=spaces): _stored(k, v, float64, las) for k, v in table.items()}
 
 
+@dataclass(frozen=True)
+class TableStyle:
+    """How a compare run's point table is written, in every mode (the one place of these
+    defaults: m3c2kit.write, the command line's outputs and the tiled merge take them from here):
+    the projected positions x1..z2 too (`projected`), rows at the core points or at their
+    projections (`position`), the columns' names (`field_names`), float64 or the compact stored
+    types (`float64`), every column in LAS/LAZ or CloudCompare's set (`all_fields`), and the
+    reference's own attributes of the core points carried beside them (`attributes`)."""
+
+    projected: bool = False
+    position: str = "core"
+    field_names: str = "m3c2"
+    float64: bool = False
+    all_fields: bool = False
+    attributes: bool = True
+
+    #: The compare settings (parameter table names) that are this style's, not the engine's.
+    SETTINGS = ("position", "field_names", "float64", "all_fields")
+
+    @classmethod
+    def taken_from(cls, settings: dict, **given) -> "TableStyle":
+        """The style the settings `settings` ask for, removing them from it (the run does not take
+        them); unset ones (absent or None) keep this class's defaults. `given`: other fields."""
+        asked = {name: settings.pop(name, None) for name in cls.SETTINGS}
+        return cls(**{k: v for k, v in asked.items() if v is not None}, **given)
+
+    def rows(self, result) -> tuple[np.ndarray, dict[str, np.ndarray]]:
+        """(xyz, the other columns) of `result` (an m3c2kit.Result, or a chunk of one) as placed
+        and chosen by this style."""
+        table = result.columns(projected=self.projected, position=self.position)
+        xyz = np.column_stack([table.pop("x"), table.pop("y"), table.pop("z")])
+        return xyz, table
+
+    def stored(self, table: dict[str, np.ndarray], quantises: bool) -> dict[str, np.ndarray | Quantised]:
+        """The columns renamed and typed for a file whose format `quantises` (LAS/LAZ:
+        m3c2kit.io.registry.Format.quantises; its names may hold spaces) or not."""
+        return typed_columns(table, field_names=self.field_names, float64=self.float64, spaces=quantises,
+                             las=quantises, all_fields=self.all_fields)
+
+
+def carried_columns(values: dict[str, np.ndarray], taken) -> dict[str, np.ndarray]:
+    """The core points' own attributes named beside the M3C2 columns `taken`: a name already
+    taken (an M3C2 column) is prefixed ``core_``."""
+    return {(name if name not in taken else f"core_{name}"): np.asarray(v) for name, v in values.items()}
+
+
 def core_attributes(source, index: np.ndarray | None, taken: set[str]) -> dict[str, np.ndarray]:
     """The attributes (intensity, classification, GPS time, RGB, ...) of the points of `source`
     (a Cloud) that the core points are, in core-point order, with their own types.
@@ -137,11 +183,7 @@ def core_attributes(source, index: np.ndarray | None, taken: set[str]) -> dict[s
     fields = getattr(source, "fields", None) or {}
     if not fields or index is None:
         return {}
-    out = {}
-    for name, values in fields.items():
-        key = name if name not in taken else f"core_{name}"
-        out[key] = np.asarray(values)[index]
-    return out
+    return carried_columns({name: np.asarray(values)[index] for name, values in fields.items()}, taken)
 
 
 def markdown_table() -> str:

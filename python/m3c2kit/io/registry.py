@@ -7,23 +7,26 @@ from typing import Callable
 
 from . import ascii, e57, las, npy, ply
 
-__all__ = ["Format", "FORMATS", "SUPPORTED_READ", "SUPPORTED_WRITE", "format_for", "sniff"]
+__all__ = ["Format", "FORMATS", "SUPPORTED_READ", "SUPPORTED_WRITE", "format_for", "quantises", "sniff"]
 
 
 @dataclass(frozen=True)
 class Format:
-    """One file format: its reader, its writer (None if read-only) and whether the reader
-    takes ``columns=(i, j, k)``."""
+    """One file format: its reader, its writer (None if read-only), whether the reader takes
+    ``columns=(i, j, k)``, and whether the format `quantises`: stores coordinates and measured
+    columns as scaled integers (LAS: m3c2kit.io.quantised), keeps only the compact columns unless
+    --all-fields and takes column names with spaces (m3c2kit.io.fields.typed_columns)."""
 
     name: str
     extensions: tuple[str, ...]
     read: Callable
     write: Callable | None = None
     takes_columns: bool = False
+    quantises: bool = False
 
 
 FORMATS: tuple[Format, ...] = (
-    Format("LAS/LAZ", (".las", ".laz", ".copc.laz"), las.read, las.write),
+    Format("LAS/LAZ", (".las", ".laz", ".copc.laz"), las.read, las.write, quantises=True),
     Format("E57", (".e57",), e57.read),
     Format("PLY", (".ply",), ply.read, ply.write),
     Format("ASCII", ascii.EXTENSIONS, ascii.read, ascii.write, takes_columns=True),
@@ -54,6 +57,13 @@ def format_for(path: Path, *, writing: bool = False) -> Format | None:
         if ext in f.extensions:
             return f
     return None
+
+
+def quantises(path) -> bool:
+    """Whether the output file `path` is written in a format that quantises (Format.quantises):
+    the one place that decides how a table's columns are stored for it."""
+    fmt = format_for(Path(path), writing=True)
+    return fmt is not None and fmt.quantises
 
 
 _MAGIC = ((b"LASF", "LAS/LAZ"), (b"ASTM-E57", "E57"), (b"\x93NUMPY", "NPY"), (b"ply\n", "PLY"),

@@ -50,6 +50,7 @@ class PointSource:
         self.path = Path(path)
         self.drop_nonfinite = drop_nonfinite
         self._cloud = cloud
+        self._like: Cloud | None = None
         fmt = format_for(self.path)
         ext = extension_of(self.path)
         if cloud is not None:
@@ -73,7 +74,13 @@ class PointSource:
         return self._cloud
 
     def like(self) -> Cloud:
-        """A Cloud without points carrying what a writer copies: LAS scale, offset and CRS."""
+        """A Cloud without points carrying what a writer copies: LAS scale, offset and CRS; the
+        same object at every call, so that a CRS assigned to it (--crs) is the run's."""
+        if self._like is None:
+            self._like = self._read_like()
+        return self._like
+
+    def _read_like(self) -> Cloud:
         if self._cloud is not None:
             c = self._cloud
             return Cloud(np.empty((0, 3)), {}, c.crs, c.scale, c.offset, c.scan_positions, c.path,
@@ -194,6 +201,38 @@ class PointSource:
                 part = a[start:start + size]
                 yield self._npy_chunk(a, start, start + size), {k: np.asarray(part[k]) for k in fields if k in have}
 
+    def attribute_records(self, size: int = DEFAULT_CHUNK) -> Iterator[tuple[np.ndarray, dict]]:
+        """(xyz, fields) chunks in file order with every per-point field, named, typed and valued
+        as m3c2kit.io.read_cloud gives them (LAS: m3c2kit.io.las's fields of each chunk, no_data
+        as NaN): the attributes a written table carries for the core points that are these points."""
+        if self.kind not in ("las", "copc"):
+            if self._cloud is not None:
+                yield from self.records(size, tuple(self._cloud.fields))
+            else:
+                yield from self.records(size, self._npy_fields())
+            return
+        import laspy
+
+        from . import las, laz_threads
+        with read_errors(self.path), laspy.open(self.path, laz_backend=laz_threads.backend()) as reader:
+            for points in reader.chunk_iterator(size):
+                xyz = _xyz_of(points)
+                values = las._fields(laspy.LasData(header=reader.header, points=points))
+                finite = self._finite_rows(xyz)
+                if finite is not None:
+                    xyz, values = xyz[finite], {k: v[finite] for k, v in values.items()}
+                if len(xyz):
+                    yield xyz, values
+        fault_checkpoint("reading")  # as chunks()
+
+    def _npy_fields(self) -> tuple:
+        """The fields m3c2kit.io.npy.read keeps: numeric scalar ones besides x, y, z."""
+        a = self._npy_array()
+        names = a.dtype.names or ()
+        by_lower = {n.lower(): n for n in names}
+        coords = {by_lower[c] for c in "xyz" if c in by_lower}
+        return tuple(n for n in names if n not in coords and a.dtype[n].kind in "biuf" and a.dtype[n].shape == ())
+
     def query_box(self, lo, hi, size: int = DEFAULT_CHUNK) -> np.ndarray:
         """The points with lo <= p <= hi (each axis, inclusive), in file order."""
         lo, hi = np.asarray(lo, float), np.asarray(hi, float)
@@ -259,7 +298,7 @@ class TableWriter:
         fmt = format_for(self.path, writing=True)
         if fmt is None or fmt.write is None:
             raise CloudWriteError(f"{path}: cannot write {extension_of(self.path)!r} files")
-        self.mode = {"ASCII": "text", "LAS/LAZ": "las"}.get(fmt.name, "memory")
+        self.mode = "las" if fmt.quantises else ("text" if fmt.name == "ASCII" else "memory")
         self.like = like
         self.xyz_min = xyz_min
         self.xyz_max = xyz_max

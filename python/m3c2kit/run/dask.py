@@ -137,43 +137,95 @@ class ClusterWatch:
                             f"(lost workers: {lost}); {what()} not computed")
 
 
+def execute(tasks, task_fn, accept, *, client=None, retries: int = 3, log=lambda s: None, args=(),
+            ordered: bool = False) -> int:
+    """Computes task_fn(task, *args) for every task exactly once and hands each result to
+    accept(); returns the number of workers (1 on this machine). THE executor of tasks (a tiled
+    run's tiles and classification tiles; a series' epochs can use it the same way):
+
+    - `client` None: on this machine, one task at a time, the memory handed back between tasks
+      (m3c2kit.run.memory.release_memory), in task order;
+    - a distributed.Client: at most two tasks per worker pending (the submission window), each
+      retried `retries` times by Dask, every wait bounded (ClusterWatch: a lost scheduler, or no
+      worker alive, ends the run naming them); results handed over as they finish, or with
+      `ordered` in task order, a new task submitted only once the oldest is handed over (so at
+      most the window's results wait in memory).
+
+    `log` is told the progress every 5 %. A task's own error propagates."""
+    if client is None:
+        from .memory import release_memory
+        for i, task in enumerate(tasks):
+            accept(task_fn(task, *args))
+            release_memory()
+            _progress(log, i + 1, len(tasks), _kind(task_fn))
+        return 1
+    return _on_dask(client, list(tasks), task_fn, accept, retries=retries, log=log, args=args, ordered=ordered)
+
+
 def run_on_dask(client, tasks, task_fn, accept, *, retries: int, log, args=()) -> int:
-    """Submits task_fn(task, *args) for every task to `client` (at most two per worker pending),
-    hands each result to accept() as it completes; returns the number of workers. Every wait is
-    bounded (ClusterWatch)."""
+    """:func:`execute` on a Dask client, results handed over as they finish."""
+    return execute(tasks, task_fn, accept, client=client, retries=retries, log=log, args=args)
+
+
+def _kind(task_fn) -> str:
+    return "tile" if "tile" in getattr(task_fn, "__name__", "tile") else "task"
+
+
+def _progress(log, done: int, total: int, kind: str) -> None:
+    if done % max(1, total // 20) == 0:
+        log(f"{kind} {done}/{total}")
+
+
+def _label(task, k: int):
+    """A task's number in keys and messages: its tile's, else its place in the run."""
+    return getattr(task, "tile", k)
+
+
+def _on_dask(client, tasks: list, task_fn, accept, *, retries: int, log, args, ordered: bool) -> int:
     watch = ClusterWatch(client)
     workers = max(1, watch.workers)
     run_id = uuid.uuid4().hex[:8]
     window = max(2, 2 * workers)
-    pending = iter(tasks)
     name = getattr(task_fn, "__name__", "tile")
-    running: dict = {}  # future -> its task
+    kind = _kind(task_fn)
+    running: dict = {}  # future -> (its place in the run, its task)
+    submitted = []      # the futures in task order (ordered runs)
 
-    def submit_next() -> bool:
-        task = next(pending, None)
-        if task is None:
-            return False
-        running[client.submit(task_fn, task, *args, key=f"m3c2-{name}-{run_id}-{task.tile}",
-                              retries=retries, pure=False)] = task
-        return True
+    def submit_next() -> None:
+        k = len(submitted)
+        if k == len(tasks):
+            return
+        task = tasks[k]
+        future = client.submit(task_fn, task, *args, key=f"m3c2-{name}-{run_id}-{_label(task, k)}",
+                               retries=retries, pure=False)
+        running[future] = (k, task)
+        submitted.append(future)
 
-    def awaited() -> str:
-        tiles = sorted(t.tile for t in running.values())
-        shown = ", ".join(map(str, tiles[:5])) + (", ..." if len(tiles) > 5 else "")
-        return f"tile{'s' if len(tiles) > 1 else ''} {shown} of {len(tasks)}"
+    def awaited(futures) -> str:
+        numbers = sorted(_label(running[f][1], running[f][0]) for f in futures)
+        shown = ", ".join(map(str, numbers[:5])) + (", ..." if len(numbers) > 5 else "")
+        return f"{kind}{'s' if len(numbers) > 1 else ''} {shown} of {len(tasks)}"
+
+    def hand_over(future, done: int) -> None:
+        out = future.result()  # a task's own error propagates, as before
+        del running[future]
+        accept(out)
+        future.release()
+        _progress(log, done, len(tasks), kind)
+        submit_next()
 
     for _ in range(window):
-        if not submit_next():
-            break
+        submit_next()
     done = 0
     while running:
-        for future in watch.wait(running, awaited):
-            out = future.result()  # a task's own error propagates, as before
-            del running[future]
-            accept(out)
-            future.release()
+        if ordered:  # the oldest task, whatever order they finish in
+            oldest = submitted[done]
+            watch.wait([oldest], lambda: awaited([oldest]))
+            finished = [oldest]
+        else:
+            pending = list(running)
+            finished = watch.wait(pending, lambda: awaited(pending))
+        for future in finished:
             done += 1
-            if done % max(1, len(tasks) // 20) == 0:
-                log(f"tile {done}/{len(tasks)}")
-            submit_next()
+            hand_over(future, done)
     return workers

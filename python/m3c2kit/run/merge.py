@@ -1,20 +1,21 @@
 """Merging a tiled run's results (docs/scaling.md): the tile of each core point is streamed and
 each row taken from its tile's result spill in order, so that the merged table is the in-memory
 run's, row for row; written chunk by chunk with m3c2kit.io.streaming.TableWriter (atomically),
-with the columns named and typed as the in-memory writer names and types them."""
+with the columns named and typed as the in-memory writer names and types them (one
+m3c2kit.io.fields.TableStyle) and the core points' own attributes beside them (m3c2kit.run.attributes)."""
 from __future__ import annotations
 
 from dataclasses import dataclass
-from pathlib import Path
-from types import SimpleNamespace
+from typing import Callable, Iterator
 
 import numpy as np
 
 from ..base.errors import M3C2Error
-from ..io.fields import typed_columns
-from ..io.registry import format_for
-from ..io.streaming import TableWriter
 from ..engine.result import STATUS_NAMES, Result
+from ..io.fields import TableStyle, carried_columns
+from ..io.registry import quantises
+from ..io.streaming import TableWriter
+from .attributes import AttributeRows
 from .outcome import TiledReport
 from .spill import SpillFolder
 
@@ -22,66 +23,105 @@ from .spill import SpillFolder
 EVIDENCE = ("status", "n1", "n2", "normal_scale", "roughness")
 
 
-def _output_xyz(chunk: Result, projected: bool, position: str) -> np.ndarray:
-    table = chunk.columns(projected=projected, position=position)
-    return np.column_stack([table["x"], table["y"], table["z"]])
-
-
 @dataclass(frozen=True)
-class Storage:
-    """How the merged table is stored: m3c2kit.write's names (`field_names`), float64 or the
-    compact stored types, and every column in LAS/LAZ (`all_fields`) or CloudCompare's set."""
-    field_names: str = "m3c2"
-    float64: bool = False
-    all_fields: bool = False
+class ResultSpills:
+    """A tiled run's per-tile result rows (spills "result-<tile>", of `dtype`), `counts` rows per
+    tile, read back in core order through the tile of each core point (the file tile_of.u32)."""
 
+    spills: SpillFolder
+    dtype: np.dtype
+    counts: np.ndarray
+    n_core: int
+    record: dict  # the parameters each Result records (m3c2kit.run.plan.Plan.record)
 
-def merge(spills: SpillFolder, dtype: np.dtype, counts, n_core: int, report: TiledReport, *, output, like,
-          projected, position, storage: Storage = Storage(), return_result, chunk_size, record) -> None:
-    keys = tuple(k for k in dtype.names if k != "core")
-    spaces = output is not None and getattr(format_for(Path(output), writing=True), "name", None) == "LAS/LAZ"
-
-    def chunks():
-        offsets = np.zeros(len(counts), dtype=np.int64)
-        taken = np.zeros(len(counts), dtype=np.int64)
-        with open(spills.path("tile_of.u32"), "rb") as f:
+    def chunks(self, rows: int) -> Iterator[Result]:
+        """The merged rows as Results of at most `rows` core points, in core order."""
+        keys = tuple(k for k in self.dtype.names if k != "core")
+        offsets = np.zeros(len(self.counts), dtype=np.int64)
+        with open(self.spills.local("tile_of.u32"), "rb") as f:
             while True:
-                tid = np.fromfile(f, dtype=np.uint32, count=chunk_size)
+                tid = np.fromfile(f, dtype=np.uint32, count=rows)
                 if len(tid) == 0:
                     break
-                rows = np.empty(len(tid), dtype=dtype)
+                part = np.empty(len(tid), dtype=self.dtype)
                 for t in np.unique(tid):
                     sel = tid == t
                     c = int(sel.sum())
-                    part = spills.read("result", int(t), dtype, count=c, offset=int(offsets[t]) * dtype.itemsize)
-                    if len(part) != c:
+                    read = self.spills.read("result", int(t), self.dtype, count=c,
+                                            offset=int(offsets[t]) * self.dtype.itemsize)
+                    if len(read) != c:
                         raise M3C2Error(f"tile {t}: result spill is short")
-                    rows[sel] = part
+                    part[sel] = read
                     offsets[t] += c
-                    taken[t] += c
-                raw = {k: rows[k] for k in keys}
-                chunk = Result.from_engine(np.ascontiguousarray(rows["core"]), raw, record)
-                del rows, raw  # one chunk alive at a time: the caller drops it before the next
+                raw = {k: part[k] for k in keys}
+                chunk = Result.from_engine(np.ascontiguousarray(part["core"]), raw, self.record)
+                del part, raw  # one chunk alive at a time: the caller drops it before the next
                 yield chunk
                 del chunk
-        if not np.array_equal(taken, counts):
+        if not np.array_equal(offsets, self.counts):
             raise M3C2Error("core-point bookkeeping failed: rows taken per tile differ from the plan")
 
-    xyz_min = xyz_max = None
-    if output is not None and (like is None or like.scale is None):
-        xyz_min, xyz_max = np.full(3, np.inf), np.full(3, -np.inf)
-        for chunk in chunks():
-            # fmin/fmax: rows without a projection (--position reference|compared) have NaN coordinates.
-            xyz = _output_xyz(chunk, projected, position)
-            xyz_min = np.fmin(xyz_min, np.fmin.reduce(xyz, axis=0, initial=np.inf))
-            xyz_max = np.fmax(xyz_max, np.fmax.reduce(xyz, axis=0, initial=-np.inf))
-            del chunk, xyz
-    gathered = []
+    def rows_at(self, idx: np.ndarray, rows: int) -> tuple[np.ndarray, np.ndarray]:
+        """The core points and normals of the merged rows `idx` (sorted), in one more pass."""
+        core, normal, start = [], [], 0
+        for chunk in self.chunks(rows):
+            here = idx[(idx >= start) & (idx < start + len(chunk))] - start
+            core.append(chunk.core[here])
+            normal.append(chunk.normal[here])
+            start += len(chunk)
+        return np.concatenate(core), np.concatenate(normal)
+
+
+@dataclass(frozen=True)
+class MergeTarget:
+    """Where the merged rows go: the `output` file (None: none) written in `style` with `like`'s
+    LAS scale, offset and CRS, the core points' `attributes` beside them (None: none), and
+    whether the Result (and the attributes) are gathered in memory (`gather`)."""
+
+    output: object = None
+    like: object = None
+    style: TableStyle = TableStyle()
+    attributes: AttributeRows | None = None
+    gather: bool = False
+
+
+class Evidence:
+    """What the run's warnings read (m3c2kit.run.diagnostics): the EVIDENCE columns of every core
+    point, and rows_at(idx) -> the core points and normals of some rows (the diagnosis of empty
+    cylinders, m3c2kit.run.quality), read back from the spills or the gathered Result."""
+
+    def __init__(self, columns: dict, rows_at: Callable):
+        for k, v in columns.items():
+            setattr(self, k, v)
+        self.rows_at = rows_at
+
+
+def _bounds(results: ResultSpills, style: TableStyle, rows: int) -> tuple[np.ndarray, np.ndarray]:
+    """The output rows' coordinate range (a LAS scale for a reference without one)."""
+    xyz_min, xyz_max = np.full(3, np.inf), np.full(3, -np.inf)
+    for chunk in results.chunks(rows):
+        xyz, _ = style.rows(chunk)
+        # fmin/fmax: rows without a projection (--position reference|compared) have NaN coordinates.
+        xyz_min = np.fmin(xyz_min, np.fmin.reduce(xyz, axis=0, initial=np.inf))
+        xyz_max = np.fmax(xyz_max, np.fmax.reduce(xyz, axis=0, initial=-np.inf))
+        del chunk, xyz
+    return xyz_min, xyz_max
+
+
+def merge(results: ResultSpills, target: MergeTarget, report: TiledReport, rows: int,
+          merged: Callable[[Evidence], object] = lambda evidence: None) -> None:
+    """Streams the merged rows into `target`, filling `report` (status counts, significant
+    changes, distances, the evidence, the gathered Result); `merged(evidence)` is called once
+    every row is written and before the output file is closed (the warnings then come before
+    the writer's own, as in memory)."""
+    style, output = target.style, target.output
+    las = output is not None and quantises(output)
+    gathered, carried = [], []
     evidence = {k: [] for k in EVIDENCE}
     status = np.zeros(256, dtype=np.int64)
     rows_written = 0
 
-    def consume(chunk: Result, writer=None):
+    def consume(chunk: Result, writer=None) -> None:
         nonlocal rows_written
         rows_written += len(chunk)
         status[:] += np.bincount(chunk.status, minlength=256)
@@ -89,30 +129,48 @@ def merge(spills: SpillFolder, dtype: np.dtype, counts, n_core: int, report: Til
         report.with_distance += int(np.isfinite(chunk.distance).sum())
         for k in EVIDENCE:
             evidence[k].append(np.asarray(getattr(chunk, k)))
+        attributes = target.attributes.take(len(chunk)) if target.attributes is not None else None
         if writer is not None:
-            table = chunk.columns(projected=projected, position=position)
-            xyz = np.column_stack([table.pop("x"), table.pop("y"), table.pop("z")])
-            writer.write(xyz, typed_columns(table, field_names=storage.field_names, float64=storage.float64,
-                                             spaces=spaces, las=writer.mode == "las",
-                                             all_fields=storage.all_fields))  # the stored types of m3c2kit.write
-            del xyz, table
-        if return_result:
+            xyz, table = style.rows(chunk)
+            fields = style.stored(table, las)  # the stored types of m3c2kit.write
+            if attributes:
+                fields.update(carried_columns(attributes, set(fields)))
+            writer.write(xyz, fields)
+            del xyz, table, fields
+        if target.gather:
             gathered.append(chunk)
+            if attributes is not None:
+                carried.append(attributes)
 
-    if output is not None:
-        with TableWriter(output, like=like, xyz_min=xyz_min, xyz_max=xyz_max) as writer:
-            for chunk in chunks():
-                consume(chunk, writer)
-                del chunk
-    else:
-        for chunk in chunks():
+    def finish() -> None:
+        if rows_written != results.n_core:
+            raise M3C2Error(f"wrote {rows_written} rows for {results.n_core} core points")
+        report.status_counts = {STATUS_NAMES[c]: int(n) for c, n in enumerate(status) if n}
+        if target.gather:
+            keys = ("core",) + tuple(k for k in results.dtype.names if k != "core")
+            arrays = {k: np.concatenate([getattr(c, k) for c in gathered]) for k in keys}
+            report.result = Result(core=arrays.pop("core"), params=results.record, **arrays)
+            if carried:
+                report.attributes = {k: np.concatenate([c[k] for c in carried]) for k in carried[0]}
+            elif target.attributes is not None:
+                report.attributes = {}
+            rows_at = lambda idx: (report.result.core[idx], report.result.normal[idx])  # noqa: E731
+        else:
+            rows_at = lambda idx: results.rows_at(idx, rows)  # noqa: E731
+        report.evidence = Evidence({k: np.concatenate(v) for k, v in evidence.items()}, rows_at)
+        merged(report.evidence)
+
+    if output is None:
+        for chunk in results.chunks(rows):
             consume(chunk)
             del chunk
-    if rows_written != n_core:
-        raise M3C2Error(f"wrote {rows_written} rows for {n_core} core points")
-    report.evidence = SimpleNamespace(**{k: np.concatenate(v) for k, v in evidence.items()})
-    report.status_counts = {STATUS_NAMES[c]: int(n) for c, n in enumerate(status) if n}
-    if return_result:
-        arrays = {k: np.concatenate([getattr(c, k) for c in gathered]) for k in ("core",) + keys}
-        core_xyz = arrays.pop("core")
-        report.result = Result(core=core_xyz, params=record, **arrays)
+        finish()
+        return
+    xyz_min = xyz_max = None
+    if target.like is None or target.like.scale is None:
+        xyz_min, xyz_max = _bounds(results, style, rows)
+    with TableWriter(output, like=target.like, xyz_min=xyz_min, xyz_max=xyz_max) as writer:
+        for chunk in results.chunks(rows):
+            consume(chunk, writer)
+            del chunk
+        finish()

@@ -2,7 +2,6 @@
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from types import SimpleNamespace
 
 from ..engine.result import Result
 from .memory import MemoryPlan
@@ -15,7 +14,7 @@ class TiledReport:
     tiles: int = 0
     tile_size: float = 0.0
     halo: float = 0.0
-    reference_points: int = 0
+    reference_points: int = 0         # points of each input as read (before --classifier), where counted
     compared_points: int = 0
     tile_points_max: int = 0          # largest reference + compared points of one tile
     tile_points_total: int = 0        # sum over tiles (halo points counted once per tile)
@@ -28,9 +27,11 @@ class TiledReport:
     status_counts: dict = field(default_factory=dict)
     significant: int = 0
     with_distance: int = 0
-    result: Result | None = None
+    result: Result | None = None      # return_result: the merged Result
+    attributes: dict | None = None    # with it, the core points' attributes (m3c2kit.run.attributes)
+    grid: object = None               # --grid: the grid of core points (m3c2kit.run.raster.Grid)
     warnings: list = field(default_factory=list)  # m3c2kit.run.diagnostics' messages, also emitted
-    evidence: SimpleNamespace | None = None  # the columns the warnings were drawn from
+    evidence: object = None  # the columns the warnings were drawn from (m3c2kit.run.merge.Evidence)
 
     def lines(self, output) -> list[str]:
         where = f"Dask cluster ({self.workers} workers)" if self.dask else "one machine"

@@ -23,7 +23,6 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..io.arrays import bounds
 from ..engine.result import NO_NORMAL, STATUS_NAMES, status_in
 
 __all__ = ["CylinderDiagnosis", "cylinder_diagnosis", "cylinder_messages", "normal_failure_message",
@@ -93,15 +92,17 @@ class CylinderDiagnosis:
         return int(round(kind.size * self.empty / self.diagnosed)) if self.sampled else int(kind.size)
 
 
-def cylinder_diagnosis(reference: np.ndarray, compared: np.ndarray, result, *, projection_scale: float,
-                       max_depth: float, threads: int = 0, at_most: int | None = None) -> list[CylinderDiagnosis]:
+def cylinder_diagnosis(reference, compared, result, *, projection_scale: float, max_depth: float, threads: int = 0,
+                       at_most: int | None = None) -> list[CylinderDiagnosis]:
     """One :class:`CylinderDiagnosis` per cloud with empty cylinders (see the module docstring);
     `at_most`: diagnose at most that many of each cloud's empty cylinders, evenly spaced in the
-    core points' order (the warnings: :data:`WARNING_SAMPLE`), else all."""
-    from .. import engine
-
+    core points' order (the warnings: :data:`WARNING_SAMPLE`), else all. The clouds are xyz arrays,
+    or what m3c2kit.run.cylinder_points gives a tiled run (a cloud streamed: its extent, and the
+    index of the points in the cylinders asked); `result` has the per-core-point arrays, or
+    ``status``, ``n1``, ``n2`` and ``rows_at(idx)`` -> (core points, normals) of those rows."""
     status = np.asarray(result.status)
     with_normal = int(np.count_nonzero(~status_in(status, NO_NORMAL)))
+    clouds = {1: _as_cloud(reference), 2: _as_cloud(compared)}
     out = []
     reach = None
     for cloud, code in _EMPTY.items():
@@ -112,13 +113,18 @@ def cylinder_diagnosis(reference: np.ndarray, compared: np.ndarray, result, *, p
         if at_most is not None and empty > at_most:
             idx = idx[np.unique(np.linspace(0, empty - 1, int(at_most)).round().astype(np.int64))]
         if reach is None:  # once for both clouds
-            (lo1, hi1), (lo2, hi2) = bounds(reference), bounds(compared)
+            (lo1, hi1), (lo2, hi2) = clouds[1].bounds(), clouds[2].bounds()
             reach = max(float(np.linalg.norm(np.maximum(hi1, hi2) - np.minimum(lo1, lo2))), 2.0 * float(max_depth))
-        points = reference if cloud == 1 else compared
-        core, normals = result.core[idx], result.normal[idx]
+        core, normals = _rows(result, idx)
+        # The cloud is sparse for d when a cylinder of d holds few points on average (its mean
+        # count over the core points with a normal): then a wider cylinder is asked too.
+        n_run = np.asarray(result.n1 if cloud == 1 else result.n2)[~status_in(status, NO_NORMAL)]
+        sparse = bool(np.nanmean(n_run) < SPARSE_EXPECTED)
+        wide = WIDE_FACTOR * float(projection_scale)
         # Only that cloud is indexed, once for both questions below (the diagnosis was most of a
         # sparse run's time: issue 19, W8).
-        cylinders = engine.CylinderIndex(points, float(projection_scale), threads=threads)
+        cylinders = clouds[cloud].cylinder_index(core, normals, (wide if sparse else float(projection_scale)) / 2.0,
+                                                 reach, float(projection_scale), threads=threads)
 
         def along(keep: np.ndarray, diameter: float):
             """Points of that cloud, offset and spread of their mean along the normal, in a
@@ -135,22 +141,35 @@ def cylinder_diagnosis(reference: np.ndarray, compared: np.ndarray, result, *, p
             needed = float(np.percentile(reach_needed[np.isfinite(reach_needed)], 95)) if np.isfinite(
                 reach_needed).any() else None
         # Not found along the whole line: no overlap (the edge of the cloud's coverage), unless the
-        # cloud is so sparse that a cylinder of d holds few points on average (its mean count over
-        # the core points with a normal) and a wider one meets the cloud within the depth there.
+        # cloud is sparse and a wider cylinder meets the cloud within the depth there.
         thin = np.zeros(idx.size, bool)
         scale = None
-        n_run = np.asarray(result.n1 if cloud == 1 else result.n2)[~status_in(status, NO_NORMAL)]
-        if (~found).any() and np.nanmean(n_run) < SPARSE_EXPECTED:
-            wide = WIDE_FACTOR * float(projection_scale)
+        if (~found).any() and sparse:
             n_wide, off_wide, _ = along(~found, wide)
-            sparse = (n_wide > 0) & (np.abs(off_wide) <= float(max_depth))
-            thin[np.flatnonzero(~found)[sparse]] = True
-            if sparse.any():
-                density = float(np.median(n_wide[sparse])) / (np.pi * wide**2 / 4.0)
+            sparse_here = (n_wide > 0) & (np.abs(off_wide) <= float(max_depth))
+            thin[np.flatnonzero(~found)[sparse_here]] = True
+            if sparse_here.any():
+                density = float(np.median(n_wide[sparse_here])) / (np.pi * wide**2 / 4.0)
                 scale = 2.0 * float(np.sqrt(ADVISED_POINTS / (np.pi * density)))
         out.append(CylinderDiagnosis(cloud, with_normal, empty, idx[~found & ~thin], idx[found], needed,
                                      idx[thin], scale, diagnosed=int(idx.size)))
     return out
+
+
+def _as_cloud(cloud):
+    """An xyz array as m3c2kit.run.cylinder_points.WholeCloud; a streamed cloud as it is."""
+    if hasattr(cloud, "cylinder_index"):
+        return cloud
+    from .cylinder_points import WholeCloud
+    return WholeCloud(np.asarray(cloud))
+
+
+def _rows(result, idx: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The core points and normals of rows `idx` of `result` (a Result, or a tiled run's evidence)."""
+    rows_at = getattr(result, "rows_at", None)
+    if rows_at is not None:
+        return rows_at(idx)
+    return np.asarray(result.core)[idx], np.asarray(result.normal)[idx]
 
 
 def _nice_up(value: float) -> float:

@@ -1,22 +1,31 @@
 """Executing a plan in tiles (out of core), on this machine or as tasks on a Dask cluster. The
 merged result is identical, bit for bit and in core-point order, to the in-memory run of the same
-plan (docs/scaling.md gives the argument).
+plan (docs/scaling.md gives the argument), and so is everything written from it: the point table
+with the core points' own attributes, the --grid rasters and the report (m3c2kit.output), and the
+data-quality warnings.
 
-Steps (:func:`run_tiled`), each bounded in memory:
+Steps (:func:`run_tiled`), each bounded in memory, each a function of the run's state (:class:`_Run`):
 
-0. Checks before any work: the plan (m3c2kit.run.plan, the in-memory run's checks), the tile
-   size against the halo, the Dask scheduler reached (bounded in time, m3c2kit.run.dask).
-1. With --classifier: each cloud classified tile by tile, then read through its keep mask
-   (m3c2kit.run.vegetation).
-2. Core points: every reference point (streamed), the reference subsampled with ``core_spacing``
-   (once, globally, streaming, :func:`m3c2kit.run.cores.streaming_subsample`), or a core file.
-3. Partition (m3c2kit.run.partition): the tile of every core point, per-tile core spills; each
-   cloud streamed once into every tile box (core points' box + halo) that holds its points, with
-   the per-point inputs it carries (--uncertainty pm precisions, ep scan-position ids). A COPC
-   input is read per tile with a box query instead when it carries nothing.
-4. Compute: tile by tile, or as Dask tasks (``retries``), each task reading its inputs from paths
-   and making the in-memory run's engine call (m3c2kit.run.tasks); results spilled to disk.
-5. Merge (m3c2kit.run.merge) in core order, written atomically with the in-memory writer's columns.
+0. :func:`prepare`, before any file is read: the plan (m3c2kit.run.plan, the in-memory run's
+   checks), the options tiles cannot reproduce, the tile size against the halo, the memory limit;
+   then the Dask scheduler reached (bounded in time, m3c2kit.run.dask).
+1. :func:`_filter`: with --classifier, each cloud classified tile by tile, then read through its
+   keep mask (m3c2kit.run.vegetation).
+2. :func:`_core_points`: every reference point (streamed), the reference subsampled with
+   ``core_spacing`` (once, globally, streaming, :func:`m3c2kit.run.cores.streaming_subsample`),
+   a --grid over the reference (streaming, m3c2kit.run.grid_cores), or given ones.
+3. :func:`_tile_size` and :func:`_partition` (m3c2kit.run.partition): the tile of every core
+   point, per-tile core spills; each cloud streamed once into every tile box (core points' box +
+   halo) that holds its points, with the per-point inputs it carries (--uncertainty pm precisions,
+   ep scan-position ids). A COPC input is read per tile with a box query instead when it carries
+   nothing.
+4. :func:`_compute`: tile by tile, or as Dask tasks (m3c2kit.run.dask.execute), each task reading
+   its inputs from paths and making the in-memory run's engine call (m3c2kit.run.tasks); results
+   spilled to disk.
+5. :func:`_merge` (m3c2kit.run.merge) in core order, written atomically with the in-memory writer's
+   columns and the core points' attributes (m3c2kit.run.attributes); the warnings
+   (m3c2kit.run.diagnostics, the empty-cylinder diagnosis reading the clouds by streaming:
+   m3c2kit.run.cylinder_points) before the output is closed, as in memory before it is written.
 
 Every spill write goes through m3c2kit.run.spill.SpillFolder (a failed write is one clean error);
 the spill folder is removed whatever happens.
@@ -27,28 +36,32 @@ import os
 import tempfile
 import time
 from contextlib import ExitStack
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Callable
 
 import numpy as np
 
+from . import dask as dask_run
 from . import diagnostics, uncertainty_inputs
 from .. import engine
 from ..base.errors import M3C2Error, UsageError
 from ..base.fault_hook import checkpoint as fault_checkpoint
 from ..io.arrays import bounds
 from ..io.atomic import private_folder
+from ..io.fields import TableStyle
 from ..io.streaming import DEFAULT_CHUNK, PointSource
-from ..settings.limits import check_halo, check_tile_size, usable_length
 from ..settings import engine_params, orientation
+from ..settings.limits import check_halo, check_tile_size, usable_length
 from ..settings.parsers import positive
-from . import dask as dask_run
+from .attributes import core_attributes
 from .checks import as_points, check_all_fields, check_core_normals
 from .cores import streaming_subsample
-from .memory import (BASE_BYTES, BYTES_PER_CORE, BYTES_PER_POINT, choose_tile_size, density, parse_memory,
-    plan_memory, release_memory, rss_bytes)
-from .merge import Storage, merge
+from .cylinder_points import StreamedCloud
+from .grid_cores import GridCores, streamed_grid
+from .memory import (BASE_BYTES, BYTES_PER_CORE, BYTES_PER_POINT, MemoryPlan, choose_tile_size, density,
+    parse_memory, plan_memory, release_memory, rss_bytes)
+from .merge import MergeTarget, ResultSpills, merge
 from .outcome import TiledReport
 from .partition import CoreStream, Tiles, distribute, plan_tiles
 from .plan import Plan, make_plan
@@ -56,96 +69,55 @@ from .spill import SpillFolder
 from .tasks import CloudInput, TileTask, compute_tile, result_dtype, result_rows
 from .vegetation import classify_tiled
 
+__all__ = ["TiledOptions", "TiledPlan", "GridCores", "prepare", "run_tiled"]
 
-def run_tiled(reference, compared, *, output=None, core=None, core_spacing=None, core_normals=None,
-              normal_scale=None, projection_scale, max_depth, tile_size=None, memory_limit=None,
-              dask_scheduler=None, client=None, threads: int = 0, work_dir=None, projected: bool = False,
-              position: str = "core", field_names: str = "m3c2", float64: bool = False,
-              all_fields: bool = False, drop_nonfinite: bool = False, return_result: bool = False, chunk_size: int = DEFAULT_CHUNK,
-              retries: int = 3, task_fn: Callable | None = None, log: Callable[[str], object] | None = None,
-              **params) -> TiledReport:
-    """Tiled M3C2 between the files `reference` and `compared` (paths, or PointSource).
-
-    `core`: None (every reference point), a core file path, or an (N, 3) array; or
-    `core_spacing`. `tile_size` S (XY side of a tile) or `memory_limit` (bytes or '2GB': S is
-    chosen so a tile's estimated resident memory fits). `dask_scheduler` (an address) or `client`
-    (a distributed.Client) runs tiles as Dask tasks with `retries`. `output`: a file written
-    atomically (same bytes as the untiled run; `field_names`, `float64` and `all_fields` as m3c2kit.write's);
-    `return_result` also gathers the Result in memory. Other keywords are
-    :func:`m3c2kit.compare`'s parameters, every one of them in every mode.
-    """
-    t_start = time.perf_counter()
-    log = log or (lambda s: None)
-    report = TiledReport()
-    read_points = params.pop("read_points", None)
-    vegetation = params.pop("vegetation", None)  # --classifier / --keep (m3c2kit.classify.vegetation)
-    given = dict(params, normal_scale=normal_scale, projection_scale=projection_scale, max_depth=max_depth)
-    plan, h, hp, tile_size, limit = preflight(given, tile_size, memory_limit, read_points, vegetation)
-    check_core_normals(plan.values, core_normals)
-    check_all_fields(output, all_fields)
-    report.halo = h
-    report.memory_limit = limit
-
-    own_client = client is None and dask_scheduler is not None
-    if own_client:
-        client = dask_run.connect(dask_scheduler)  # bounded in time, before any file is read
-    own_dir = work_dir is None
-    try:
-        ref_src = reference if isinstance(reference, PointSource) else PointSource(reference,
-                                                                                   drop_nonfinite=drop_nonfinite)
-        cmp_src = compared if isinstance(compared, PointSource) else PointSource(compared, drop_nonfinite=drop_nonfinite)
-        shared = uncertainty_inputs.shared_inputs(plan.values, ref_src.like(), cmp_src.like())
-        with ExitStack() as held:
-            if own_dir:
-                parent = Path(output).resolve().parent if output is not None else None
-                work = held.enter_context(private_folder(parent if parent is not None else Path(tempfile.gettempdir())))
-                fault_checkpoint("staging")  # a testing aid (docs/errors.md, "Interruption"): spill folder made
-                # Dask workers (other processes) reach the folder only by its name; this process
-                # writes through the pinned path whatever happens (run/spill.py).
-                spills = SpillFolder(work.path, work.directory,
-                                     work.directory / work.name if client is not None else None)
-            else:
-                Path(work_dir).mkdir(parents=True, exist_ok=True)
-                spills = SpillFolder(Path(work_dir))
-            options = TiledOptions(core=core, core_spacing=core_spacing, core_normals=core_normals,
-                                   tile_size=tile_size, limit=limit, threads=threads, output=output,
-                                   projected=projected, position=position,
-                                   storage=Storage(field_names, float64, all_fields), drop_nonfinite=drop_nonfinite,
-                                   return_result=return_result, chunk_size=chunk_size, retries=retries,
-                                   task_fn=task_fn or compute_tile, log=log, read_points=read_points)
-            report = _run(plan, report, ref_src, cmp_src, spills, shared, h, hp, client, options)
-            report.seconds["total"] = time.perf_counter() - t_start
-            return report
-    finally:
-        if own_client:
-            client.close()
 
 @dataclass(frozen=True)
 class TiledOptions:
-    """What a tiled run is asked beside its plan: run_tiled's keywords (documented there)."""
-    core: object = None
-    core_spacing: float | None = None
-    core_normals: object = None
+    """How a tiled run is cut and executed (never what it computes): the tile side `tile_size`, or
+    `memory_limit` (bytes or '2GB': the side chosen so a tile's estimated resident memory fits);
+    the tiles as Dask tasks on `client` (a distributed.Client) or on the scheduler at
+    `dask_scheduler`, each retried `retries` times; the spill folder `work_dir` (default: a private
+    one beside the output); rows read per streamed chunk (`chunk_size`); non-finite points of inputs
+    given as paths dropped (`drop_nonfinite`, else an error); the task run per tile (`task_fn`, a
+    testing aid) and `log`, told the run's progress."""
+
     tile_size: float | None = None
-    limit: int | None = None  # the memory limit in bytes
-    threads: int = 0
-    output: object = None
-    projected: bool = False
-    position: str = "core"
-    storage: Storage = Storage()
-    drop_nonfinite: bool = False
-    return_result: bool = False
-    chunk_size: int = DEFAULT_CHUNK
+    memory_limit: int | str | None = None
+    client: object = None
+    dask_scheduler: str | None = None
     retries: int = 3
+    work_dir: object = None
+    chunk_size: int = DEFAULT_CHUNK
+    drop_nonfinite: bool = False
     task_fn: Callable = compute_tile
     log: Callable[[str], object] = lambda s: None
-    read_points: Callable | None = None
 
 
-def preflight(params: dict, tile_size=None, memory_limit=None, read_points=None, vegetation=None):
-    """The checks of a tiled run that need no file (docs/errors.md, "Run limits"): the plan, the
-    options tiles cannot reproduce, the tile size against the halo, the memory limit. Returns
-    (plan, reach h, tile halo, tile size, memory limit in bytes)."""
+@dataclass
+class TiledPlan:
+    """A tiled run's plan, made once and checked before any file is read (docs/errors.md, "Run
+    limits"): the plan (m3c2kit.run.plan), the neighbourhood's reach h and the tile halo, the tile
+    size (None: from the memory limit) and the memory limit in bytes."""
+
+    plan: Plan
+    reach: float
+    halo: float
+    tile_size: float | None
+    limit: int | None
+
+    def orient(self, spec) -> None:
+        """--orient as resolved with the files' scanner positions (orientation.for_clouds), known
+        once they are read: the plan's, as the in-memory run takes it (the engine's Params are made
+        again with the core points, _core_points)."""
+        self.plan.given["orient"] = spec
+        self.plan.values["orient"] = spec
+
+
+def prepare(params: dict, tiling: TiledOptions = TiledOptions(), *, vegetation=None, read_points=None) -> TiledPlan:
+    """The plan of a tiled run of compare(**params) and its checks that need no file: the options
+    tiles cannot reproduce (their results depend on the whole cloud's order or the core point's
+    index in the run), the tile size against the halo, the memory limit."""
     plan = make_plan(params, read_points, vegetation=vegetation)
     values, engine_p = plan.values, plan.engine
     if engine_p.normal_subsample_spacing > 0:
@@ -155,6 +127,7 @@ def preflight(params: dict, tile_size=None, memory_limit=None, read_points=None,
     if values["lod"] == "bootstrap":
         raise UsageError("--bootstrap cannot be combined with tiling: the bootstrap stream is seeded by the "
                          "core point's index in the run, which a tile does not know")
+    tile_size, memory_limit = tiling.tile_size, tiling.memory_limit
     if tile_size is None and memory_limit is None:
         raise UsageError("tiling needs --tile-size or --memory-limit")
     h = engine.neighbourhood_reach(engine_p)
@@ -165,155 +138,280 @@ def preflight(params: dict, tile_size=None, memory_limit=None, read_points=None,
     limit = None
     if memory_limit is not None:
         limit = parse_memory(memory_limit) if not isinstance(memory_limit, (int, float)) else int(memory_limit)
-    return plan, h, engine.tile_halo(engine_p), tile_size, limit
+    return TiledPlan(plan, h, engine.tile_halo(engine_p), tile_size, limit)
 
 
-def _executor(client, retries: int, log, report: TiledReport):
-    """execute(tasks, fn, accept, args): every task computed once, on this machine one at a time
-    (memory handed back between tiles) or on the Dask client; each result handed to accept()."""
-    def execute(tasks, fn, accept, args=()) -> None:
-        if client is not None:
-            report.dask = True
-            report.workers = dask_run.run_on_dask(client, tasks, fn, accept, retries=retries, log=log, args=args)
-            return
-        for i, task in enumerate(tasks):
-            accept(fn(task, *args))
-            release_memory()
-            if (i + 1) % max(1, len(tasks) // 20) == 0:
-                log(f"tile {i + 1}/{len(tasks)}")
-    return execute
+def run_tiled(reference, compared, core=None, *, core_normals=None, output=None, style: TableStyle = TableStyle(),
+              tiling: TiledOptions = TiledOptions(), return_result: bool = False, prepared: TiledPlan | None = None,
+              vegetation=None, read_points=None, **params) -> TiledReport:
+    """Tiled M3C2 between the files `reference` and `compared` (paths, or PointSource).
+
+    `core`: None (every reference point, or with ``core_spacing`` the reference subsampled), a core
+    file path, an (N, 3) array or a Cloud, or GridCores(cell) (2D mode's grid over the reference,
+    m3c2kit.run.raster); `core_normals` with ``normal_source="core"``. `output`: a file written
+    atomically in `style` (m3c2kit.io.fields.TableStyle: the bytes of m3c2kit.write on the
+    in-memory run's Result, the core points' attributes included). `return_result` also gathers the
+    Result in memory (with the attributes and the grid: what the rasters and the report need).
+    `tiling`: how the run is cut and executed (:class:`TiledOptions`). The other keywords are
+    :func:`m3c2kit.compare`'s parameters, every one of them in every mode, with `vegetation` and
+    `read_points` as m3c2kit.run.plan.make_plan takes them; or `prepared`, the plan
+    :func:`prepare` made of them.
+    """
+    t_start = time.perf_counter()
+    if prepared is None:
+        prepared = prepare(params, tiling, vegetation=vegetation, read_points=read_points)
+    elif params or vegetation is not None:
+        raise UsageError("give run_tiled the parameters, or the plan prepare() made of them, not both")
+    check_core_normals(prepared.plan.values, core_normals)
+    check_all_fields(output, style.all_fields)
+    report = TiledReport(halo=prepared.reach, memory_limit=prepared.limit)
+    client = tiling.client
+    own_client = client is None and tiling.dask_scheduler is not None
+    if own_client:
+        client = dask_run.connect(tiling.dask_scheduler)  # bounded in time, before any file is read
+    try:
+        drop = tiling.drop_nonfinite
+        ref_src = reference if not isinstance(reference, (str, os.PathLike)) else PointSource(reference,
+                                                                                             drop_nonfinite=drop)
+        cmp_src = compared if not isinstance(compared, (str, os.PathLike)) else PointSource(compared,
+                                                                                           drop_nonfinite=drop)
+        with ExitStack() as held:
+            spills = _spill_folder(held, tiling.work_dir, output, client)
+            run = _Run(prepared, tiling, report, spills, client, (ref_src, cmp_src), read_points)
+            _filter(run)
+            _core_points(run, core, core_normals)
+            _tile_size(run)
+            tasks = _partition(run)
+            results = _compute(run, tasks)
+            _merge(run, results, MergeTarget(output, ref_src.like(), style, run.attributes(style, output, return_result),
+                                             return_result))
+            report.seconds["total"] = time.perf_counter() - t_start
+            return report
+    finally:
+        if own_client:
+            client.close()
 
 
-def _run(plan: Plan, report: TiledReport, ref_src, cmp_src, spills: SpillFolder, shared: dict, h: float, hp: float,
-         client, options: TiledOptions) -> TiledReport:
-    values, engine_p = plan.values, plan.engine
-    core, core_spacing, core_normals = options.core, options.core_spacing, options.core_normals
-    tile_size = options.tile_size  # chosen below from the memory limit when not given
-    limit, threads, chunk_size, log = options.limit, options.threads, options.chunk_size, options.log
-    read_points = options.read_points
-    execute = _executor(client, options.retries, log, report)
-    # memory plan: the fixed costs (what this process holds, the streaming and merge chunks)
-    mem = None
-    stream_rows = merge_rows = chunk_size
-    if limit is not None:
-        mem = plan_memory(limit, rss_bytes(), chunk_size)
-        stream_rows = mem.stream_rows
+def _spill_folder(held: ExitStack, work_dir, output, client) -> SpillFolder:
+    """The run's spill folder: a private one beside the output (or in the temporary folder),
+    removed whatever happens, or `work_dir`."""
+    if work_dir is not None:
+        Path(work_dir).mkdir(parents=True, exist_ok=True)
+        return SpillFolder(Path(work_dir))
+    parent = Path(output).resolve().parent if output is not None else Path(tempfile.gettempdir())
+    work = held.enter_context(private_folder(parent))
+    fault_checkpoint("staging")  # a testing aid (docs/errors.md, "Interruption"): spill folder made
+    # Dask workers (other processes) reach the folder only by its name; this process writes
+    # through the pinned path whatever happens (run/spill.py).
+    return SpillFolder(work.path, work.directory, work.directory / work.name if client is not None else None)
 
-    # 1. vegetation removed (--classifier / --keep): each cloud read through its keep mask
-    if plan.filter is not None:
-        t0 = time.perf_counter()
-        size_c = tile_size
-        if size_c is None:
-            _, rho = density(ref_src, stream_rows)
-            size_c = choose_tile_size(limit, plan.filter.reach, rho, 0.0, rho, base=mem.base)
-        ref_src = classify_tiled(plan.filter, "reference", ref_src, spills, size_c, stream_rows, execute, threads)
-        cmp_src = classify_tiled(plan.filter, "compared", cmp_src, spills, size_c, stream_rows, execute, threads)
-        release_memory()
-        report.seconds["classify"] = time.perf_counter() - t0
 
-    # 2. core points
-    normals_arr = None
+@dataclass
+class _Run:
+    """A tiled run's state, passed from step to step."""
+
+    prepared: TiledPlan
+    tiling: TiledOptions
+    report: TiledReport
+    spills: SpillFolder
+    client: object
+    given: tuple  # (reference, compared) sources as given: what the attributes and the warnings read
+    read_points: Callable | None = None
+    sources: tuple = ()  # (reference, compared) as the comparison reads them (through a keep mask)
+    memory: MemoryPlan | None = None
+    stream_rows: int = DEFAULT_CHUNK
+    merge_rows: int = DEFAULT_CHUNK
+    cores: CoreStream | None = None
+    core_array: np.ndarray | None = None  # the core points, when held in memory
+    normals: np.ndarray | None = None     # the given core normals
+    tile_size: float | None = None
+    tiles: Tiles | None = None
+    streamed: dict = field(default_factory=dict)  # cloud name -> spilled (else COPC box queries)
+    shared: dict = field(default_factory=dict)    # EP's inputs every tile receives
+
+    def __post_init__(self):
+        self.sources = self.sources or self.given
+        self.tile_size = self.prepared.tile_size
+        self.shared = uncertainty_inputs.shared_inputs(self.values, self.given[0].like(), self.given[1].like())
+        self.stream_rows = self.merge_rows = self.tiling.chunk_size
+        if self.prepared.limit is not None:  # the fixed costs: what this process holds, the chunks
+            self.memory = plan_memory(self.prepared.limit, rss_bytes(), self.tiling.chunk_size)
+            self.stream_rows = self.memory.stream_rows
+
+    @property
+    def plan(self) -> Plan:
+        return self.prepared.plan
+
+    @property
+    def values(self) -> dict:
+        return self.plan.values
+
+    def execute(self, tasks, fn, accept, args=()) -> None:
+        """Every task once, on this machine or on the Dask client (m3c2kit.run.dask.execute)."""
+        workers = dask_run.execute(tasks, fn, accept, client=self.client, retries=self.tiling.retries,
+                                   log=self.tiling.log, args=args)
+        if self.client is not None:
+            self.report.dask, self.report.workers = True, workers
+
+    def attributes(self, style: TableStyle, output, gather: bool):
+        """The core points' attributes the outputs carry (m3c2kit.run.attributes), or None."""
+        if not style.attributes or (output is None and not gather):
+            return None
+        cores = self.core_array if self.core_array is not None else self.cores.source
+        return core_attributes(self.given[0], cores, self.stream_rows)
+
+
+def _filter(run: _Run) -> None:
+    """1. --classifier / --keep: each cloud classified tile by tile, then read through its keep mask."""
+    filt = run.plan.filter
+    if filt is None:
+        return
+    t0 = time.perf_counter()
+    size = run.tile_size
+    if size is None:
+        _, rho = density(run.given[0], run.stream_rows)
+        size = choose_tile_size(run.prepared.limit, filt.reach, rho, 0.0, rho, base=run.memory.base)
+    threads = run.values["threads"]
+    run.sources = tuple(classify_tiled(filt, name, src, run.spills, size, run.stream_rows, run.execute, threads)
+                        for name, src in zip(("reference", "compared"), run.given))
+    release_memory()
+    run.report.seconds["classify"] = time.perf_counter() - t0
+
+
+def _core_points(run: _Run, core, core_normals) -> None:
+    """2. The core points: given, subsampled (streaming), a grid over the reference, or every
+    reference point; the engine's Params made again now that the orientation's inputs are known
+    (--orient barycentre reads the core points, the default and sensor the files' scanner
+    positions), as the in-memory run makes them."""
+    values, ref_src = run.values, run.sources[0]
     if values["normal_source"] == "core":
         if core_normals is None:
             raise UsageError("--normal-source core needs core_normals (one normal per core point)")
-        normals_arr = as_points("core_normals", core_normals)
-    if core is not None and core_spacing is not None:
+        run.normals = as_points("core_normals", core_normals)
+    spacing = values["core_spacing"]
+    if core is not None and spacing is not None:
         raise UsageError("give either core points (--core) or --core-spacing, not both")
-    if core is not None:
-        if isinstance(core, (str, os.PathLike)):
-            from ..io import read_cloud
-            core = read_cloud(core, drop_nonfinite=options.drop_nonfinite)
-        core_arr = as_points("core_points", core)
-        cores = CoreStream(array=core_arr, normals=normals_arr)
-    elif core_spacing is not None:
+    if isinstance(core, (str, os.PathLike)):
+        from ..io import read_cloud
+        core = read_cloud(core, drop_nonfinite=run.tiling.drop_nonfinite)
+    sensor = orientation.scan_positions_of(run.given[0].cloud, core)
+    if isinstance(core, GridCores):  # 2D mode: the grid over the reference as given (raster.grid_core_points)
         t0 = time.perf_counter()
-        core_arr = streaming_subsample(ref_src, positive("--core-spacing", core_spacing), stream_rows)
-        report.seconds["core_subsample"] = time.perf_counter() - t0
-        cores = CoreStream(array=core_arr, normals=normals_arr)
+        run.report.grid = streamed_grid(run.given[0], core.cell, run.spills, run.stream_rows)
+        run.core_array = run.report.grid.core_points
+        run.report.seconds["grid"] = time.perf_counter() - t0
+    elif core is not None:
+        run.core_array = as_points("core_points", core)
+    elif spacing is not None:
+        t0 = time.perf_counter()
+        run.core_array = streaming_subsample(ref_src, positive("--core-spacing", spacing), run.stream_rows)
+        run.report.seconds["core_subsample"] = time.perf_counter() - t0
+    if run.core_array is not None:
+        run.cores = CoreStream(array=run.core_array, normals=run.normals)
     else:
-        core_arr = None
-        cores = CoreStream(source=ref_src, normals=None)
-    if normals_arr is not None and (core_arr is None or len(normals_arr) != len(core_arr)):
+        run.cores = CoreStream(source=ref_src, normals=None)
+    if run.normals is not None and (run.core_array is None or len(run.normals) != len(run.core_array)):
         raise UsageError("core_normals must have one row per core point")
-    if orientation.needs_core_points(values["orient"]):  # their barycentre, the same bits as in memory
-        plan.engine = engine_p = engine_params(values, "compare", read_points,
-                                               core_points=lambda: (xyz for xyz, _ in cores.chunks(stream_rows)))
+    barycentre = orientation.needs_core_points(values["orient"])
+    run.plan.engine = engine_params(values, "compare", run.read_points, scan_positions=sensor,
+                                    core_points=(lambda: (xyz for xyz, _ in run.cores.chunks(run.stream_rows)))
+                                    if barycentre else orientation.LATER)
 
-    # Tiles are anchored at the core points' lowest x and y where that is known without a pass
-    # (any anchor gives the same results): a tile as large as the survey is then one tile.
-    extent = None  # the core points' XY extent, where known
-    if core_arr is not None and len(core_arr):
-        origin, top = bounds(core_arr[:, :2])
-        extent = top - origin
-    elif ref_src.kind in ("las", "copc"):
+
+def _anchor(run: _Run) -> tuple[np.ndarray | None, np.ndarray | None]:
+    """(origin, extent) of the core points' XY where known without a pass: tiles are anchored at
+    their lowest x and y (any anchor gives the same results), so that a tile as large as the
+    survey is one tile; (None, None): the first core point anchors them."""
+    ref_src = run.sources[0]
+    if run.core_array is not None and len(run.core_array):
+        origin, top = bounds(run.core_array[:, :2])
+        return origin, top - origin
+    if ref_src.kind in ("las", "copc"):
         import laspy
         with laspy.open(ref_src.path) as r:
             origin = np.asarray(r.header.mins, dtype=np.float64)[:2]
-            extent = np.asarray(r.header.maxs, dtype=np.float64)[:2] - origin
-    else:
-        origin = None  # the first core point
+            return origin, np.asarray(r.header.maxs, dtype=np.float64)[:2] - origin
+    return None, None
 
-    # tile size; the memory plan again, now that the core points are held
-    if mem is not None:
-        mem = plan_memory(limit, rss_bytes(), chunk_size)
-        stream_rows, merge_rows = mem.stream_rows, mem.merge_rows
-        report.memory_plan = mem
-    if tile_size is None:
-        n_ref, rho_ref = density(ref_src, stream_rows)
-        _, rho_cmp = density(cmp_src, stream_rows)
+
+def _tile_size(run: _Run) -> None:
+    """3a. The tile size (from the memory limit when not given), the memory plan made again now
+    that the core points are held."""
+    limit, log = run.prepared.limit, run.tiling.log
+    if run.memory is not None:
+        run.memory = plan_memory(limit, rss_bytes(), run.tiling.chunk_size)
+        run.stream_rows, run.merge_rows = run.memory.stream_rows, run.memory.merge_rows
+        run.report.memory_plan = run.memory
+    if run.tile_size is None:
+        ref_src, cmp_src = run.sources
+        _, rho_ref = density(ref_src, run.stream_rows)
+        _, rho_cmp = density(cmp_src, run.stream_rows)
+        core_arr = run.core_array
         if core_arr is None:
             rho_core = rho_ref
         else:
             lo, hi = bounds(core_arr) if len(core_arr) else (np.zeros(3), np.ones(3))
             span = hi - lo
             rho_core = len(core_arr) / max(float(span[0] * span[1]), 1e-12)
-        tile_size = choose_tile_size(limit, h, rho_ref, rho_cmp, rho_core, base=mem.base)
-        per_axis = np.maximum(np.ceil(extent / tile_size), 1) if extent is not None else np.ones(2)
+        size = choose_tile_size(limit, run.prepared.reach, rho_ref, rho_cmp, rho_core, base=run.memory.base)
+        _, extent = _anchor(run)
+        per_axis = np.maximum(np.ceil(extent / size), 1) if extent is not None else np.ones(2)
         if per_axis.max() >= 2:
             # As many tiles per axis, all of one size: the smallest side that needs no more
             # (at least half the chosen one); smaller tiles only lower the peak.
-            tile_size = min(tile_size, float((extent / per_axis).max()) * (1 + 1e-9))
-        log(f"--memory-limit {limit} B: tile size {tile_size:.6g}")
-    if mem is not None:
-        log(f"memory plan: base {mem.base / 2**20:.0f} MiB, streaming chunks of {mem.stream_rows} rows, "
-            f"merge chunks of {mem.merge_rows} rows")
-    size = float(tile_size)
-    report.tile_size = size
+            size = min(size, float((extent / per_axis).max()) * (1 + 1e-9))
+        run.tile_size = size
+        log(f"--memory-limit {limit} B: tile size {size:.6g}")
+    if run.memory is not None:
+        m = run.memory
+        log(f"memory plan: base {m.base / 2**20:.0f} MiB, streaming chunks of {m.stream_rows} rows, "
+            f"merge chunks of {m.merge_rows} rows")
+    run.report.tile_size = float(run.tile_size)
 
-    # 3. partition: tile of every core point, per-tile core spills and boxes; the clouds spilled
-    # into every tile box that holds each point. Each phase runs in its own function, so that its
-    # buffers are gone (and handed back to the system, release_memory) before the next phase's peak.
+
+def _partition(run: _Run) -> list[TileTask]:
+    """3b. The tile of every core point, per-tile core spills and boxes; the clouds spilled into
+    every tile box that holds each point. Each phase runs in its own function, so that its buffers
+    are gone (and handed back to the system, release_memory) before the next phase's peak."""
+    report, hp, size, rows = run.report, run.prepared.halo, float(run.tile_size), run.stream_rows
     t0 = time.perf_counter()
-    tiles = plan_tiles(spills, cores, size, origin, stream_rows)
+    origin, _ = _anchor(run)
+    tiles = plan_tiles(run.spills, run.cores, size, origin, rows)
     report.core_points, report.tiles = tiles.n_core, len(tiles)
     if tiles.n_core == 0:
         raise UsageError("no core points")
     tiles.lo -= hp  # each tile's box: its core points' bounding box grown by the halo
     tiles.hi += hp
+    run.tiles = tiles
     release_memory()
     report.seconds["plan"] = time.perf_counter() - t0
-    log(f"{tiles.n_core} core points in {len(tiles)} tiles of {size:.6g} (halo {hp:.6g})")
+    run.tiling.log(f"{tiles.n_core} core points in {len(tiles)} tiles of {size:.6g} (halo {hp:.6g})")
 
     t0 = time.perf_counter()
+    shared = run.shared
     moved = {"reference": None, "compared": None}
     if "transform" in shared and not shared.get("transform_applied"):  # EP: the engine moves the compared cloud
         moved["compared"] = lambda xyz: uncertainty_inputs.moved_compared(shared, xyz)
-    streamed, n_points = {}, {}
-    for name, src in (("reference", ref_src), ("compared", cmp_src)):
-        streamed[name] = src.kind != "copc" or bool(plan.carried[name]) or moved[name] is not None
-        if streamed[name]:
-            n_points[name] = distribute(src, spills, name, tiles, hp, stream_rows, carried=plan.carried[name],
-                                        moved=moved[name], name=name)
+    counted = {}
+    for name, src, given in zip(("reference", "compared"), run.sources, run.given):
+        run.streamed[name] = src.kind != "copc" or bool(run.plan.carried[name]) or moved[name] is not None
+        if run.streamed[name]:
+            n = distribute(src, run.spills, name, tiles, hp, rows, carried=run.plan.carried[name],
+                           moved=moved[name], name=name)
+            if src is given:  # the points read from the file (with --classifier, those kept)
+                counted[name] = n
             release_memory()
-    report.reference_points = n_points.get("reference", 0)
-    report.compared_points = n_points.get("compared", 0)
+    report.reference_points = counted.get("reference", 0)
+    report.compared_points = counted.get("compared", 0)
     report.seconds["distribute"] = time.perf_counter() - t0
-    tasks = _tasks(plan, tiles, spills, ref_src, cmp_src, streamed, shared, hp, normals_arr is not None)
+    return _tasks(run.plan, tiles, run.spills, run.sources, run.streamed, shared, hp, run.normals is not None)
 
-    # 4. compute: per-tile results spilled to disk, each tile exactly once
+
+def _compute(run: _Run, tasks: list[TileTask]) -> ResultSpills:
+    """4. Every tile computed exactly once, its result rows spilled to disk."""
+    report, counts = run.report, run.tiles.counts
     t0 = time.perf_counter()
     state = {"dtype": None, "done": set(), "tile_points_max": 0, "tile_points_total": 0}
-    counts = tiles.counts
 
     def accept(out: dict) -> None:
         t = int(out["tile"])
@@ -323,34 +421,44 @@ def _run(plan: Plan, report: TiledReport, ref_src, cmp_src, spills: SpillFolder,
             raise M3C2Error(f"tile {t} returned {out['n']} rows for {counts[t]} core points")
         if state["dtype"] is None:
             state["dtype"] = result_dtype(out)
-        spills.write("result", t, result_rows(out, state["dtype"]))
+        run.spills.write("result", t, result_rows(out, state["dtype"]))
         state["done"].add(t)
         pts = int(out["n_reference"]) + int(out["n_compared"])
         state["tile_points_max"] = max(state["tile_points_max"], pts)
         state["tile_points_total"] += pts
 
-    execute(tasks, options.task_fn, accept, (engine_p, threads))
-    if len(state["done"]) != len(tiles):
-        raise M3C2Error(f"only {len(state['done'])} of {len(tiles)} tiles were computed")
+    run.execute(tasks, run.tiling.task_fn, accept, (run.plan.engine, run.values["threads"]))
+    if len(state["done"]) != len(run.tiles):
+        raise M3C2Error(f"only {len(state['done'])} of {len(run.tiles)} tiles were computed")
     report.tile_points_max = state["tile_points_max"]
     report.tile_points_total = state["tile_points_total"]
     base = report.memory_plan.base if report.memory_plan is not None else BASE_BYTES
     report.estimated_tile_bytes_max = int(base + BYTES_PER_POINT * report.tile_points_max
                                           + BYTES_PER_CORE * int(counts.max()))
     report.seconds["compute"] = time.perf_counter() - t0
+    return ResultSpills(run.spills, state["dtype"], counts, run.tiles.n_core, run.plan.record)
 
-    # 5. merge in core order and write
+
+def _merge(run: _Run, results: ResultSpills, target: MergeTarget) -> None:
+    """5. The rows merged in core order into the output; the run's warnings (those of an
+    in-memory run: m3c2kit.run.diagnostics, the empty cylinders diagnosed on the clouds as given,
+    streamed) before the output is closed."""
     release_memory()
+    report = run.report
     t0 = time.perf_counter()
-    merge(spills, state["dtype"], counts, tiles.n_core, report, output=options.output, like=ref_src.like(),
-          projected=options.projected, position=options.position, storage=options.storage,
-          return_result=options.return_result, chunk_size=merge_rows, record=plan.record)
+    clouds = tuple(StreamedCloud(src, run.stream_rows) for src in run.given)
+
+    def warn(evidence) -> None:
+        # Named at run_tiled's caller: warn <- this <- merge's finish <- merge <- _merge <- run_tiled.
+        report.warnings = diagnostics.warn(evidence, run.values, *clouds, stacklevel=7)
+
+    merge(results, target, report, run.merge_rows, warn)
+    if target.gather and not report.reference_points:  # the report names the reference's size
+        report.reference_points = sum(len(xyz) for xyz in run.given[0].chunks(run.stream_rows))
     report.seconds["merge_write"] = time.perf_counter() - t0
-    report.warnings = diagnostics.warn(report.evidence, values)  # the same as an in-memory run's
-    return report
 
 
-def _tasks(plan: Plan, tiles: Tiles, spills: SpillFolder, ref_src, cmp_src, streamed: dict, shared: dict, hp: float,
+def _tasks(plan: Plan, tiles: Tiles, spills: SpillFolder, sources: tuple, streamed: dict, shared: dict, hp: float,
            with_normals: bool) -> list[TileTask]:
     lo, hi = tiles.lo, tiles.hi
     columns = {name: [c.column for c in plan.carried[name]] for name in ("reference", "compared")}
@@ -364,6 +472,7 @@ def _tasks(plan: Plan, tiles: Tiles, spills: SpillFolder, ref_src, cmp_src, stre
     far_cmp = uncertainty_inputs.unmoved_compared(shared, far[None, :])[0]
     tables = {"1": shared.get("scan_positions1"), "2": shared.get("scan_positions2")}
     fillers = {c.keyword: c.filler(tables[c.keyword[-1]]) for cs in plan.carried.values() for c in cs}
+    ref_src, cmp_src = sources
     return [TileTask(tile=t, n_core=int(tiles.counts[t]), core_path=spills.path("core", t),
                      normals_path=spills.path("normals", t) if with_normals else None,
                      reference=cloud_input("reference", ref_src, t), compared=cloud_input("compared", cmp_src, t),

@@ -1,5 +1,5 @@
-"""The series' engine calls, through the engine facade (m3c2kit.engine) and the parameter table
-(m3c2kit.settings): the compare parameters of a series are those of `m3c2 compare`."""
+"""The series' engine calls, through the engine facade (m3c2kit.engine); the engine's Params of a
+series are those of `m3c2 compare` (series.parameters)."""
 from __future__ import annotations
 
 import numpy as np
@@ -7,24 +7,14 @@ import numpy as np
 from ..run.checks import check_coordinate_range, threads_count
 from .. import engine as facade
 from ..base.errors import UsageError
-from ..settings import build_params as table_params
-
-#: Settings that are not engine parameters (the core points, the thread count).
-RUN_SETTINGS = ("core_spacing", "threads")
-
-
-def build_params(settings: dict):
-    """The engine's Params from a series' compare settings (the parameter table's names)."""
-    return table_params("compare", **{k: v for k, v in settings.items() if k not in RUN_SETTINGS})
 
 
 class Comparison:
     """The reference's index and the core normals, kept to compare epochs one at a time
-    (include/m3c2/series.hpp): each result equals m3c2kit.compare(reference, epoch, core) bit for bit."""
+    (include/m3c2/series.hpp): each result equals m3c2kit.compare(reference, epoch, core) bit for
+    bit. `params`: the engine's Params of the series (series.parameters.engine_params)."""
 
-    def __init__(self, reference: np.ndarray, core: np.ndarray, settings: dict, core_normals=None,
-                 threads: int = 0):
-        params = build_params(settings)
+    def __init__(self, reference: np.ndarray, core: np.ndarray, params, core_normals=None, threads: int = 0):
         self._limit = facade.max_abs_coordinate(params)
         check_coordinate_range("reference", None, reference, self._limit)
         normals = None if core_normals is None else np.ascontiguousarray(core_normals, dtype=np.float64)

@@ -330,7 +330,7 @@ def _write_store(folder: Path, data: dict, archive: Path) -> None:
     chunk = st.epoch_chunk(folder)
     # Nobody sees the store before it is published, so commits are only for memory: whole epoch
     # chunks, as many as a series' batch may hold (one commit per epoch: 1,431 epochs in 90 s).
-    from .run import Batch
+    from .batch import Batch
     epoch_bytes = n_core * 8 * len(st.EPOCH_COLUMNS)  # at most 8 bytes per value
     per_commit = max(1, Batch.MAX_BYTES // max(1, epoch_bytes * chunk)) * chunk
     for begin in range(0, n_epochs, per_commit):

@@ -1,31 +1,38 @@
 """Computing a series into its store: ``m3c2 series REFERENCE EPOCH... -o STORE`` (create) and
 ``m3c2 series add STORE EPOCH...`` (append). Core points and normals come from the reference once;
 then one epoch at a time is read, compared and committed, so memory is bounded by the reference
-and the largest epoch. With a Dask scheduler the epochs are tasks and their results are
-committed in epoch order: the same store, bit for bit."""
+and the largest epoch. With a Dask scheduler the epochs are tasks (series.dask_epochs) and their
+results are committed in epoch order: the same store, bit for bit.
+
+Every option is checked, and its messages given, as `m3c2 compare` checks it (series.parameters:
+the parameter table's resolve and the compare run's plan), the default orientation is the one
+rule of settings.orientation, and the normals of --normal-source core are compare's
+(run.core_normals)."""
 from __future__ import annotations
 
 import datetime as dt
-import hashlib
 import json
-import os
-import time
-import uuid
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
 
-from ..run.cores import core_points_for
 from ..base.errors import M3C2Error, UsageError
 from ..io import read_cloud
 from ..io.atomic import refuse_occupied, staged_directory
-from ..engine.result import Result
+from ..io.crs import check_crs
+from ..run.checks import check_core_normals
+from ..run.core_normals import given_core_normals, require_one_per_core_point
+from ..run.cores import core_points_for
 from . import epochs as epochs_mod
 from . import lock as lock_mod
+from . import parameters
 from . import step
 from . import store as st
+from .batch import Batch, Target, epoch_columns, with_kept
 from .engine import Comparison
+from .epoch_files import HashedEpoch, file_digest, file_state, identity, provenance, require_unchanged
+from .run_options import CoreInput, DaskTarget, EpochReading, StoreLayout
 
 
 def _version() -> str:
@@ -36,91 +43,40 @@ def _version() -> str:
         return "unknown"
 
 
-def file_digest(path: Path) -> str:
-    h = hashlib.sha256()
-    with open(path, "rb") as f:
-        for block in iter(lambda: f.read(1 << 20), b""):
-            h.update(block)
-    return h.hexdigest()
+@dataclass(frozen=True)
+class Prepared:
+    """What every epoch of a run is compared with: the reference (its cloud and absolute path),
+    the core points, the given core normals (--normal-source core, else None), the store's
+    recorded parameters (series.parameters) and the engine's Comparison built from them."""
+
+    reference: object  # m3c2kit.io.Cloud
+    reference_path: str
+    core: np.ndarray
+    normals_input: np.ndarray | None
+    settings: dict
+    comparison: Comparison
 
 
-def file_state(path: Path) -> tuple:
-    """What a write to the file changes: device, inode, size, modification and change time. The
-    change time cannot be set back (touch restores a modification time), so an edit between the
-    hash of an epoch and its read, even one keeping size and mtime, is seen (require_unchanged)."""
-    s = os.stat(path)
-    return s.st_dev, s.st_ino, s.st_size, s.st_mtime_ns, s.st_ctime_ns
-
-
-def require_unchanged(epoch) -> None:
-    """After an epoch is read: its file is the one hashed (HashedEpoch.state), or an M3C2Error;
-    else the store would keep one content's SHA-256 with another content's distances."""
-    if getattr(epoch, "state", ()) and file_state(epoch.path) != epoch.state:
-        raise M3C2Error(f"{epoch.path}: changed while this run read it (its size, inode or times differ from when "
-                        f"its SHA-256 was taken); it is not added: rerun when the file is written whole")
-
-
-def epoch_columns(core: np.ndarray, raw: dict) -> dict:
-    """The store's per-epoch columns: those of m3c2 compare's table (Result.columns)."""
-    table = Result.from_engine(core, raw, {}).columns()
-    return {name: table[name] for name in st.EPOCH_COLUMNS}
-
-
-def _orient(settings: dict, reference) -> dict:
-    """As m3c2 compare: --orient, else the reference's scan positions, else +z; none with
-    --normal-source core (the given normals are used as they are: settings.needs)."""
-    if "orient" not in settings and settings.get("normal_source") != "core":
-        positions = getattr(reference, "scan_positions", None)
-        settings = dict(settings, orient=positions.tolist() if positions is not None and len(positions) else "+z")
-    return settings
-
-
-def _engine_settings(settings: dict) -> dict:
-    """The keywords of m3c2kit.settings.build_params (orientation points given as a list become an array)."""
-    out = {k: v for k, v in settings.items() if k not in ("core_spacing",)}
-    if isinstance(out.get("orient"), list):
-        out["orient"] = np.asarray(out["orient"], dtype=np.float64).reshape(-1, 3)
-    return out
-
-
-def create(reference_path: Path, epoch_args, store: Path, settings: dict, *, core_path=None, core_normals=None,
-           threads=0, dask_scheduler=None, client=None, core_chunk=16384, epoch_chunk=8, drop_nonfinite=False,
-           ignore_crs=False, log=print) -> int:
-    """Creates STORE from the reference and adds the epochs; returns the epochs added."""
+def create(reference_path: Path, epoch_args, store: Path, settings: dict, *, core: CoreInput = CoreInput(),
+           layout: StoreLayout = StoreLayout(), reading: EpochReading = EpochReading(),
+           dask: DaskTarget = DaskTarget(), log=print) -> int:
+    """Creates STORE from the reference and adds the epochs; returns the epochs added.
+    `settings`: the parameter table's compare keywords (those given)."""
     st.require_extra()
+    values = preflight(settings, core)
     store = Path(store)
     refuse_existing_output(store)
     resolved = epochs_mod.resolve(epoch_args)  # bad epoch names fail before any work
-    reference = read_cloud(reference_path, drop_nonfinite=drop_nonfinite)
-    core_cloud = read_cloud(core_path, drop_nonfinite=drop_nonfinite) if core_path is not None else None
-    settings = _orient(settings, reference)
-    core = core_points_for(reference.xyz, core_cloud.xyz if core_cloud is not None else None,
-                               settings.get("core_spacing"))
-    if len(core) == 0:
-        raise UsageError("no core points: there is nothing to compute")
-    core = np.ascontiguousarray(core)
-    comparison = Comparison(reference.xyz, core, _engine_settings(settings), core_normals, threads)
-    ref_time = epochs_mod.metadata_epoch(Path(reference_path))
-    attrs = {
-        "format": st.FORMAT, "format_version": st.FORMAT_VERSION, "Conventions": "CF-1.8",
-        "title": "M3C2 time series (m3c2kit)",
-        "parameters": st.canonical(settings),
-        "reference": str(Path(reference_path).resolve()),
-        "reference_sha256": file_digest(Path(reference_path)),
-        "reference_time": "" if ref_time.time is None else str(ref_time.time),
-        "core_points": "file " + str(Path(core_path).resolve()) if core_path is not None else (
-            f"reference subsampled to {settings['core_spacing']}" if settings.get("core_spacing") else "reference"),
-        "history": f"{dt.datetime.now(dt.timezone.utc).isoformat(timespec='seconds')} m3c2kit {_version()}: "
-                   f"m3c2 series",
-    }
+    prepared = _prepare(Path(reference_path), core, values, settings, reading)
+    attrs = _new_store_attributes(Path(reference_path), core.path, prepared.settings)
     # The empty store is built in a private folder and appears at -o whole, its lock already held
     # (lockf locks the file, which the rename moves along), so no other writer comes in between;
     # its epochs are then committed into it as `add` commits them, so a kill keeps those committed.
     held = None
     try:
         with staged_directory(store) as folder:
-            st.create(Path(folder), core, comparison.normals(), attrs, core_chunk=core_chunk,
-                      epoch_chunk=epoch_chunk, core_normals_input=core_normals)
+            st.create(Path(folder), prepared.core, prepared.comparison.normals(), attrs, core_chunk=layout.core_chunk,
+                      epoch_chunk=layout.epoch_chunk, core_normals_input=prepared.normals_input)
             held = lock_mod.acquire(Path(folder), "create", store)
     except BaseException:
         if held is not None:
@@ -132,9 +88,54 @@ def create(reference_path: Path, epoch_args, store: Path, settings: dict, *, cor
                       held=held) as folder:
         todo, index = _todo(store, folder, resolved, True, log)
         planned[0] = len(todo)
-        return _add_epochs(folder, todo, index, comparison, core, reference, threads=threads,
-                           dask_scheduler=dask_scheduler, client=client, settings=settings,
-                           drop_nonfinite=drop_nonfinite, ignore_crs=ignore_crs, log=log, store=store)
+        return _add_epochs(Target(store, folder, index), todo, prepared, reading, dask, log)
+
+
+def preflight(settings: dict, core: CoreInput = CoreInput()) -> dict:
+    """The resolved values of a new store's settings: every option checked as m3c2 compare
+    checks it, with its messages, before any file is read or a Dask scheduler reached."""
+    values = parameters.checked(settings)
+    check_core_normals(values, core.normals, "--core-normals")
+    return values
+
+
+def _prepare(reference_path: Path, core: CoreInput, values: dict, settings: dict, reading: EpochReading) -> Prepared:
+    """A new store's reference, core points, core normals and parameters as recorded, read once."""
+    read = lambda path: read_cloud(path, drop_nonfinite=reading.drop_nonfinite)  # noqa: E731
+    reference = read(reference_path)
+    core_cloud = read(core.path) if core.path is not None else None
+    recorded = parameters.recorded(settings, reference, core_cloud, reference_name=str(reference_path),
+                                   core_name=None if core.path is None else str(core.path),
+                                   read_points=lambda path: read(path).xyz)
+    core_xyz = core_points_for(reference.xyz, core_cloud.xyz if core_cloud is not None else None,
+                               values["core_spacing"])
+    if len(core_xyz) == 0:
+        raise UsageError("no core points: there is nothing to compute")
+    core_xyz = np.ascontiguousarray(core_xyz)
+    normals_input = None
+    if values["normal_source"] == "core":
+        normals_input = given_core_normals(core.normals, core_cloud, read)
+        require_one_per_core_point(normals_input, len(core_xyz))
+    comparison = Comparison(reference.xyz, core_xyz, parameters.engine_params(recorded, core_xyz), normals_input,
+                            reading.threads)
+    return Prepared(reference, str(reference_path.resolve()), core_xyz, normals_input, recorded, comparison)
+
+
+def _new_store_attributes(reference_path: Path, core_path, recorded: dict) -> dict:
+    ref_time = epochs_mod.metadata_epoch(reference_path)
+    spacing = recorded.get("core_spacing")
+    return {
+        "format": st.FORMAT, "format_version": st.FORMAT_VERSION, "Conventions": "CF-1.8",
+        "title": "M3C2 time series (m3c2kit)",
+        "parameters": st.canonical(recorded),
+        "reference": str(reference_path.resolve()),
+        "reference_sha256": file_digest(reference_path),
+        "reference_time": "" if ref_time.time is None else str(ref_time.time),
+        "core_points": "file " + str(Path(core_path).resolve()) if core_path is not None else (
+            f"reference subsampled to {spacing}" if spacing else "reference"),
+        "history": f"{dt.datetime.now(dt.timezone.utc).isoformat(timespec='seconds')} m3c2kit {_version()}: "
+                   f"m3c2 series",
+    }
 
 
 def refuse_existing_output(store: Path) -> None:
@@ -157,41 +158,30 @@ def stored_settings(store: Path) -> dict:
     return json.loads(st.attributes(store)["parameters"])
 
 
-def check_settings(store: Path, stored: dict, given: dict) -> None:
-    """A store holds one parameter set: an option given to `add` must equal the stored one."""
-    for name, value in given.items():
-        if name == "threads":
-            continue
-        if st.canonical(stored.get(name)) != st.canonical(value):
-            raise UsageError(f"{store} was computed with {name} = {stored.get(name)!r}, not {value!r}: a store holds "
-                             f"epochs of one parameter set; create a new store for other parameters")
-
-
-def add(store: Path, epoch_args, *, given_settings=None, threads=0, dask_scheduler=None, client=None,
-        drop_nonfinite=False, ignore_crs=False, log=print) -> int:
-    """Appends the epochs not yet in STORE (a killed run resumes here); returns the epochs added."""
-    xr, zarr = st.require_extra()
+def add(store: Path, epoch_args, *, given_settings=None, reading: EpochReading = EpochReading(),
+        dask: DaskTarget = DaskTarget(), log=print) -> int:
+    """Appends the epochs not yet in STORE (a killed run resumes here); returns the epochs added.
+    `given_settings`: compare keywords given again, each checked against the store's."""
+    st.require_extra()
     store = Path(store)
     # The epochs committed when the lock is taken and those this run adds (for the messages);
     # bad epoch names fail here, before the lock is taken.
     plan = {"before": st.committed_epochs(store), "count": len(epochs_mod.resolve(epoch_args))}
-    kept = lambda folder: step.committed_epochs_text(store, folder, plan["before"], plan["count"],
+    kept = lambda folder: step.committed_epochs_text(store, folder, plan["before"], plan["count"],  # noqa: E731
                                                      "rerun the same command to resume")
     with step.writing(store, "add", kept) as folder:
-        return _add(store, folder, epoch_args, given_settings=given_settings, threads=threads,
-                    dask_scheduler=dask_scheduler, client=client, drop_nonfinite=drop_nonfinite,
-                    ignore_crs=ignore_crs, log=log, plan=plan)
+        return _add(Target(store, folder, plan["before"]), epoch_args, given_settings or {}, reading, dask, log, plan)
 
 
-def _add(store: Path, folder: Path, epoch_args, *, given_settings, threads, dask_scheduler, client, drop_nonfinite,
-         ignore_crs, log, plan: dict) -> int:
-    """add() in the pinned, locked `folder`; `plan` gets the committed count and the epochs to add."""
+def _add(target: Target, epoch_args, given: dict, reading: EpochReading, dask: DaskTarget, log, plan: dict) -> int:
+    """add() in the pinned, locked `target.folder`; `plan` gets the committed count and the epochs to add."""
+    store, folder = target.store, target.folder
     attrs = st.attributes(folder)
     if attrs.get("imported_from"):
         raise UsageError(f"{store} was imported ({attrs['imported_from']}): its M3C2 parameters are unknown, so no "
                          f"epoch can be added that matches them; compute a new store with m3c2 series")
-    settings = json.loads(attrs["parameters"])
-    check_settings(store, settings, given_settings or {})
+    recorded = json.loads(attrs["parameters"])
+    parameters.check_against_store(store, recorded, given)
     reference_path = Path(attrs["reference"])
     if not reference_path.is_file():
         raise M3C2Error(f"{store}: its reference {reference_path} is gone; a series needs its reference")
@@ -201,26 +191,17 @@ def _add(store: Path, folder: Path, epoch_args, *, given_settings, threads, dask
     todo, index = _todo(store, folder, epochs_mod.resolve(epoch_args), False, log)  # refusals before any work
     plan.update(before=index, count=len(todo))
     group = st.open_group(folder)
-    core = np.column_stack([st.read(store, group, a) for a in "xyz"])
+    core = np.ascontiguousarray(np.column_stack([st.read(store, group, a) for a in "xyz"]))
     normals_input = st.read(store, group, "core_normals_input") if "core_normals_input" in group else None
-    reference = read_cloud(reference_path, drop_nonfinite=drop_nonfinite)
-    comparison = Comparison(reference.xyz, np.ascontiguousarray(core), _engine_settings(settings), normals_input,
-                            threads)
-    return _add_epochs(folder, todo, index, comparison, core, reference, threads=threads,
-                       dask_scheduler=dask_scheduler, client=client, settings=settings, drop_nonfinite=drop_nonfinite,
-                       ignore_crs=ignore_crs, log=log, store=store)
-
-
-def _identity(path: Path) -> tuple[str, int, int]:
-    s = os.stat(path)
-    return str(Path(path).resolve()), int(s.st_size), int(s.st_mtime_ns)
-
-
-@dataclass(frozen=True)
-class HashedEpoch(epochs_mod.Epoch):
-    """An epoch to add with the SHA-256 of its file's content (its identity in the store)."""
-    sha256: str = ""
-    state: tuple = ()  # file_state when the hash was taken
+    reference = read_cloud(reference_path, drop_nonfinite=reading.drop_nonfinite)
+    if "orient" in given:  # resolved as create recorded it (the reference's scan positions, a FILE's points)
+        read_points = lambda path: read_cloud(path, drop_nonfinite=reading.drop_nonfinite).xyz  # noqa: E731
+        parameters.check_orient(store, recorded, given["orient"], parameters.recorded_orient(
+            given["orient"], reference, reference_name=str(reference_path), read_points=read_points))
+    comparison = Comparison(reference.xyz, core, parameters.engine_params(recorded, core), normals_input,
+                            reading.threads)
+    prepared = Prepared(reference, str(reference_path), core, normals_input, recorded, comparison)
+    return _add_epochs(replace(target, index=index), todo, prepared, reading, dask, log)
 
 
 def _todo(store: Path, folder: Path, resolved, sort: bool, log):
@@ -242,7 +223,7 @@ def _todo(store: Path, folder: Path, resolved, sort: bool, log):
         state = file_state(e.path)  # before the hash: a write during it changes the state too
         digest = file_digest(e.path)
         if hashes is None:
-            ident = _identity(e.path)
+            ident = identity(e.path)
             if ident in done:
                 log(f"{e.path}: already in {store} (same path, size and modification time): skipped")
                 continue
@@ -272,161 +253,22 @@ def _todo(store: Path, folder: Path, resolved, sort: bool, log):
     return todo, len(info["time"])
 
 
-def _info(epoch, points: int) -> dict:
-    path, size, mtime = _identity(epoch.path)
-    return {"time": epoch.time, "source": path, "source_size": size, "source_mtime_ns": mtime,
-            "time_source": epoch.time_source, "points": points,
-            "source_sha256": getattr(epoch, "sha256", "") or file_digest(epoch.path)}
 
-
-def _add_epochs(folder, todo, index, comparison, core, reference, *, threads, dask_scheduler, client, settings,
-                drop_nonfinite, ignore_crs, log, store) -> int:
-    """Adds the epochs `todo` (_todo) from epoch `index` on into the store's pinned `folder`
-    (messages name `store`)."""
-    if dask_scheduler is not None or client is not None:
-        return _add_dask(store, todo, index, core, settings, threads, dask_scheduler, client, drop_nonfinite,
-                         ignore_crs, log, folder=folder)
-    from ..io.crs import check_crs
-    batch = Batch(folder, index, len(core), log)
+def _add_epochs(target: Target, todo, prepared: Prepared, reading: EpochReading, dask: DaskTarget, log) -> int:
+    """Adds the epochs `todo` (_todo) into `target`: here, one at a time, or on Dask."""
+    if dask.used:
+        from .dask_epochs import add_on_dask
+        return add_on_dask(target, todo, prepared, reading, dask, log)
+    batch = Batch(target, len(prepared.core), log)
     try:
         with batch:
             for epoch in todo:
-                cloud = read_cloud(epoch.path, drop_nonfinite=drop_nonfinite)
+                cloud = read_cloud(epoch.path, drop_nonfinite=reading.drop_nonfinite)
                 require_unchanged(epoch)
-                check_crs(reference, cloud, None, ignore=ignore_crs)
-                raw = comparison.compare(cloud.xyz, cloud, threads)
-                batch.add(epoch_columns(core, raw), _info(epoch, len(cloud)), epoch.path)
+                check_crs(prepared.reference, cloud, None, ignore=reading.ignore_crs)
+                raw = prepared.comparison.compare(cloud.xyz, cloud, reading.threads)
+                batch.add(epoch_columns(prepared.core, raw), provenance(epoch, len(cloud)), epoch.path)
                 del cloud, raw
     except M3C2Error as e:  # a bad or changed epoch file, a CRS mismatch: the epochs before it are committed
-        raise _with_kept(e, store, folder, index, len(todo)) from None
+        raise with_kept(e, target, len(todo)) from None
     return len(todo)
-
-
-def _with_kept(error: M3C2Error, store, folder, index: int, planned: int) -> M3C2Error:
-    """`error` with what the store kept of this run (step.committed_epochs_text): the message
-    of an epoch that failed after others were committed said nothing of them. An interruption is
-    left to step.guarded, which says the same."""
-    if step.is_interruption(error):
-        return error
-    kept = step.committed_epochs_text(store, folder, index, planned, f"resume with: m3c2 series add {store} EPOCH...")
-    return type(error)(f"{error}; {kept}")
-
-
-class Batch:
-    """The epochs computed but not yet committed, committed together (store.append_batch) when
-    the next one would start a new epoch chunk, when they hold more than MAX_BYTES, when the
-    oldest waited MAX_SECONDS, and when the run ends, also by an error (the epochs before the
-    failing one are kept, as when each was committed alone). Writing whole chunks at once instead
-    of one column per epoch (each column rewrote every chunk it touched and every array's
-    metadata) was 90 % of a series' time (docs/performance.md). A kill loses at most the
-    batch's computation: the store stays at its last commit (store.py)."""
-
-    MAX_BYTES = 256 << 20
-    MAX_SECONDS = 60.0
-
-    def __init__(self, store: Path, index: int, n_core: int, log):
-        self.store, self.index, self.log = store, index, log
-        self.chunk = st.epoch_chunk(store)
-        self.epoch_bytes = n_core * 64  # 8 columns of at most 8 bytes
-        self.pending: list = []
-        self.started = 0.0
-
-    def add(self, columns: dict, info: dict, path) -> None:
-        if not self.pending:
-            self.started = time.monotonic()
-        self.pending.append((columns, info, path))
-        end = self.index + len(self.pending)
-        if (end % self.chunk == 0 or len(self.pending) * self.epoch_bytes >= self.MAX_BYTES
-                or time.monotonic() - self.started >= self.MAX_SECONDS):
-            self.commit()
-
-    def __enter__(self):
-        return self
-
-    def __exit__(self, *exc) -> bool:
-        self.commit()
-        return False
-
-    def commit(self) -> None:
-        if not self.pending:
-            return
-        pending, self.pending = self.pending, []  # a failed commit is not tried again on the way out
-        st.append_batch(self.store, self.index, [(c, i) for c, i, _ in pending])
-        self.pending = pending
-        for k, (_, _, path) in enumerate(self.pending):
-            self.log(f"epoch {self.index + k}: {path} committed")
-        self.index += len(self.pending)
-        self.pending = []
-
-
-# Dask: a worker prepares the reference once per store and parameter set, then compares epochs.
-_WORKER_CACHE: dict = {}
-
-
-def dask_epoch(store: str, reference: str, settings: dict, normals_input, epoch: str, threads: int,
-               drop_nonfinite: bool, ignore_crs: bool) -> dict:
-    key = (store, reference, st.canonical(settings))
-    if key not in _WORKER_CACHE:
-        _WORKER_CACHE.clear()
-        ref = read_cloud(reference, drop_nonfinite=drop_nonfinite)
-        group = st.open_group(Path(store))
-        core = np.ascontiguousarray(np.column_stack([np.asarray(group[a][:]) for a in "xyz"]))
-        _WORKER_CACHE[key] = (ref, core, Comparison(ref.xyz, core, _engine_settings(settings), normals_input, threads))
-    ref, core, comparison = _WORKER_CACHE[key]
-    from ..io.crs import check_crs
-    cloud = read_cloud(epoch, drop_nonfinite=drop_nonfinite)
-    check_crs(ref, cloud, None, ignore=ignore_crs)
-    out = epoch_columns(core, comparison.compare(cloud.xyz, cloud, threads))
-    out["points"] = len(cloud)
-    return out
-
-
-def _add_dask(store, todo, index, core, settings, threads, address, client, drop_nonfinite, ignore_crs, log,
-              folder=None) -> int:
-    """The epochs as tasks on a Dask cluster, committed in epoch order (Batch). The connection and
-    every wait are bounded (run.dask.connect, ClusterWatch: a lost scheduler or no live worker is
-    an M3C2Error naming them); after any failure the store is at its last commit and the message
-    says which epochs of this run it holds."""
-    from ..run.dask import ClusterWatch, connect
-    own = client is None
-    if own:
-        client = connect(address)  # the command line connects before the store is created
-    try:
-        watch = ClusterWatch(client, address)
-        group = st.open_group(store)
-        normals_input = np.asarray(group["core_normals_input"][:]) if "core_normals_input" in group else None
-        reference = st.attributes(store)["reference"]
-        run_id = uuid.uuid4().hex[:8]
-        window = max(2, 2 * watch.workers)
-        futures = []
-        submitted = 0
-
-        def submit():
-            nonlocal submitted
-            e = todo[submitted]
-            futures.append(client.submit(dask_epoch, str(Path(store).resolve()), reference, settings, normals_input,
-                                         str(e.path), threads, drop_nonfinite, ignore_crs, pure=False,
-                                         key=f"m3c2-series-{run_id}-{submitted}"))
-            submitted += 1
-
-        while submitted < min(window, len(todo)):
-            submit()
-        batch = Batch(folder or store, index, len(core), log)  # folder: the store pinned by its writing step
-        try:
-            with batch:
-                for k, epoch in enumerate(todo):  # committed in epoch order, whatever order they finish in
-                    watch.wait([futures[k]], lambda: f"epoch {index + k} ({epoch.path})")
-                    out = futures[k].result()
-                    futures[k].release()
-                    futures[k] = None
-                    if submitted < len(todo):
-                        submit()
-                    require_unchanged(epoch)  # the worker read it before its result came back
-                    batch.add(out, _info(epoch, out["points"]), epoch.path)
-        except M3C2Error as e:  # a lost scheduler or worker, a task's error: say what the store kept
-            raise _with_kept(e, store, folder or store, index, len(todo)) from None
-        return len(todo)
-    finally:
-        if own:
-            client.close()
-

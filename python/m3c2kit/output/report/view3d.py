@@ -10,6 +10,8 @@ import numpy as np
 
 #: Points drawn in the 3D view at most (a seeded uniform subsample above: WebGL stays fluid).
 MAX_3D_POINTS = 60_000
+#: The 3D view's element id in the report (the only one of its kind there).
+DIV_ID = "m3c2-view3d"
 MISSING = "The interactive 3D view needs plotly: pip install 'm3c2kit[report]' (or pip install plotly)."
 
 
@@ -27,7 +29,7 @@ def view_div(core: np.ndarray, distance: np.ndarray, vmax: float, units_symbol: 
     and grey; the colour scale is the diverging RdBu of the top view (red = negative),
     symmetric and linear in +-vmax."""
     import plotly.graph_objects as go
-    from plotly.offline import plot
+    import plotly.io as pio
 
     n = len(core)
     idx = np.arange(n)
@@ -50,7 +52,9 @@ def view_div(core: np.ndarray, distance: np.ndarray, vmax: float, units_symbol: 
     fig.update_layout(scene={"aspectmode": "data", "xaxis_title": f"x - {origin[0]:.6g}{unit}",
                              "yaxis_title": f"y - {origin[1]:.6g}{unit}", "zaxis_title": f"z - {origin[2]:.6g}{unit}"},
                       margin={"l": 0, "r": 0, "t": 10, "b": 0}, height=620, legend={"x": 0, "y": 1})
-    div = plot(fig, include_plotlyjs=True, output_type="div", config={"displaylogo": False}, auto_open=False)
+    # A fixed element id (plotly draws a random one): the same run writes the same report, byte for
+    # byte, in memory, in tiles or on Dask (docs/report.md).
+    div = pio.to_html(fig, include_plotlyjs=True, full_html=False, config={"displaylogo": False}, div_id=DIV_ID)
     sampled = (f"{len(idx):,} of {n:,} core points (uniform random subsample, seed {seed})" if n > len(idx)
                else f"all {n:,} core points")
     caption = (f"Interactive 3D view of {sampled}, coloured by distance (RdBu, linear in ±{vmax:.4g}); grey: no "
