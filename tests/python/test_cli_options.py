@@ -7,7 +7,6 @@ parse their own words), so that the next option declared twice with two help tex
 from __future__ import annotations
 
 import argparse
-import ast
 import re
 from collections import defaultdict
 from pathlib import Path
@@ -82,7 +81,6 @@ SEVERAL_MEANINGS = {
     "--orient": (2, "the table's (default: the sensor or +z); calibrate's and simplify's (+z)"),
     "--classifier": (2, "compare's vegetation filter (the table's); m3c2 classify apply's input"),
     "--label-field": (2, "classify train reads labels from it; classify apply writes class codes to it"),
-    "--dask-scheduler": (2, "compare's is still declared in cli/compare.py (tiles); the series' is cli/options.py's"),
 }
 #: Each command's output is its own.
 PER_COMMAND = {"-o", "--output"}
@@ -242,20 +240,3 @@ def test_objects_options_are_checked_where_they_are_read(argv, message, tmp_path
     assert main(["series", "objects", str(tmp_path / "missing.zarr"), "-o", str(out), *argv]) == 2
     assert message in capsys.readouterr().err
     assert not out.exists()
-
-
-# ------------------------------------------------------------- at most 12 parameters
-
-def _parameter_counts(folder: Path):
-    for path in sorted(folder.rglob("*.py")):
-        for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
-            if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef)):
-                a = node.args
-                yield (f"{path.name}:{node.name}", len(a.posonlyargs) + len(a.args) + len(a.kwonlyargs)
-                       + (a.vararg is not None) + (a.kwarg is not None))
-
-
-@pytest.mark.parametrize("folder", ["cli", "analysis"])
-def test_no_function_takes_more_than_12_parameters(folder):
-    package = Path(m3c2kit.__file__).parent
-    assert [(name, n) for name, n in _parameter_counts(package / folder) if n > 12] == []

@@ -88,3 +88,18 @@ def test_every_module_is_in_a_layer_folder():
     modules = sorted(_name(p) for p in PACKAGE.rglob("*.py") if _name(p))
     assert [m for m in modules if m.split(".")[0] not in FOLDERS and m not in ROOT_MODULES] == []
     assert set(FOLDERS) <= {p.name for p in PACKAGE.iterdir() if (p / "__init__.py").exists()}
+
+
+def test_no_function_takes_more_than_12_parameters():
+    """Small named types instead of long signatures (issue 32); compat/ mirrors py4dgeo's own."""
+    long = []
+    for path in sorted(PACKAGE.rglob("*.py")):
+        if path.relative_to(PACKAGE).parts[0] == "compat":
+            continue
+        for node in ast.walk(ast.parse(path.read_text())):
+            if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef)):
+                a = node.args
+                n = len(a.posonlyargs) + len(a.args) + len(a.kwonlyargs) + (a.vararg is not None) + (a.kwarg is not None)
+                if n > 12:
+                    long.append(f"m3c2kit.{_name(path)}.{node.name}: {n}")
+    assert long == []

@@ -35,7 +35,7 @@ def every_mode(root: Path, argv: list, scheduler, capsys, monkeypatch) -> dict: 
     runs = {}
     for mode, extra in modes.items():
         folder = root / mode
-        folder.mkdir()
+        folder.mkdir(parents=True)
         monkeypatch.chdir(folder)
         capsys.readouterr()
         assert main(["compare", *argv, *extra]) == 0, mode
@@ -140,3 +140,94 @@ def test_warnings_and_the_empty_cylinder_diagnosis_in_every_mode(half_overlap, s
     assert any("no compared point in their cylinder at any depth" in w for w in warnings)
     assert any("only beyond --max-depth" in w for w in warnings)
     assert ("LAS stores the coordinates" in warnings[-1]) == (suffix == ".xyz"), warnings
+
+
+def test_classifier_every_kept_point_carries_its_attributes(scheduler, capsys, monkeypatch, tmp_path):  # noqa: F811
+    """--classifier with every kept reference point a core point: their attributes stream beside
+    them through the keep mask (m3c2kit.run.attributes)."""
+    pytest.importorskip("sklearn")
+    from canupo_scene import GROUND, VEGETATION, scene
+    from m3c2kit.classify import train, write_classifier
+
+    a, la = scene(11, size=8)
+    b, lb = scene(11, size=8)
+    clf = train([(a[la == GROUND], "2"), (a[la == VEGETATION], "3")], [0.5, 1.0], max_per_class=3000)
+    data = tmp_path / "data"
+    data.mkdir()
+    write_classifier(data / "c.json", clf)
+    write_cloud_table(data / "ref.las", a, {"intensity": np.arange(len(a)).astype(np.uint16)})
+    write_cloud_table(data / "cmp.las", b[lb == GROUND] + [0, 0, 0.1], {})
+    runs = every_mode(tmp_path / "runs", [*inputs(data), "-o", "change.csv", *BASE, "--classifier",
+                                          str(data / "c.json"), "--keep", "2"], scheduler, capsys, monkeypatch)
+    header = runs["memory"][0]["change.csv"].split(b"\n", 1)[0].split(b",")
+    assert b"intensity" in header
+
+
+def test_the_streamed_diagnosis_is_the_whole_clouds(half_overlap, tmp_path):
+    """The empty-cylinder diagnosis on streamed clouds (small chunks, tilted normals) gives the in-memory
+    diagnosis's numbers exactly: the kept points are a subsequence holding every cylinder's points."""
+    import m3c2kit
+    from m3c2kit.io.streaming import PointSource
+    from m3c2kit.run import quality
+    from m3c2kit.run.cylinder_points import StreamedCloud
+
+    ref, cmp_ = read_cloud(half_overlap / "ref.las"), read_cloud(half_overlap / "cmp.las")
+    with pytest.warns(m3c2kit.M3C2Warning):
+        result = m3c2kit.compare(ref, cmp_, core_spacing=0.15, normal_scale=0.3, projection_scale=0.1,
+                                 max_depth=0.5, orient="1,2,5")
+    streamed = [StreamedCloud(PointSource(half_overlap / f"{n}.las"), 700) for n in ("ref", "cmp")]
+    for at_most in (None, 50):
+        whole = quality.cylinder_diagnosis(ref.xyz, cmp_.xyz, result, projection_scale=0.1, max_depth=0.5,
+                                           at_most=at_most)
+        tiles = quality.cylinder_diagnosis(*streamed, result, projection_scale=0.1, max_depth=0.5, at_most=at_most)
+        assert whole and [vars(d).keys() for d in whole] == [vars(d).keys() for d in tiles]
+        for a, b in zip(whole, tiles):
+            for key, value in vars(a).items():
+                np.testing.assert_array_equal(value, getattr(b, key), err_msg=key)
+
+
+def test_the_streamed_grid_is_the_engines(tmp_path):
+    """--grid's core points by streaming (bands of rows, chunks of 777 points) are the engine's on the
+    whole cloud, bit for bit, even and odd cells and ties included."""
+    from m3c2kit.io.streaming import PointSource
+    from m3c2kit.run import raster
+    from m3c2kit.run.grid_cores import streamed_grid
+    from m3c2kit.run.spill import SpillFolder
+
+    rng = np.random.default_rng(7)
+    xyz = np.column_stack([rng.uniform(-3, 7, 20000), rng.uniform(100, 104, 20000), rng.normal(0, 1, 20000)])
+    xyz[::5, 2] = np.round(xyz[::5, 2], 1)
+    np.save(tmp_path / "r.npy", xyz)
+    for cell in (0.05, 0.37, 2.5):
+        spills = tmp_path / f"spills{cell}"
+        spills.mkdir()
+        a = raster.grid_core_points(xyz, cell)
+        b = streamed_grid(PointSource(tmp_path / "r.npy"), cell, SpillFolder(spills), 777)
+        assert (a.x0, a.y0, a.cell, a.rows, a.cols) == (b.x0, b.y0, b.cell, b.rows, b.cols)
+        assert a.core_points.tobytes() == b.core_points.tobytes()
+        assert a.row.tobytes() == b.row.tobytes() and a.col.tobytes() == b.col.tobytes()
+
+
+def test_attributes_match_as_the_engine_does(tmp_path):
+    """Held core points get the attributes of the first reference point equal to each (duplicates,
+    -0.0 and 0.0 alike), the reference itself every row, and points off the reference none."""
+    from m3c2kit import engine
+    from m3c2kit.io.streaming import PointSource
+    from m3c2kit.run.attributes import core_attributes
+
+    rng = np.random.default_rng(3)
+    xyz = rng.integers(0, 5, (3000, 3)).astype(np.float64)  # many duplicates
+    xyz[:10, 0] = -0.0
+    values = {"i": np.arange(3000), "f": rng.normal(size=3000)}
+    source = PointSource(tmp_path / "r.npy", cloud=m3c2kit_cloud(xyz, values))
+    for core in (xyz[rng.choice(3000, 400)] + 0.0, xyz.copy()):
+        index = engine.match_rows(xyz, core)
+        got = core_attributes(source, core, rows=256).gather(len(core))
+        for name, v in values.items():
+            np.testing.assert_array_equal(got[name], v[index])
+    assert core_attributes(source, xyz[:5] + 0.5, rows=256) is None
+
+
+def m3c2kit_cloud(xyz, fields):
+    from m3c2kit.io import Cloud
+    return Cloud(xyz, fields)

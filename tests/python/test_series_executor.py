@@ -2,11 +2,9 @@
 of the reference with that epoch, bit for bit, for LAS inputs, for an E57 reference whose scan
 pose gives the default orientation (section 3.1.2: towards the scanner), for an explicit
 --orient, a FILE of points, the core points' barycentre and --normal-source core; a bad option
-gives compare's message, in create and in add; the store records the orientation it used; no
-function of the series' executor takes more than 12 parameters."""
+gives compare's message, in create and in add; the store records the orientation it used."""
 from __future__ import annotations
 
-import ast
 import csv
 import json
 import warnings
@@ -26,7 +24,6 @@ COLUMNS = ("distance", "lod", "significant", "n1", "n2", "sigma1", "sigma2", "st
 PER_CORE = ("x", "y", "z", "nx", "ny", "nz", "normal_scale", "roughness")
 #: Below the surface: the default orientation (towards it) points the normals down, +z up.
 SCANNER = np.array([5.0, 5.0, -6.0])
-PACKAGE = Path(__file__).resolve().parents[2] / "python" / "m3c2kit"
 
 
 def _surface(rng, n: int, shift: float) -> np.ndarray:
@@ -226,19 +223,3 @@ def test_dask_uses_the_recorded_orientation(clouds, tmp_path):
     a, b = xr.open_zarr(serial), xr.open_zarr(on_dask)
     for name in COLUMNS + PER_CORE:
         assert _same(a[name].values, b[name].values), name
-
-
-EXECUTOR = [*sorted((PACKAGE / "series").glob("*.py")), PACKAGE / "cli" / "series.py",
-            PACKAGE / "run" / "core_normals.py"]
-
-
-@pytest.mark.parametrize("path", EXECUTOR, ids=lambda p: f"{p.parent.name}/{p.name}")
-def test_no_function_takes_more_than_12_parameters(path):
-    too_many = []
-    for node in ast.walk(ast.parse(path.read_text())):
-        if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef)):
-            a = node.args
-            count = len(a.posonlyargs) + len(a.args) + len(a.kwonlyargs) + bool(a.vararg) + bool(a.kwarg)
-            if count > 12:
-                too_many.append(f"{node.name}: {count}")
-    assert too_many == []

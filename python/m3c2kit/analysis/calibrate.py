@@ -28,6 +28,7 @@ from ..run import in_memory
 from ..run.checks import as_points
 from . import lod_engine
 from ..base.errors import UsageError
+from ..engine.result import STATUS_OK
 from .common import (format_table, loglog_fit, median_spacing, pyplot, readable_log_axis, reference_line,
     sample_indices, save_figure)
 from .roughness import L0, fit_scaling, roughness_by_scale, roughness_table
@@ -123,7 +124,7 @@ def calibrate(cloud, projection_scales, *, spacings=("raw", "3x"),
         out = {}
         for name, extra in runs.items():
             r = in_memory.compare(cloud1, cloud2, core_pts, **common, **extra)
-            valid = r.status == 0
+            valid = r.status == STATUS_OK
             out[name] = (r, valid, 100.0 * float(np.mean(~r.significant[valid])) if valid.any() else math.nan)
         r, valid, pct = out["z"]
         searched = np.isfinite(r.distance)
@@ -177,7 +178,7 @@ def _every_statistic(cloud1, cloud2, core_pts, d_list, common, bootstrap, seed, 
             extra = {"bootstrap": int(bootstrap), "seed": int(seed)} if lod == "bootstrap" else {}
             r = in_memory.compare(cloud1, cloud2, core_pts, median=statistic == "median", lod=lod, threads=threads,
                             **kwargs, **extra)
-            ok = r.status == 0
+            ok = r.status == STATUS_OK
             cols[f"fp_{statistic}_{lod}"].append(float(np.mean(r.significant[ok])) if ok.any() else math.nan)
         rates = {k: cols[f"fp_{k[0]}_{k[1]}"][-1] for k in COMBINATIONS}
         cols["recommended"].append(_closest(rates, 1 - confidence))

@@ -16,12 +16,13 @@ from ..io.files import add_drop_nonfinite_option
 from ..output.report.outputs import CompareOutputs, write_compare_outputs
 from ..output.summary import summary_lines
 from ..run import raster
+from ..run.core_normals import given_core_normals
 from ..run.checks import check_all_fields, check_core_normals, threads_count
 from ..settings import by_name, orientation, parameters_of, resolve
 from ..settings.cloudcompare_params import read_cloudcompare_params
 from ..settings.resolve import without_inapplicable
 from .inputs import input_files, orient_spec, print_notes, read_input
-from .options import add_progress_option, add_table_options, add_verbosity_options
+from .options import add, add_progress_option, add_table_options, add_verbosity_options
 from .parser import phases_for
 def compare_parser(sub) -> None:
     p = sub.add_parser("compare", help="M3C2 distances between two clouds",
@@ -31,20 +32,17 @@ def compare_parser(sub) -> None:
     p.add_argument("compared", type=Path, help="compared cloud (second epoch)")
     p.add_argument("-o", "--output", type=Path, required=True, help="output file: .las .laz .ply .csv .txt")
     core = p.add_mutually_exclusive_group()
-    core.add_argument("--core", type=Path, help="core points file (default: every reference point)")
+    add(core, "core", default_text="every reference point")
     core.add_argument("--grid", type=float, metavar="CELL",
                       help="2D mode (section 6.1.2): core points on a CELL grid over the reference, vertical normals, "
                            "d = 1.1 CELL unless --projection-scale; also writes GeoTIFF rasters <stem>_distance.tif, "
                            "_lod, _significant, _n1, _n2, _status beside -o (docs/report.md)")
     add_table_options(p, "compare", groups={"core_spacing": core})
-    p.add_argument("--core-normals", type=Path, help="with --normal-source core: file of nx,ny,nz per core point "
-                                                     "(default: the core file's normal fields)")
+    add(p, "core_normals")
     p.add_argument("--params", type=Path, help="CloudCompare qM3C2 parameter file; command-line options win")
     p.add_argument("--projected", action="store_true", help="also write the projected positions x1..z2")
     add_drop_nonfinite_option(p)
-    p.add_argument("--ignore-crs", action="store_true",
-                   help="compare clouds whose CRS or units differ, or of which only one has a CRS, or in degrees "
-                        "(default: an error naming them)")
+    add(p, "ignore_crs")
     p.add_argument("--allow-angular", action="store_true",
                    help="accept horizontal coordinates in degrees (a geographic CRS such as EPSG:4326; default: "
                         "an error, as distances would mix degrees and heights)")
@@ -59,9 +57,7 @@ def compare_parser(sub) -> None:
     p.add_argument("--memory-limit", metavar="SIZE",
                    help="out-of-core: pick the tile size so a tile's estimated resident memory stays under SIZE "
                         "(e.g. 2GB; docs/scaling.md)")
-    p.add_argument("--dask-scheduler", metavar="ADDRESS",
-                   help="run the tiles as tasks on this Dask distributed scheduler; every worker must be able to "
-                        "read the inputs and the work folder beside the output (docs/scaling.md)")
+    add(p, "dask_scheduler")
     add_verbosity_options(p)
     add_progress_option(p)
     p.set_defaults(run=run_compare)
@@ -156,7 +152,9 @@ def _compare_tiled(args, settings: dict, outputs: CompareOutputs, prepared, tili
             print(line)
         for path in extra:
             print(f"wrote {path}")
-    print_notes((core_cloud,))  # what reading the core file changed (the streamed clouds are not counted)
+    # What reading changed in the files read whole (text, PLY, E57 and the core file; a streamed
+    # LAS or .npy input's dropped points are not counted).
+    print_notes((ref_src.cloud, cmp_src.cloud, core_cloud))
 
 
 def _compare_outputs(args) -> dict:
@@ -256,12 +254,6 @@ def assign_crs(spec: str, *clouds) -> None:
 
 
 def _core_normals(args, core_cloud) -> np.ndarray:
-    if args.core_normals is not None:
-        return read_input(args.core_normals, args).xyz
-    if core_cloud is None:
-        raise UsageError("--normal-source core needs --core with normal fields (nx, ny, nz) or --core-normals FILE")
-    normals = core_cloud.normals()
-    if normals is not None:
-        return normals
-    raise UsageError(f"{args.core}: no normal fields (nx, ny, nz) for --normal-source core; use --core-normals FILE")
+    """--normal-source core's normals: compare's and series' one rule (run.core_normals)."""
+    return given_core_normals(args.core_normals, core_cloud, lambda path: read_input(path, args))
 

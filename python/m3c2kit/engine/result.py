@@ -10,15 +10,21 @@ from . import OPTIONAL_RESULT_FIELDS, RESULT_FIELDS, STATUS_NAMES
 #: Output columns in every format, in this order (a contract: see docs/cli.md).
 COLUMNS = ("x", "y", "z", "distance", "lod", "significant", "n1", "n2", "sigma1", "sigma2",
            "nx", "ny", "nz", "normal_scale", "roughness", "status")
-PROJECTED_COLUMNS = ("x1", "y1", "z1", "x2", "y2", "z2")
+#: The columns of the core point and its normal, the same for every compared cloud (a series
+#: stores them once), and those of each comparison (a series stores them per epoch).
+CORE_COLUMNS = ("x", "y", "z", "nx", "ny", "nz", "normal_scale", "roughness")
+COMPARISON_COLUMNS = tuple(c for c in COLUMNS if c not in CORE_COLUMNS)
 #: Written after the status when the run made them (uncertainty pm / ep; docs/algorithm.md §6.5).
 UNCERTAINTY_COLUMNS = ("spread1", "spread2")
 
-#: Reason codes of the `status` column: STATUS_NAMES (the engine's, by code).
-STATUS_OK = 0
-STATUS_TOO_FEW_POINTS_FOR_LOD = STATUS_NAMES.index("too_few_points_for_lod")
-#: Statuses of core points without a normal (too few neighbours within D/2, or a degenerate fit).
+#: Reason codes of the `status` column: STATUS_NAMES (the engine's, by code), and its groups, each
+#: owned here: a core point computed in full; without a normal (too few neighbours within D/2, or a
+#: degenerate fit); with a normal but an empty cylinder in the reference (1) or the compared (2)
+#: cloud; with a normal and both cylinders searched, whatever they held.
+STATUS_OK = STATUS_NAMES.index("ok")
 NO_NORMAL = ("too_few_normal_points", "degenerate_normal")
+EMPTY_CYLINDER = {1: "empty_cylinder_reference", 2: "empty_cylinder_compared"}
+SEARCHED = ("ok", *EMPTY_CYLINDER.values(), "too_few_points_for_lod")
 
 
 def status_in(status, names) -> np.ndarray:

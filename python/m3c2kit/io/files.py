@@ -187,6 +187,6 @@ def write_cloud_table(path: str | os.PathLike, xyz: np.ndarray, fields: dict[str
     if fmt is None or fmt.write is None:
         raise CloudWriteError(f"{path}: cannot write {extension_of(Path(path))!r} files "
                               f"(supported: {' '.join(SUPPORTED_WRITE)})")
-    if fmt.name != "LAS/LAZ":  # only LAS declares a scale and no_data: elsewhere the values themselves
+    if not fmt.quantises:  # only LAS declares a scale and no_data: elsewhere the values themselves
         fields = {k: v.values.astype(np.float32) if isinstance(v, Quantised) else v for k, v in fields.items()}
     fmt.write(Path(path), xyz, fields, like)

@@ -73,7 +73,7 @@ def check_all_fields(output, all_fields) -> None:
     if not all_fields:
         return
     fmt = format_for(Path(output), writing=True) if output is not None else None
-    if output is None or (fmt is not None and fmt.name != "LAS/LAZ"):  # no format: the writer names the extension
+    if output is None or (fmt is not None and not fmt.quantises):  # no format: the writer names the extension
         where = "no output file" if output is None else f"-o {output} is {fmt.name}, which has every column already"
         raise UsageError(f"--all-fields would change nothing in this run: it applies only to a LAS/LAZ output "
                          f"({where})")

@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import time
 import uuid
+from typing import Callable
 
 from ..base.errors import M3C2Error
 from ..base.optional import require
@@ -138,7 +139,8 @@ class ClusterWatch:
 
 
 def execute(tasks, task_fn, accept, *, client=None, retries: int = 3, log=lambda s: None, args=(),
-            ordered: bool = False) -> int:
+            ordered: bool = False, describe: Callable[[object, int], str] | None = None,
+            address: str | None = None) -> int:
     """Computes task_fn(task, *args) for every task exactly once and hands each result to
     accept(); returns the number of workers (1 on this machine). THE executor of tasks (a tiled
     run's tiles and classification tiles; a series' epochs can use it the same way):
@@ -151,7 +153,9 @@ def execute(tasks, task_fn, accept, *, client=None, retries: int = 3, log=lambda
       `ordered` in task order, a new task submitted only once the oldest is handed over (so at
       most the window's results wait in memory).
 
-    `log` is told the progress every 5 %. A task's own error propagates."""
+    `log` is told the progress every 5 %. A task's own error propagates. `describe(task, k)`
+    names the k-th task in the errors of a wait ("epoch 3 (b.laz)"; default: "tile 3 of 17");
+    `address`: the scheduler as the user gave it, for those errors."""
     if client is None:
         from .memory import release_memory
         for i, task in enumerate(tasks):
@@ -159,12 +163,8 @@ def execute(tasks, task_fn, accept, *, client=None, retries: int = 3, log=lambda
             release_memory()
             _progress(log, i + 1, len(tasks), _kind(task_fn))
         return 1
-    return _on_dask(client, list(tasks), task_fn, accept, retries=retries, log=log, args=args, ordered=ordered)
-
-
-def run_on_dask(client, tasks, task_fn, accept, *, retries: int, log, args=()) -> int:
-    """:func:`execute` on a Dask client, results handed over as they finish."""
-    return execute(tasks, task_fn, accept, client=client, retries=retries, log=log, args=args)
+    return _on_dask(client, list(tasks), task_fn, accept, retries=retries, log=log, args=args, ordered=ordered,
+                    describe=describe, address=address)
 
 
 def _kind(task_fn) -> str:
@@ -181,8 +181,9 @@ def _label(task, k: int):
     return getattr(task, "tile", k)
 
 
-def _on_dask(client, tasks: list, task_fn, accept, *, retries: int, log, args, ordered: bool) -> int:
-    watch = ClusterWatch(client)
+def _on_dask(client, tasks: list, task_fn, accept, *, retries: int, log, args, ordered: bool, describe,
+             address) -> int:
+    watch = ClusterWatch(client, address)
     workers = max(1, watch.workers)
     run_id = uuid.uuid4().hex[:8]
     window = max(2, 2 * workers)
@@ -202,6 +203,8 @@ def _on_dask(client, tasks: list, task_fn, accept, *, retries: int, log, args, o
         submitted.append(future)
 
     def awaited(futures) -> str:
+        if describe is not None:
+            return ", ".join(describe(running[f][1], running[f][0]) for f in sorted(futures, key=lambda f: running[f][0]))
         numbers = sorted(_label(running[f][1], running[f][0]) for f in futures)
         shown = ", ".join(map(str, numbers[:5])) + (", ..." if len(numbers) > 5 else "")
         return f"{kind}{'s' if len(numbers) > 1 else ''} {shown} of {len(tasks)}"

@@ -5,7 +5,8 @@ are legitimate but likely mis-parameterised. Every executor (in memory, tiled, D
 
 The interface is one function, :func:`run_warnings` (result, resolved parameters) -> messages;
 a result is anything with the arrays ``status``, ``n1``, ``n2``, ``normal_scale`` and
-``roughness`` (a :class:`~m3c2kit.engine.result.Result`, or the columns a tiled merge gathered).
+``roughness`` (a :class:`~m3c2kit.engine.result.Result`, or the columns a tiled merge gathered,
+m3c2kit.run.merge.Evidence, whose ``rows_at`` reads back the diagnosed rows' core points and normals).
 """
 from __future__ import annotations
 
@@ -15,19 +16,19 @@ from typing import Mapping
 import numpy as np
 
 from . import quality
-from ..engine.result import status_in
+from ..engine.result import EMPTY_CYLINDER, SEARCHED, status_in
 from ..base.errors import M3C2Warning
 
 __all__ = ["run_warnings", "cylinder_warnings", "normal_accuracy",
            "normal_accuracy_warnings", "warn"]
 
 #: Statuses of core points whose cylinders were searched (a normal was found).
-_SEARCHED = ("ok", "empty_cylinder_reference", "empty_cylinder_compared", "too_few_points_for_lod")
 
 
 def run_warnings(result, values: Mapping, reference=None, compared=None) -> list[str]:
-    """Every warning for `result` of a run with the resolved parameters `values`; the clouds
-    (xyz arrays), where the run holds them, let m3c2kit.run.quality tell why cylinders are empty."""
+    """Every warning for `result` of a run with the resolved parameters `values`; the clouds let
+    m3c2kit.run.quality tell why cylinders are empty: xyz arrays where the run holds them, or a
+    tiled run's streamed clouds (m3c2kit.run.cylinder_points.StreamedCloud), the same diagnosis."""
     lines = cylinder_warnings(result, values["min_points"], values.get("max_depth"), values.get("projection_scale"))
     failed = quality.normal_failure_message(result, values.get("normal_scale") or 0.0)
     lines += [failed] if failed else []
@@ -40,8 +41,8 @@ def _empty_cylinder_warnings(result, values: Mapping, reference, compared) -> li
     """m3c2kit.run.quality's diagnosis of empty cylinders: no overlap (no depth helps), or a depth too
     short (and the depth that reaches)."""
     status = np.asarray(result.status)
-    with_normal = np.count_nonzero(status_in(status, _SEARCHED))
-    empty = np.count_nonzero(status_in(status, _SEARCHED[1:3]))
+    with_normal = np.count_nonzero(status_in(status, SEARCHED))
+    empty = np.count_nonzero(status_in(status, tuple(EMPTY_CYLINDER.values())))
     if not with_normal or empty / with_normal <= quality.EMPTY_SHARE:
         return []
     diagnoses = quality.cylinder_diagnosis(reference, compared, result, projection_scale=values["projection_scale"],
@@ -53,7 +54,7 @@ def _empty_cylinder_warnings(result, values: Mapping, reference, compared) -> li
 def cylinder_warnings(result, min_points: int, max_depth=None, projection_scale=None) -> list[str]:
     """The median n1 or n2 below `min_points` (a cylinder too thin for the point spacing). Empty
     cylinders in one cloud are m3c2kit.run.quality's to diagnose (no overlap, or a depth too short)."""
-    searched = status_in(result.status, _SEARCHED)
+    searched = status_in(result.status, SEARCHED)
     if not searched.any():
         return []
     lines = []

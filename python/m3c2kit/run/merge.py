@@ -157,7 +157,8 @@ def merge(results: ResultSpills, target: MergeTarget, report: TiledReport, rows:
             rows_at = lambda idx: (report.result.core[idx], report.result.normal[idx])  # noqa: E731
         else:
             rows_at = lambda idx: results.rows_at(idx, rows)  # noqa: E731
-        report.evidence = Evidence({k: np.concatenate(v) for k, v in evidence.items()}, rows_at)
+        # Each column's chunks are released as it is joined (the writer is still open: its peak).
+        report.evidence = Evidence({k: np.concatenate(evidence.pop(k)) for k in EVIDENCE}, rows_at)
         merged(report.evidence)
 
     if output is None:

@@ -23,7 +23,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..engine.result import NO_NORMAL, STATUS_NAMES, status_in
+from ..engine.result import EMPTY_CYLINDER, NO_NORMAL, STATUS_NAMES, status_in
 
 __all__ = ["CylinderDiagnosis", "cylinder_diagnosis", "cylinder_messages", "normal_failure_message",
            "share_text", "NORMAL_FAILURE_SHARE", "EMPTY_SHARE", "WIDE_FACTOR", "SPARSE_EXPECTED", "ADVISED_POINTS",
@@ -50,7 +50,7 @@ ADVISED_POINTS = 10
 #: (issue 19: W1, 19,099 cylinders as long as the clouds' extent).
 WARNING_SAMPLE = 2000
 
-_EMPTY = {1: STATUS_NAMES.index("empty_cylinder_reference"), 2: STATUS_NAMES.index("empty_cylinder_compared")}
+_EMPTY = {cloud: STATUS_NAMES.index(name) for cloud, name in EMPTY_CYLINDER.items()}
 
 
 def share_text(count: int, total: int, of: str, about: bool = False) -> str:

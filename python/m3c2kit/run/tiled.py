@@ -38,13 +38,11 @@ import time
 from contextlib import ExitStack
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Callable
 
 import numpy as np
 
 from . import dask as dask_run
 from . import diagnostics, uncertainty_inputs
-from .. import engine
 from ..base.errors import M3C2Error, UsageError
 from ..base.fault_hook import checkpoint as fault_checkpoint
 from ..io.arrays import bounds
@@ -52,7 +50,6 @@ from ..io.atomic import private_folder
 from ..io.fields import TableStyle
 from ..io.streaming import DEFAULT_CHUNK, PointSource
 from ..settings import engine_params, orientation
-from ..settings.limits import check_halo, check_tile_size, usable_length
 from ..settings.parsers import positive
 from .attributes import core_attributes
 from .checks import as_points, check_all_fields, check_core_normals
@@ -60,85 +57,17 @@ from .cores import streaming_subsample
 from .cylinder_points import StreamedCloud
 from .grid_cores import GridCores, streamed_grid
 from .memory import (BASE_BYTES, BYTES_PER_CORE, BYTES_PER_POINT, MemoryPlan, choose_tile_size, density,
-    parse_memory, plan_memory, release_memory, rss_bytes)
+    plan_memory, release_memory, rss_bytes)
 from .merge import MergeTarget, ResultSpills, merge
 from .outcome import TiledReport
 from .partition import CoreStream, Tiles, distribute, plan_tiles
-from .plan import Plan, make_plan
+from .plan import Plan
 from .spill import SpillFolder
-from .tasks import CloudInput, TileTask, compute_tile, result_dtype, result_rows
+from .tasks import CloudInput, TileTask, result_dtype, result_rows
+from .tiled_plan import TiledOptions, TiledPlan, prepare
 from .vegetation import classify_tiled
 
 __all__ = ["TiledOptions", "TiledPlan", "GridCores", "prepare", "run_tiled"]
-
-
-@dataclass(frozen=True)
-class TiledOptions:
-    """How a tiled run is cut and executed (never what it computes): the tile side `tile_size`, or
-    `memory_limit` (bytes or '2GB': the side chosen so a tile's estimated resident memory fits);
-    the tiles as Dask tasks on `client` (a distributed.Client) or on the scheduler at
-    `dask_scheduler`, each retried `retries` times; the spill folder `work_dir` (default: a private
-    one beside the output); rows read per streamed chunk (`chunk_size`); non-finite points of inputs
-    given as paths dropped (`drop_nonfinite`, else an error); the task run per tile (`task_fn`, a
-    testing aid) and `log`, told the run's progress."""
-
-    tile_size: float | None = None
-    memory_limit: int | str | None = None
-    client: object = None
-    dask_scheduler: str | None = None
-    retries: int = 3
-    work_dir: object = None
-    chunk_size: int = DEFAULT_CHUNK
-    drop_nonfinite: bool = False
-    task_fn: Callable = compute_tile
-    log: Callable[[str], object] = lambda s: None
-
-
-@dataclass
-class TiledPlan:
-    """A tiled run's plan, made once and checked before any file is read (docs/errors.md, "Run
-    limits"): the plan (m3c2kit.run.plan), the neighbourhood's reach h and the tile halo, the tile
-    size (None: from the memory limit) and the memory limit in bytes."""
-
-    plan: Plan
-    reach: float
-    halo: float
-    tile_size: float | None
-    limit: int | None
-
-    def orient(self, spec) -> None:
-        """--orient as resolved with the files' scanner positions (orientation.for_clouds), known
-        once they are read: the plan's, as the in-memory run takes it (the engine's Params are made
-        again with the core points, _core_points)."""
-        self.plan.given["orient"] = spec
-        self.plan.values["orient"] = spec
-
-
-def prepare(params: dict, tiling: TiledOptions = TiledOptions(), *, vegetation=None, read_points=None) -> TiledPlan:
-    """The plan of a tiled run of compare(**params) and its checks that need no file: the options
-    tiles cannot reproduce (their results depend on the whole cloud's order or the core point's
-    index in the run), the tile size against the halo, the memory limit."""
-    plan = make_plan(params, read_points, vegetation=vegetation)
-    values, engine_p = plan.values, plan.engine
-    if engine_p.normal_subsample_spacing > 0:
-        raise UsageError("--normal-subsample cannot be combined with tiling (--tile-size, --memory-limit, "
-                         "--dask-scheduler): the subsampled normal cloud depends on the whole cloud's order, "
-                         "so tiles would not reproduce the untiled result")
-    if values["lod"] == "bootstrap":
-        raise UsageError("--bootstrap cannot be combined with tiling: the bootstrap stream is seeded by the "
-                         "core point's index in the run, which a tile does not know")
-    tile_size, memory_limit = tiling.tile_size, tiling.memory_limit
-    if tile_size is None and memory_limit is None:
-        raise UsageError("tiling needs --tile-size or --memory-limit")
-    h = engine.neighbourhood_reach(engine_p)
-    check_halo(h)
-    if tile_size is not None:
-        tile_size = usable_length("--tile-size", tile_size)
-        check_tile_size(tile_size, h)
-    limit = None
-    if memory_limit is not None:
-        limit = parse_memory(memory_limit) if not isinstance(memory_limit, (int, float)) else int(memory_limit)
-    return TiledPlan(plan, h, engine.tile_halo(engine_p), tile_size, limit)
 
 
 def run_tiled(reference, compared, core=None, *, core_normals=None, output=None, style: TableStyle = TableStyle(),
@@ -160,10 +89,11 @@ def run_tiled(reference, compared, core=None, *, core_normals=None, output=None,
     t_start = time.perf_counter()
     if prepared is None:
         prepared = prepare(params, tiling, vegetation=vegetation, read_points=read_points)
-    elif params or vegetation is not None:
+    elif params or vegetation is not None or read_points is not None:
         raise UsageError("give run_tiled the parameters, or the plan prepare() made of them, not both")
     check_core_normals(prepared.plan.values, core_normals)
-    check_all_fields(output, style.all_fields)
+    if output is not None or not return_result:  # a gathered Result may be written later (its caller checks)
+        check_all_fields(output, style.all_fields)
     report = TiledReport(halo=prepared.reach, memory_limit=prepared.limit)
     client = tiling.client
     own_client = client is None and tiling.dask_scheduler is not None
@@ -177,7 +107,7 @@ def run_tiled(reference, compared, core=None, *, core_normals=None, output=None,
                                                                                            drop_nonfinite=drop)
         with ExitStack() as held:
             spills = _spill_folder(held, tiling.work_dir, output, client)
-            run = _Run(prepared, tiling, report, spills, client, (ref_src, cmp_src), read_points)
+            run = _Run(prepared, tiling, report, spills, client, (ref_src, cmp_src))
             _filter(run)
             _core_points(run, core, core_normals)
             _tile_size(run)
@@ -216,7 +146,6 @@ class _Run:
     spills: SpillFolder
     client: object
     given: tuple  # (reference, compared) sources as given: what the attributes and the warnings read
-    read_points: Callable | None = None
     sources: tuple = ()  # (reference, compared) as the comparison reads them (through a keep mask)
     memory: MemoryPlan | None = None
     stream_rows: int = DEFAULT_CHUNK
@@ -257,8 +186,10 @@ class _Run:
         """The core points' attributes the outputs carry (m3c2kit.run.attributes), or None."""
         if not style.attributes or (output is None and not gather):
             return None
-        cores = self.core_array if self.core_array is not None else self.cores.source
-        return core_attributes(self.given[0], cores, self.stream_rows)
+        if self.core_array is not None:  # matched in one pass, as the other streaming passes
+            return core_attributes(self.given[0], self.core_array, self.stream_rows)
+        # Read beside the merge, a merge chunk at a time: one chunk of each alive at once.
+        return core_attributes(self.given[0], self.cores.source, self.merge_rows)
 
 
 def _filter(run: _Run) -> None:
@@ -313,7 +244,7 @@ def _core_points(run: _Run, core, core_normals) -> None:
     if run.normals is not None and (run.core_array is None or len(run.normals) != len(run.core_array)):
         raise UsageError("core_normals must have one row per core point")
     barycentre = orientation.needs_core_points(values["orient"])
-    run.plan.engine = engine_params(values, "compare", run.read_points, scan_positions=sensor,
+    run.plan.engine = engine_params(values, "compare", run.prepared.read_points, scan_positions=sensor,
                                     core_points=(lambda: (xyz for xyz, _ in run.cores.chunks(run.stream_rows)))
                                     if barycentre else orientation.LATER)
 
@@ -407,36 +338,45 @@ def _partition(run: _Run) -> list[TileTask]:
     return _tasks(run.plan, tiles, run.spills, run.sources, run.streamed, shared, hp, run.normals is not None)
 
 
+@dataclass
+class _Computed:
+    """What the tiles returned so far: the result rows' type, the tiles done, their cloud points."""
+
+    dtype: np.dtype | None = None
+    done: set = field(default_factory=set)
+    tile_points_max: int = 0
+    tile_points_total: int = 0
+
+
 def _compute(run: _Run, tasks: list[TileTask]) -> ResultSpills:
     """4. Every tile computed exactly once, its result rows spilled to disk."""
     report, counts = run.report, run.tiles.counts
     t0 = time.perf_counter()
-    state = {"dtype": None, "done": set(), "tile_points_max": 0, "tile_points_total": 0}
+    state = _Computed()
 
     def accept(out: dict) -> None:
         t = int(out["tile"])
-        if t in state["done"]:
+        if t in state.done:
             raise M3C2Error(f"tile {t} returned twice")
         if out["n"] != counts[t]:
             raise M3C2Error(f"tile {t} returned {out['n']} rows for {counts[t]} core points")
-        if state["dtype"] is None:
-            state["dtype"] = result_dtype(out)
-        run.spills.write("result", t, result_rows(out, state["dtype"]))
-        state["done"].add(t)
+        if state.dtype is None:
+            state.dtype = result_dtype(out)
+        run.spills.write("result", t, result_rows(out, state.dtype))
+        state.done.add(t)
         pts = int(out["n_reference"]) + int(out["n_compared"])
-        state["tile_points_max"] = max(state["tile_points_max"], pts)
-        state["tile_points_total"] += pts
+        state.tile_points_max = max(state.tile_points_max, pts)
+        state.tile_points_total += pts
 
     run.execute(tasks, run.tiling.task_fn, accept, (run.plan.engine, run.values["threads"]))
-    if len(state["done"]) != len(run.tiles):
-        raise M3C2Error(f"only {len(state['done'])} of {len(run.tiles)} tiles were computed")
-    report.tile_points_max = state["tile_points_max"]
-    report.tile_points_total = state["tile_points_total"]
+    if len(state.done) != len(run.tiles):
+        raise M3C2Error(f"only {len(state.done)} of {len(run.tiles)} tiles were computed")
+    report.tile_points_max, report.tile_points_total = state.tile_points_max, state.tile_points_total
     base = report.memory_plan.base if report.memory_plan is not None else BASE_BYTES
     report.estimated_tile_bytes_max = int(base + BYTES_PER_POINT * report.tile_points_max
                                           + BYTES_PER_CORE * int(counts.max()))
     report.seconds["compute"] = time.perf_counter() - t0
-    return ResultSpills(run.spills, state["dtype"], counts, run.tiles.n_core, run.plan.record)
+    return ResultSpills(run.spills, state.dtype, counts, run.tiles.n_core, run.plan.record)
 
 
 def _merge(run: _Run, results: ResultSpills, target: MergeTarget) -> None:

@@ -3,15 +3,11 @@ one epoch on a worker that prepares the reference once per store and parameter s
 client, the one writer (series.batch), commits the results in epoch order: the same store, bit
 for bit, as a run on this machine.
 
-Why not run.dask.run_on_dask, the tiles' submission loop: it hands results over as they finish
-and submits a new task whenever any finishes, so results waiting for a slow earlier epoch would
-pile up without bound, and a series commits in epoch order with memory bounded by its window.
-Here a new epoch is submitted only when the oldest one is committed: at most `window` epochs are
-computed or waiting at any time. The connection and every wait are the shared ones
-(run.dask.connect, ClusterWatch)."""
+The epochs are tasks of the one executor of tasks (run.dask.execute) in its ordered mode: a new
+epoch is submitted only when the oldest one is committed, so at most the submission window's
+epochs are computed or waiting at any time, and every wait is bounded (ClusterWatch)."""
 from __future__ import annotations
 
-import uuid
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -66,38 +62,32 @@ def dask_epoch(task: EpochTask) -> dict:
 
 
 def add_on_dask(target: Target, todo, prepared, reading: EpochReading, dask: DaskTarget, log) -> int:
-    """The epochs `todo` as tasks on the cluster of `dask`, committed in epoch order (Batch) into
-    `target`; `prepared`: the run's series.run.Prepared. Every wait is bounded (ClusterWatch: a
-    lost scheduler or no live worker is an M3C2Error naming them); after any failure the store is
-    at its last commit and the message says which epochs of this run it holds."""
-    from ..run.dask import ClusterWatch, connect
+    """The epochs `todo` as tasks on the cluster of `dask` (run.dask.execute, the one executor of
+    tasks, in its ordered mode), committed in epoch order (Batch) into `target`; `prepared`: the
+    run's series.run.Prepared. Every wait is bounded (a lost scheduler or no live worker is an
+    M3C2Error naming them); after any failure the store is at its last commit and the message
+    says which epochs of this run it holds."""
+    from ..run.dask import connect, execute
     client = dask.client if dask.client is not None else connect(dask.address)
+    store = str(Path(target.store).resolve())
+    tasks = [EpochTask(store, prepared.reference_path, prepared.settings, prepared.normals_input, str(e.path), reading)
+             for e in todo]
+    committed = 0
+
+    def commit(out: dict) -> None:  # in epoch order (ordered=True), whatever order they finish in
+        nonlocal committed
+        epoch = todo[committed]
+        committed += 1
+        require_unchanged(epoch)  # the worker read it before its result came back
+        batch.add(out, provenance(epoch, out["points"]), epoch.path)
+
     try:
-        watch = ClusterWatch(client, dask.address)
-        run_id = uuid.uuid4().hex[:8]
-        window = max(2, 2 * watch.workers)
-        futures = []
-
-        def submit() -> None:
-            k = len(futures)
-            task = EpochTask(str(Path(target.store).resolve()), prepared.reference_path, prepared.settings,
-                             prepared.normals_input, str(todo[k].path), reading)
-            futures.append(client.submit(dask_epoch, task, pure=False, key=f"m3c2-series-{run_id}-{k}"))
-
-        while len(futures) < min(window, len(todo)):
-            submit()
         batch = Batch(target, len(prepared.core), log)
         try:
             with batch:
-                for k, epoch in enumerate(todo):  # committed in epoch order, whatever order they finish in
-                    watch.wait([futures[k]], lambda: f"epoch {target.index + k} ({epoch.path})")
-                    out = futures[k].result()
-                    futures[k].release()
-                    futures[k] = None
-                    if len(futures) < len(todo):
-                        submit()
-                    require_unchanged(epoch)  # the worker read it before its result came back
-                    batch.add(out, provenance(epoch, out["points"]), epoch.path)
+                execute(tasks, dask_epoch, commit, client=client, retries=0, ordered=True, address=dask.address,
+                        log=lambda s: None,  # the batch reports each commit
+                        describe=lambda task, k: f"epoch {target.index + k} ({todo[k].path})")
         except M3C2Error as e:  # a lost scheduler or worker, a task's error: say what the store kept
             raise with_kept(e, target, len(todo)) from None
         return len(todo)

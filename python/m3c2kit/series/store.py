@@ -30,14 +30,14 @@ from pathlib import Path
 import numpy as np
 
 from ..base.errors import M3C2Error, UsageError
+from ..engine.result import COMPARISON_COLUMNS, CORE_COLUMNS
 
 FORMAT = "m3c2kit-series"
 FORMAT_VERSION = 2
 #: The first format whose chunks are all written and checksummed (integrity.py relies on it).
 CHECKSUMMED_FROM = 2
-#: Per core point and epoch, as m3c2 compare's columns (result.COLUMNS).
-EPOCH_COLUMNS = ("distance", "lod", "significant", "n1", "n2", "sigma1", "sigma2", "status")
-CORE_COLUMNS = ("x", "y", "z", "nx", "ny", "nz", "normal_scale", "roughness")
+#: Per core point and epoch, and per core point: m3c2 compare's columns, split as engine.result does.
+EPOCH_COLUMNS = COMPARISON_COLUMNS
 EPOCH_INFO = ("time", "source", "source_size", "source_mtime_ns", "time_source", "points", "source_sha256")
 TEXT_INFO = ("source", "time_source", "source_sha256")
 #: Root attribute: the variables a step is replacing (analysis.publish); set in a commit before
