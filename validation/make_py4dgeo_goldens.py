@@ -6,7 +6,7 @@ Each .npz holds exactly what py4dgeo returned (distances, LODs with its 1.96, n1
 normals), the inputs' description (files or the seeded generator's arguments, sha256 of the arrays),
 the core points, the parameters, and the defect flag of every core point (`py4dgeo_defect_flags`
 in validation/common.py, decided from the inputs and m3c2's normals only, not from either output).
-tests/python/test_agreement_py4dgeo.py recomputes with m3c2 and checks against them without py4dgeo.
+tests/python/engine/test_agreement_py4dgeo.py recomputes with m3c2 and checks against them without py4dgeo.
 """
 from __future__ import annotations
 

@@ -2,7 +2,7 @@
 
 Usage (py4dgeo installed in the running Python; m3c2kit never depends on it):
     python validation/make_py4dgeo_tutorial_golden.py
-writes tests/data/py4dgeo-tutorial/golden.npz, read by tests/python/test_compat_py4dgeo.py.
+writes tests/data/py4dgeo-tutorial/golden.npz, read by tests/python/compat/test_compat_py4dgeo.py.
 """
 from __future__ import annotations
 

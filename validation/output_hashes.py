@@ -120,7 +120,7 @@ def _write(folder: Path, name: str, text: str) -> str:
 
 def _cloudcompare_params(folder: Path, repo: Path) -> list[str]:
     # CloudCompare's parameters for the autzen pair (tests/data/pairs/autzen-bmx/PROVENANCE.md),
-    # as qM3C2 saves them (the file of tests/python/test_cli.py).
+    # as qM3C2 saves them (the file of tests/python/cli/test_cli.py).
     return [_write(folder, "m3c2_params.txt",
                    "[General]\nM3C2VER=1\nNormalScale=2.780864\nNormalMode=0\nNormalPreferedOri=4\n"
                    "SearchScale=5.780864\nSearchDepth=5.5\nUseSinglePass4Depth=true\nSubsampleEnabled=false\n"

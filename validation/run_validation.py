@@ -364,7 +364,7 @@ def main():
     emit("```\n")
     emit("(the script also writes docs/validation.md itself). py4dgeo is installed only in that separate")
     emit("environment; m3c2 never depends on it. The CI keeps py4dgeo's outputs as goldens")
-    emit("(`tests/data/py4dgeo/`, `tests/python/test_agreement_py4dgeo.py`, no py4dgeo needed).\n")
+    emit("(`tests/data/py4dgeo/`, `tests/python/engine/test_agreement_py4dgeo.py`, no py4dgeo needed).\n")
     emit("## Versions and machine\n")
     emit(f"- m3c2 {m3c2kit.__version__}, git commit {git_commit()}")
     emit(f"- py4dgeo {py4dgeo.__version__}, numpy {np.__version__}, matplotlib {matplotlib.__version__}, Python {platform.python_version()}")

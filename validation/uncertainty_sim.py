@@ -15,7 +15,7 @@ A seeded simulator of scans with a known answer:
 
 Each pair is measured at random core points; a core point is a false positive when it is flagged
 significant on a no-change pair. Run ``python validation/uncertainty_sim.py`` for the table and the
-plot of docs/validation.md; tests/python/test_uncertainty_calibration.py runs a reduced campaign.
+plot of docs/validation.md; tests/python/engine/test_uncertainty_calibration.py runs a reduced campaign.
 """
 from __future__ import annotations
 

@@ -5,7 +5,7 @@
 It mutates the seeds of targets.SEEDS (bit flips, byte insertions and deletions, chunk
 duplication and splicing, interesting numbers and tokens) with numpy's PCG64 seeded by --seed,
 so a run is reproducible; a failing input is saved as ./crash-<target>-<n>.bin. Used when atheris
-is unavailable, and by tests/python/test_errors_fuzz.py.
+is unavailable, and by tests/python/cli/test_errors_fuzz.py.
 """
 from __future__ import annotations
 

@@ -25,6 +25,17 @@ if importlib.util.find_spec("m3c2kit") is None:
 signal.signal(signal.SIGINT, signal.default_int_handler)
 
 
+@pytest.fixture
+def pair(tmp_path) -> Path:
+    """`tmp_path` holding ref.xyz, a 20 x 20 grid 0.1 apart, and cmp.xyz, the same 0.1 higher: the
+    smallest pair every command takes, for the tests of options, inputs and messages (a test
+    module that needs another pair defines its own `pair`)."""
+    from synthetic import grid, write_xyz
+    write_xyz(tmp_path / "ref.xyz", grid())
+    write_xyz(tmp_path / "cmp.xyz", grid(z=0.1))
+    return tmp_path
+
+
 @pytest.fixture(scope="session")
 def shared_data() -> Path:
     """`<repo>/../shared/data`, the read-only real-data folder; skips the test when absent."""

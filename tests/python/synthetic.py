@@ -13,6 +13,12 @@ def noisy_plane_pair(n: int = 120, spacing: float = 0.05, offset: float = 0.1, n
     return ref, cmp
 
 
+def grid(n: int = 20, spacing: float = 0.1, z: float = 0.0) -> np.ndarray:
+    """An exact n x n grid of points `spacing` apart at height `z` (no noise: planar clouds)."""
+    g = np.stack(np.meshgrid(np.arange(n) * spacing, np.arange(n) * spacing), -1).reshape(-1, 2)
+    return np.column_stack([g, np.full(len(g), z)])
+
+
 def write_xyz(path, xyz, header: bool = False) -> None:
     with open(path, "w") as f:
         if header:

@@ -34,6 +34,14 @@ def _read(path: Path, args):
     return read_cloud(path, drop_nonfinite=args.drop_nonfinite)
 
 
+def _run_options(p, *, quiet: bool = True) -> None:
+    """How an analysis command runs: --threads, -q (for those that print progress), --drop-nonfinite."""
+    add_table_option(p, "threads", filled=True)
+    if quiet:
+        add(p, "quiet")
+    add_drop_nonfinite_option(p)
+
+
 def _core_options(p, default: str) -> None:
     """--core FILE or --core-spacing S; `default`: the command's core points without either."""
     core = p.add_mutually_exclusive_group()
@@ -77,9 +85,7 @@ def analysis_parsers(sub) -> None:
     add_table_option(p, "variance", filled=True)
     p.add_argument("-o", "--output", type=Path, required=True, help="CSV table")
     add(p, "plot")
-    add_table_option(p, "threads", filled=True)
-    add(p, "quiet")
-    add_drop_nonfinite_option(p)
+    _run_options(p)
     p.set_defaults(run=run_roughness)
 
     p = sub.add_parser("calibrate", help="LOD95 calibration on subsampled copies of one cloud (5.2.1-5.2.2, Figs. 8-9)",
@@ -104,8 +110,7 @@ def analysis_parsers(sub) -> None:
     add(p, "fixed_orient", default="+z")
     p.add_argument("-o", "--output", type=Path, required=True, help="CSV table")
     add(p, "plot")
-    add_table_option(p, "threads", filled=True)
-    add_drop_nonfinite_option(p)
+    _run_options(p, quiet=False)
     p.set_defaults(run=run_calibrate)
 
     p = sub.add_parser("c2c", help="closest-point baselines C2C and C2C_HF (section 3.4)",
@@ -124,9 +129,7 @@ def analysis_parsers(sub) -> None:
     p.add_argument("--rule", choices=RULES,
                    help=f"with --model plane: closer: min(C2C, plane) as CloudCompare >= 2.5; model: the plane "
                         f"distance as CloudCompare 2.3 (default {RULE})")
-    add_table_option(p, "threads", filled=True)
-    add(p, "quiet")
-    add_drop_nonfinite_option(p)
+    _run_options(p)
     p.set_defaults(run=run_c2c)
 
     p = sub.add_parser("simplify", help="self-comparison: local averaging or outlier removal (section 6.3)",
@@ -143,9 +146,7 @@ def analysis_parsers(sub) -> None:
     add(p, "fixed_orient", default="+z")
     p.add_argument("-o", "--output", type=Path, required=True,
                    help="the projected points: .csv .txt .ply .las .laz")
-    add_table_option(p, "threads", filled=True)
-    add(p, "quiet")
-    add_drop_nonfinite_option(p)
+    _run_options(p)
     p.set_defaults(run=run_simplify)
 
     p = sub.add_parser("suggest", help="suggest D, d and the max depth for a pair of clouds",
@@ -156,8 +157,7 @@ def analysis_parsers(sub) -> None:
     p.add_argument("compared", type=Path, help="the compared cloud")
     p.add_argument("--sample", type=integer(1, COUNT_MAX), default=2000, help="sampled core points (default 2000)")
     add(p, "sample_seed", default=0)
-    add_table_option(p, "threads", filled=True)
-    add_drop_nonfinite_option(p)
+    _run_options(p, quiet=False)
     p.set_defaults(run=run_suggest)
 
 

@@ -12,7 +12,7 @@ Two sources, one rule each:
 A shared help says what the option means. Its default is the command's: a value default is shown
 by the help formatter (m3c2kit.cli.parser.HelpFormatter); one the command derives (every reference
 point, d) is the `default_text` the command passes, appended as "(default: ...)".
-tests/python/test_cli_options.py walks every parser so that the next duplicate fails."""
+tests/python/cli/test_cli_options.py walks every parser so that the next duplicate fails."""
 from __future__ import annotations
 
 import argparse

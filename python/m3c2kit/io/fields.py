@@ -3,7 +3,7 @@ stored types, and the core points' own attributes carried beside them.
 
 One table, :data:`FIELDS`, holds every output column once with its three names and its type;
 docs/python.md's field table is generated from it (:func:`markdown_table`, checked by
-tests/python/test_io_fields.py).
+tests/python/io/test_io_fields.py).
 
 Stored types (``float64=False``, the default): values a survey measures (distance, LOD, spreads,
 normal scale, roughness, normal components) as float32 in text and PLY files, whose relative
@@ -19,7 +19,7 @@ LAS/LAZ files (``las=True``) store them as scaled integers with a ``no_data`` va
 (m3c2kit.io.quantised): lengths in int32 at 1e-4 of the CRS unit (0.1 mm: at most 0.05 mm
 off), normal components in int16 at 1e-4, counts in uint32, ``significant`` in uint8; a column
 that does not fit (a length beyond 214 km) stays float32. That keeps a LAZ output within twice
-the size of the same points' input (tests/python/test_output_size.py). LAS files also carry
+the size of the same points' input (tests/python/output/test_output_size.py). LAS files also carry
 only the columns marked ``compact`` (CloudCompare's default set: distance, uncertainty,
 significance, the counts; and ``status``) unless ``all_fields`` (--all-fields); text and PLY
 files carry every column.

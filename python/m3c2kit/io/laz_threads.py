@@ -2,7 +2,7 @@
 
 laspy's lazrs backend compresses and decompresses LAZ chunks in parallel (LazBackend.LazrsParallel)
 on Rust's rayon thread pool, or on the calling thread (LazBackend.Lazrs). Both write the same bytes
-and read the same points (tests/python/test_io_laz_threads.py): chunks are coded independently
+and read the same points (tests/python/io/test_io_laz_threads.py): chunks are coded independently
 either way. The pool is created once per process, on its first use, with RAYON_NUM_THREADS threads
 (all cores when unset), so the limit is set before that first use and remembered; a later request
 for fewer threads than the pool holds decodes serially rather than on more threads than asked.

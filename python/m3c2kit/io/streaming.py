@@ -10,7 +10,7 @@ still in file order:
   decompresses only the octree nodes that meet the box. laspy sorts those nodes by their byte
   offset before decompressing them, and a COPC file is a LAZ file whose chunks are exactly its
   octree nodes, so the points come out in the relative order of a whole-file read (checked in
-  tests/python/test_tiling.py).
+  tests/python/run/test_tiling.py).
 * ``.npy``: ``np.load(mmap_mode="r")`` and slices.
 * Any other format (text, PLY, E57): read whole with :func:`read_cloud` and sliced.
 
@@ -22,7 +22,6 @@ memory and written with :func:`write_cloud_table` at the end.
 from __future__ import annotations
 
 import contextlib
-import os
 from pathlib import Path
 from typing import Iterator
 
@@ -488,7 +487,3 @@ def _laspy_eb_stats_first_point_only() -> bool:
         _EB_PROBE.append(int(struct._raw_min()[0]) == 5)
     return _EB_PROBE[0]
 
-
-def remove_quietly(path) -> None:
-    with contextlib.suppress(OSError):
-        os.remove(path)

@@ -154,10 +154,6 @@ def refuse_existing_output(store: Path) -> None:
     refuse_occupied(store)  # absent or an empty folder (the rule staged_directory applies again at publication)
 
 
-def stored_settings(store: Path) -> dict:
-    return json.loads(st.attributes(store)["parameters"])
-
-
 def add(store: Path, epoch_args, *, given_settings=None, reading: EpochReading = EpochReading(),
         dask: DaskTarget = DaskTarget(), log=print) -> int:
     """Appends the epochs not yet in STORE (a killed run resumes here); returns the epochs added.

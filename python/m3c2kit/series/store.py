@@ -378,12 +378,5 @@ def encode(name: str, values: np.ndarray) -> np.ndarray:
     return np.asarray(values, dtype=np.float64)
 
 
-def open_dataset(path: Path):
-    """xarray.open_zarr of the store as committed."""
-    xr, _ = require_extra()
-    open_group(path)  # a clear error for a path that is not a committed store
-    return xr.open_zarr(str(path))
-
-
 def canonical(settings: dict) -> str:
     return json.dumps(settings, sort_keys=True, default=str)

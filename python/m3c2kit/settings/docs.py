@@ -1,5 +1,5 @@
 """The docs' option table, generated from the parameter table (docs/cli.md holds it between the
-markers below; tests/python/test_settings.py checks it is up to date).
+markers below; tests/python/settings/test_settings.py checks it is up to date).
 
     python -m m3c2kit.settings.docs docs/cli.md     # rewrites the generated section in place
 """

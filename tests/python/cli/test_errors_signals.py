@@ -1,0 +1,146 @@
+"""docs/errors.md, "Interruption" (issue 15, "done when"): real `m3c2 compare` runs, tiled and
+not, killed with every catchable signal and SIGKILL while reading, computing and writing, into a
+folder that holds an older output. After each kill the older output is intact (same bytes); after
+the next run into that folder nothing is left but its output (no temporary, no private folder, no
+spill folder).
+
+Each run is stopped at its phase by the testing aid M3C2_TEST_SIGNAL_AT=PHASE:SIGNAL
+(m3c2kit.base.fault_hook: the run sends itself the signal there), not by sleeping. SIGKILL and SIGTERM
+are sent in every mode at every phase; every other catchable signal once, dealt over the six
+(mode, phase) cases so that each case also sees an ignored signal and three that end the process
+(a few tens of runs in all). What each signal does is its disposition in `m3c2`:
+
+- SIGINT, SIGTERM, SIGHUP, SIGQUIT: handled, `m3c2: error: interrupted by SIG...; no output
+  written`, exit 1, nothing left even before the next run;
+- ignored (SIGPIPE and SIGXFSZ by Python; SIGCHLD, SIGCONT, SIGURG, SIGWINCH by default): the
+  run completes, its output replaces the older one whole;
+- every other signal and SIGKILL end the process at once (killed by the signal); what it left is
+  removed by the next run writing there (io.atomic.remove_stale).
+
+Stop signals (SIGSTOP, SIGTSTP, SIGTTIN, SIGTTOU) pause a run without ending it and are not sent.
+"""
+from __future__ import annotations
+
+import os
+import resource
+import signal
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+from child_env import child_env
+from hostile import finish
+
+DATA = Path(__file__).resolve().parents[2] / "data" / "pairs" / "autzen-bmx"
+PHASES = ("reading", "computing", "writing")
+MODES = {"untiled": [], "tiled": ["--tile-size", "30"]}
+ARGS = ["--normal-scale", "10", "--projection-scale", "5", "--max-depth", "10", "--threads", "2", "--quiet"]
+OLDER = b"older output, to be kept\n"
+
+HANDLED = {"SIGINT", "SIGTERM", "SIGHUP", "SIGQUIT"}
+IGNORED = {"SIGPIPE", "SIGXFSZ", "SIGCHLD", "SIGCONT", "SIGURG", "SIGWINCH"}
+STOPS = {"SIGSTOP", "SIGTSTP", "SIGTTIN", "SIGTTOU"}
+EVERY_CASE = ("SIGKILL", "SIGTERM")
+CASES = [(mode, phase) for mode in MODES for phase in PHASES]
+
+
+def _name(number: int) -> str:
+    if number == signal.SIGRTMIN:
+        return "SIGRTMIN"
+    if number == signal.SIGRTMAX:
+        return "SIGRTMAX"
+    return signal.Signals(number).name
+
+
+def catchable() -> list[str]:
+    """Every signal but the stops and the real-time ones between SIGRTMIN and SIGRTMAX (which
+    behave as these two), plus SIGKILL."""
+    numbers = sorted(s for s in signal.valid_signals() if s < signal.SIGRTMIN or s in (signal.SIGRTMIN, signal.SIGRTMAX))
+    return [_name(s) for s in numbers if _name(s) not in STOPS]
+
+
+def schedule(mode: str, phase: str) -> list[str]:
+    """The signals sent to the runs of one case: EVERY_CASE, and the others dealt in turn over the
+    cases, each class (handled, ignored, ending the process) on its own, so every case gets some
+    of each class that has enough signals."""
+    rest = [s for s in catchable() if s not in EVERY_CASE]
+    dealt = [s for s in rest if s in HANDLED] + [s for s in rest if s in IGNORED] + \
+            [s for s in rest if s not in HANDLED | IGNORED]
+    mine = CASES.index((mode, phase))
+    return list(EVERY_CASE) + [s for i, s in enumerate(dealt) if i % len(CASES) == mine]
+
+
+def _no_core_dump():
+    resource.setrlimit(resource.RLIMIT_CORE, (0, 0))
+
+
+def start(out: Path, mode: str, cwd: Path, signal_at: str | None = None) -> subprocess.Popen:
+    env = child_env(OMP_WAIT_POLICY="passive")  # idle OpenMP threads sleep: many runs share the cores
+    env.pop("M3C2_TEST_SIGNAL_AT", None)
+    if signal_at is not None:
+        env["M3C2_TEST_SIGNAL_AT"] = signal_at
+    argv = [sys.executable, "-m", "m3c2kit", "compare", str(DATA / "autzen-bmx-2010.las"),
+            str(DATA / "autzen-bmx-2023.las"), "-o", str(out), *ARGS, *MODES[mode]]
+    return subprocess.Popen(argv, cwd=cwd, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                            preexec_fn=_no_core_dump)
+
+
+def left_in(folder: Path) -> list[str]:
+    return sorted(os.listdir(folder))
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("mode, phase", CASES)
+def test_a_killed_run_keeps_the_older_output_and_the_next_run_leaves_nothing(tmp_path, mode, phase):
+    signals = schedule(mode, phase)
+    killed, ignored = tmp_path / "killed", tmp_path / "ignored"
+    for folder in (killed, ignored):
+        folder.mkdir()
+        (folder / "out.csv").write_bytes(OLDER)
+    # The runs of one case go together: each stops itself at the phase, whatever the others do
+    # (a private folder of a live run is never removed by another).
+    procs = {s: start((ignored if s in IGNORED else killed) / "out.csv", mode, tmp_path, f"{phase}:{s}")
+             for s in signals}
+    outcomes = {s: finish(p) for s, p in procs.items()}
+
+    for s, (code, err) in outcomes.items():
+        if s in HANDLED:
+            assert (code, err) == (1, f"m3c2: error: interrupted by {s}; no output written\n"), (s, code, err)
+        elif s in IGNORED:
+            assert code == 0, (s, code, err)
+        else:
+            assert code == -getattr(signal, s), (s, code, err)  # ended by the signal at its phase
+    assert (killed / "out.csv").read_bytes() == OLDER  # no kill touched the older output
+
+    code, err = finish(start(killed / "out.csv", mode, tmp_path))  # the next run into the folder
+    assert code == 0, err
+    assert left_in(killed) == ["out.csv"]  # no .part, no private folder, no spill folder
+    fresh = (killed / "out.csv").read_bytes()
+    assert fresh.startswith(b"x,y,z,") and fresh != OLDER
+    if any(s in IGNORED for s in signals):
+        assert (ignored / "out.csv").read_bytes() == fresh  # the run went on: its output, whole
+    assert left_in(ignored) == ["out.csv"]
+    assert not list(tmp_path.glob("core*"))  # the signals with a core dump left none
+
+
+def test_every_catchable_signal_is_sent_in_each_case_or_once():
+    by_case = {case: schedule(*case) for case in CASES}
+    sent = [s for signals in by_case.values() for s in signals]
+    assert set(sent) == set(catchable()) and not set(sent) & STOPS
+    assert {"SIGUSR1", "SIGUSR2", "SIGALRM", "SIGHUP", "SIGQUIT", "SIGSEGV", "SIGPIPE", "SIGRTMIN"} <= set(sent)
+    for signals in by_case.values():
+        assert set(EVERY_CASE) <= set(signals) and set(signals) & IGNORED
+        assert len(set(signals) - HANDLED - IGNORED - {"SIGKILL"}) >= 2
+
+
+def test_the_hook_is_inert_when_unset_or_malformed(tmp_path, monkeypatch):
+    from m3c2kit.base import fault_hook
+
+    for value in (None, "", "reading", "reading:SIGNOPE", "nophase:SIGTERM"):
+        if value is None:
+            monkeypatch.delenv(fault_hook.ENV, raising=False)
+        else:
+            monkeypatch.setenv(fault_hook.ENV, value)
+        for phase in fault_hook.PHASES:
+            fault_hook.checkpoint(phase)  # returns; a signal would end this test
