@@ -18,6 +18,7 @@ from pathlib import Path
 
 import numpy as np
 
+from .. import engine
 from ..base.errors import M3C2Error
 from ..io.atomic import atomic_output
 from ..io.input_file import read_small_bytes, read_small_json
@@ -120,8 +121,8 @@ def _to_json(clf: Classifier) -> dict:
 MAX_SCALES = 10000
 MAX_CLASSIFIERS = 10000
 MAX_BOUNDARY_POINTS = 100000
-#: min_points is a neighbour count the engine takes as a 32-bit unsigned integer.
-MAX_MIN_POINTS = 2**32 - 1
+#: min_points is a neighbour count the engine takes as a 32-bit unsigned integer (engine.COUNT_MAX).
+MAX_MIN_POINTS = engine.COUNT_MAX
 
 
 def _numbers(path, value, where: str, shape: tuple) -> np.ndarray:

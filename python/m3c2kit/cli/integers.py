@@ -10,9 +10,11 @@ from __future__ import annotations
 import argparse
 import math
 
+from .. import engine
+
 __all__ = ["COUNT_MAX", "SEED_MAX", "integer", "positive_real", "fraction_list"]
 
-COUNT_MAX = 2**32 - 1  # the engine's std::uint32_t counts
+COUNT_MAX = engine.COUNT_MAX
 SEED_MAX = 2**64 - 1  # numpy's seeds are unsigned
 
 

@@ -76,7 +76,13 @@ def _user_message(err: Exception) -> str:
     return text
 
 
-def _count(name: str, value, high: int = 2**32 - 1) -> int:
+#: The largest values the binding's integer types hold: the engine's std::uint32_t counts (points,
+#: resamples, epochs) and its int thread count. Every check of a count against the engine is these.
+COUNT_MAX = 2**32 - 1
+THREADS_MAX = 2**31 - 1
+
+
+def _count(name: str, value, high: int = COUNT_MAX) -> int:
     """`value` as an integer the binding's std::uint32_t takes, else a UsageError naming `name`
     (nanobind would raise a TypeError quoting its signature)."""
     if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or not 0 <= int(value) <= high:
@@ -85,7 +91,7 @@ def _count(name: str, value, high: int = 2**32 - 1) -> int:
 
 
 def _threads(value) -> int:
-    return _count("threads", value, 2**31 - 1)  # the binding's int
+    return _count("threads", value, THREADS_MAX)
 
 
 def _progress(progress):

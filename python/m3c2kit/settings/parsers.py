@@ -14,6 +14,7 @@ from pathlib import Path
 
 import numpy as np
 
+from .. import engine
 from ..base.errors import UsageError
 
 AXES = {"+x": (1.0, 0.0, 0.0), "-x": (-1.0, 0.0, 0.0), "+y": (0.0, 1.0, 0.0),
@@ -88,7 +89,7 @@ def _empty(name: str):
     raise UsageError(f"{name} is empty")
 
 
-UINT32_MAX = 2**32 - 1
+UINT32_MAX = engine.COUNT_MAX
 UINT64_MAX = 2**64 - 1
 
 

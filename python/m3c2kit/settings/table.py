@@ -268,7 +268,7 @@ PARAMETERS: tuple[Parameter, ...] = (
     Parameter("core_spacing", "--core-spacing", Real(), section="3.1.1", default=None,
               cloudcompare_keys=("SubsampleRadius", "SubsampleEnabled"), scope="run",
               help="core points = the reference subsampled to this minimum spacing"),
-    Parameter("threads", "--threads", Integer(0, 2**31 - 1, "0 (all) or a positive integer"), section="-",
+    Parameter("threads", "--threads", Integer(0, engine.THREADS_MAX, "0 (all) or a positive integer"), section="-",
               default=0, cli_type=int, cloudcompare_keys=("MaxThreadCount",), commands=BOTH, scope="run",
               help="threads (the computation and LAZ decoding and encoding), 0 for all; results are identical "
                    "for any count"),

