@@ -8,9 +8,9 @@ with the table's range (m3c2kit.cli.options)."""
 from __future__ import annotations
 
 import argparse
-import math
 
 from .. import engine
+from ..settings.parsers import positive
 
 __all__ = ["COUNT_MAX", "SEED_MAX", "integer", "positive_real", "fraction_list"]
 
@@ -32,15 +32,13 @@ def integer(low: int, high: int):
     return parse
 
 
-def positive_real(text: str) -> float:
-    """An argparse ``type`` reading a finite real number > 0."""
-    try:
-        value = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"must be a number, got {text!r}") from None
-    if not (value > 0 and math.isfinite(value)):
-        raise argparse.ArgumentTypeError(f"must be a finite number > 0, got {text}")
-    return value
+def positive_real(flag: str):
+    """An argparse ``type`` reading a finite real number > 0: settings.parsers.positive's check and
+    message, naming `flag` (its UsageError ends the parse with exit 2)."""
+    def parse(text: str) -> float:
+        return positive(flag, text)
+    parse.__name__ = "positive"
+    return parse
 
 
 def fraction_list(text: str) -> list[float]:

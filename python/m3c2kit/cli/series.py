@@ -101,14 +101,19 @@ def smooth_parser():
 
 def _objects_options(p) -> None:
     g = p.add_argument_group("seeds: change points (Anders et al. 2021, 2.3.1; py4dgeo's defaults)")
-    g.add_argument("--window-width", type=integer(2, COUNT_MAX), default=24, help="sliding window of the change-point detection")
-    g.add_argument("--window-min-size", type=integer(0, COUNT_MAX), default=12, help="fewest epochs between two change points")
-    g.add_argument("--window-jump", type=integer(1, COUNT_MAX), default=1, help="epochs between the change-point candidates")
-    g.add_argument("--window-penalty", type=positive_real, default=1.0, help="least cost decrease of a change point")
+    g.add_argument("--window-width", type=integer(2, COUNT_MAX), default=24,
+                   help="sliding window of the change-point detection")
+    g.add_argument("--window-min-size", type=integer(0, COUNT_MAX), default=12,
+                   help="fewest epochs between two change points")
+    g.add_argument("--window-jump", type=integer(1, COUNT_MAX), default=1,
+                   help="epochs between the change-point candidates")
+    g.add_argument("--window-penalty", type=positive_real("--window-penalty"), default=1.0,
+                   help="least cost decrease of a change point")
     g.add_argument("--min-period", type=integer(1, COUNT_MAX), default=24, help="fewest epochs of a seed's change")
     g.add_argument("--height-threshold", type=float, default=0.0, help="least magnitude of a seed's change")
     g.add_argument("--finished-only", action="store_true", help="drop seeds still growing at the last epoch")
-    g.add_argument("--seed-subsampling", type=integer(1, COUNT_MAX), default=1, help="search every k-th core point for seeds")
+    g.add_argument("--seed-subsampling", type=integer(1, COUNT_MAX), default=1,
+                   help="search every k-th core point for seeds")
 
 
 def _use_option(p) -> None:
@@ -130,7 +135,8 @@ def objects_parser():
     p.add_argument("-o", "--output", type=Path, required=True, help="objects table (CSV)")
     _objects_options(p)
     g = p.add_argument_group("region growing (2.3.2) and filters (2.3.3)")
-    g.add_argument("--neighbourhood-radius", type=positive_real, default=1.0, help="core points this close are adjacent")
+    g.add_argument("--neighbourhood-radius", type=positive_real("--neighbourhood-radius"), default=1.0,
+                   help="core points this close are adjacent")
     g.add_argument("--thresholds", type=fraction_list, default="0.1,0.2,0.3,0.4,0.5,0.6,0.7,0.8,0.9",
                    help="DTW thresholds to choose from, in (0, 1]")
     g.add_argument("--min-segments", type=integer(0, COUNT_MAX), default=20, help="fewest core points of an object")

@@ -16,6 +16,7 @@ point as a core point, a kept point that repeats the coordinates of an earlier p
 reference carries its own attributes here, the earlier point's in memory (the engine's first match)."""
 from __future__ import annotations
 
+from abc import ABC, abstractmethod
 from typing import Iterator
 
 import numpy as np
@@ -26,11 +27,12 @@ from ..io.streaming import DEFAULT_CHUNK
 __all__ = ["AttributeRows", "HeldAttributes", "StreamedAttributes", "core_attributes"]
 
 
-class AttributeRows:
+class AttributeRows(ABC):
     """The core points' attributes handed over in core order: take(n) gives the next n rows."""
 
+    @abstractmethod
     def take(self, n: int) -> dict[str, np.ndarray]:
-        raise NotImplementedError
+        """The next `n` rows of every attribute."""
 
     def gather(self, n: int) -> dict[str, np.ndarray]:
         """All of the (remaining) `n` rows at once."""

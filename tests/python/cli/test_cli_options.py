@@ -212,9 +212,9 @@ def test_a_negative_value_meets_its_range_check(argv, message, tmp_path, capsys)
     (["--seed-subsampling", "0"], "--seed-subsampling: must be an integer from 1 to"),
     (["--window-width", "1"], "--window-width: must be an integer from 2 to"),
     (["--window-jump", "0"], "--window-jump: must be an integer from 1 to"),
-    (["--window-penalty", "0"], "--window-penalty: must be a finite number > 0, got 0"),
-    (["--neighbourhood-radius", "-1"], "--neighbourhood-radius: must be a finite number > 0, got -1"),
-    (["--neighbourhood-radius", "nan"], "--neighbourhood-radius: must be a finite number > 0, got nan"),
+    (["--window-penalty", "0"], "--window-penalty must be finite and > 0, got '0'"),
+    (["--neighbourhood-radius", "-1"], "--neighbourhood-radius must be finite and > 0, got '-1'"),
+    (["--neighbourhood-radius", "nan"], "--neighbourhood-radius must be finite and > 0, got 'nan'"),
     (["--thresholds", "0.5,1.5"], "--thresholds: must be numbers in (0, 1], at least one, got '0.5,1.5'"),
     (["--thresholds", ","], "--thresholds: must be numbers in (0, 1], at least one"),
 ])
