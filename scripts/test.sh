@@ -3,7 +3,7 @@
 # a virtual environment), then run every test: the C++ GoogleTest suite (ctest) with GCC, with
 # clang and under AddressSanitizer + UndefinedBehaviorSanitizer; the installed C++ package used
 # by another project; the same bits from a serial build; a wheel built from PyPI alone and run in
-# a clean venv; the Python suite (pytest); bounded fuzzing of the parsers.
+# a clean venv; the Python suite (pytest); the QGIS provider headless; bounded fuzzing of the parsers.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 bash scripts/install.sh --test
@@ -44,6 +44,11 @@ ASAN_OPTIONS=detect_leaks=1 UBSAN_OPTIONS=print_stacktrace=1 \
 step "Python tests"
 repo=$(pwd)
 (cd /tmp && python -m pytest -q -p no:cacheprovider "$repo/tests/python")
+
+# The QGIS Processing provider headless with Debian's QGIS (docs/qgis.md): installs qgis and
+# python3-qgis when missing, then runs tests/qgis against the m3c2 just installed.
+step "QGIS provider, headless"
+M3C2_BIN="$(dirname "$(command -v m3c2)")" bash scripts/check-qgis.sh
 
 # Bounded fuzzing of the parsers of untrusted input (tests/fuzz/, docs/errors.md): 25 s per
 # target with atheris (libFuzzer), or the seeded mutation fuzzer when no atheris wheel installs.

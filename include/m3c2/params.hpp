@@ -105,6 +105,11 @@ struct Params {
   std::uint32_t bootstrap_samples = 0;               ///< resamples of Lod::kBootstrap (>= 2 there, at most
                                                      ///< kMaxBootstrapSamples), App. B
   std::uint64_t bootstrap_seed = 0;                  ///< Lod::kBootstrap: the stream of core point i is (seed, i)
+  /// sigma_c^2: the variance of the spatially correlated error of a cylinder mean at this d (an
+  /// error model's partial sills, `m3c2 variogram`), added inside every eq. (1) LOD's square root:
+  /// z sqrt(s1^2/n1 + s2^2/n2 + sigma_c^2) + reg (docs/algorithm.md, "Spatially correlated errors";
+  /// Rolstad et al. 2009, Hugonnet et al. 2022). 0: off. Refused with PM and EP.
+  double correlated_variance = 0.0;
 
   // Per-point uncertainty (6.2; include/m3c2/uncertainty.hpp, docs/algorithm.md §6.5)
   Uncertainty uncertainty = Uncertainty::kEq1;             ///< eq. (1), M3C2-PM or M3C2-EP
@@ -168,6 +173,8 @@ constexpr void visit_param_fields(Visitor&& visit) {
       "bootstrap_samples", [](auto& p) -> auto& { return p.bootstrap_samples; });
   visit(
       "bootstrap_seed", [](auto& p) -> auto& { return p.bootstrap_seed; });
+  visit(
+      "correlated_variance", [](auto& p) -> auto& { return p.correlated_variance; });
   visit(
       "uncertainty", [](auto& p) -> auto& { return p.uncertainty; });
   visit(

@@ -23,12 +23,15 @@ struct Result {
   std::vector<double> distance;           ///< i2 - i1 along the oriented normal; NaN if not computed
   std::vector<double> lod;                ///< level of detection at the confidence level; NaN if not computed
   std::vector<std::uint8_t> significant;  ///< 1 iff n1, n2 >= min_points and |distance| > lod
-  std::vector<std::uint32_t> n1, n2;      ///< points in each cylinder (0 where no cylinder was searched)
-  std::vector<double> sigma1, sigma2;     ///< spread along the normal (std, or IQR / kIqrToSigma); NaN if undefined
-  std::vector<double> i1, i2;             ///< central positions along the normal, from the core point
-  std::vector<double> normal;             ///< 3 per core point, unit, oriented; NaN if not computed
-  std::vector<double> normal_scale;       ///< D used (the chosen one with multi-scale)
-  std::vector<double> roughness;          ///< sigma(D): spread of the normal neighbours about their plane
+  /// Two-sided p-value of the test the LOD expresses (docs/algorithm.md, "p-values"): p < 1 -
+  /// confidence exactly when significant is 1; NaN where the LOD is NaN (the status says why).
+  std::vector<double> p_value;
+  std::vector<std::uint32_t> n1, n2;   ///< points in each cylinder (0 where no cylinder was searched)
+  std::vector<double> sigma1, sigma2;  ///< spread along the normal (std, or IQR / kIqrToSigma); NaN if undefined
+  std::vector<double> i1, i2;          ///< central positions along the normal, from the core point
+  std::vector<double> normal;          ///< 3 per core point, unit, oriented; NaN if not computed
+  std::vector<double> normal_scale;    ///< D used (the chosen one with multi-scale)
+  std::vector<double> roughness;       ///< sigma(D): spread of the normal neighbours about their plane
   std::vector<PointStatus> status;
   /// PM: each cloud's sigma on the normal; EP: sqrt(n^T S n) of each centre of gravity.
   /// Empty with Uncertainty::kEq1; NaN where not computed.
@@ -51,6 +54,7 @@ void visit_result_fields(R& r, Visitor&& visit) {
   visit("distance", r.distance, 1, false);
   visit("lod", r.lod, 1, false);
   visit("significant", r.significant, 1, false);
+  visit("p_value", r.p_value, 1, false);
   visit("n1", r.n1, 1, false);
   visit("n2", r.n2, 1, false);
   visit("sigma1", r.sigma1, 1, false);

@@ -78,4 +78,18 @@ struct UncertaintyInputs {
   bool covariances = false;
 };
 
+/// The false-discovery-rate procedure of fdr_q_values().
+enum class FdrMethod : std::uint8_t {
+  kBenjaminiHochberg,   ///< BH step-up (Benjamini & Hochberg 1995): FDR <= Q under independence or PRDS
+  kBenjaminiYekutieli,  ///< BY (Benjamini & Yekutieli 2001): BH times c(m) = sum_{i<=m} 1/i, any dependence
+};
+
+/// The adjusted p-values (q-values) of `p`: with the m finite p-values ranked by a stable sort on
+/// (p, index), q_(i) = min_{j >= i} min(1, max(p_(j), c p_(j) m / j)), c = 1 (BH) or c(m) (BY) (the
+/// max only undoes rounding: c m / j >= 1); NaN where p is
+/// NaN (or infinite). A core point is a discovery at level Q iff q <= Q: the step-up procedure's
+/// rejections exactly. O(m log m), float64, the same bits for the same p whatever the order of
+/// the run's tiles (docs/algorithm.md, "False-discovery control").
+std::vector<double> fdr_q_values(std::span<const double> p, FdrMethod method);
+
 }  // namespace m3c2

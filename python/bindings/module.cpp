@@ -2,9 +2,12 @@
 // the GIL released while the engine runs, numpy arrays out (the engine's vectors, not copied).
 
 #include <m3c2/cylinder_index.hpp>
+#include <m3c2/kalman.hpp>
 #include <m3c2/m3c2.hpp>
 #include <m3c2/objects_by_change.hpp>
+#include <m3c2/region_covariance.hpp>
 #include <m3c2/series.hpp>
+#include <m3c2/variogram.hpp>
 
 #include <nanobind/nanobind.h>
 #include <nanobind/ndarray.h>
@@ -33,6 +36,7 @@ m3c2::PointsView view(const Points& a) { return {a.data(), a.shape(0)}; }
 using Ids = nb::ndarray<const std::uint32_t, nb::ndim<1>, nb::c_contig, nb::device::cpu>;
 using Table = nb::ndarray<const double, nb::shape<-1, 8>, nb::c_contig, nb::device::cpu>;
 using Flat = nb::ndarray<const double, nb::c_contig, nb::device::cpu>;
+using Values = nb::ndarray<const double, nb::ndim<1>, nb::c_contig, nb::device::cpu>;
 
 /// One cloud's per-point uncertainty inputs: precisions (N, 3), scan-position ids (N,) and the
 /// scan-position table (K, 8): id, origin x y z, sigma_range, sigma_range_ppm, sigma_scan, sigma_yaw.
@@ -274,6 +278,20 @@ NB_MODULE(_core, m) {
   m.def("neighbourhood_reach", &m3c2::neighbourhood_reach, "params"_a,
         "Largest distance from a core point to a point that can change its result.");
   m.def("tile_halo", &m3c2::tile_halo, "params"_a, "The halo a tile of core points needs.");
+  m.def(
+      "fdr_q_values",
+      [](const nb::ndarray<const double, nb::ndim<1>, nb::c_contig, nb::device::cpu>& p, const std::string& method) {
+        if (method != "bh" && method != "by") throw m3c2::InvalidArgument("fdr method must be bh or by, got " + method);
+        const auto kind = method == "bh" ? m3c2::FdrMethod::kBenjaminiHochberg : m3c2::FdrMethod::kBenjaminiYekutieli;
+        std::vector<double> q;
+        const std::span<const double> values(p.data(), p.shape(0));
+        {
+          nb::gil_scoped_release release;
+          q = m3c2::fdr_q_values(values, kind);
+        }
+        return to_numpy(std::move(q));
+      },
+      "p"_a, "method"_a, "Benjamini-Hochberg (bh) or -Yekutieli (by) adjusted p-values; NaN where p is NaN.");
   m.attr("MAX_CELLS_PER_AXIS") = m3c2::kMaxCellsPerAxis;
   m.def("index_memory", [] {
     const m3c2::IndexMemory mem = m3c2::index_memory();
@@ -352,6 +370,67 @@ NB_MODULE(_core, m) {
       },
       "cloud"_a, "core_points"_a, "diameters"_a, "variance"_a = m3c2::Variance::kSample, "min_points"_a = 3,
       "threads"_a = 0, "progress"_a = nb::none());
+
+  m.def(
+      "variogram_pairs",
+      [](const Points& points, const Values& values_array, const std::vector<double>& edges, std::uint64_t seed,
+         std::uint64_t centres, double near_radius, std::uint32_t max_neighbours, std::uint64_t far_pairs, bool planar,
+         int threads, nb::object progress) {
+        const m3c2::VariogramSampling sampling{seed, centres, near_radius, max_neighbours, far_pairs, planar};
+        const std::vector<double> values(values_array.data(), values_array.data() + values_array.shape(0));
+        m3c2::VariogramSums r = run_engine(std::move(progress), threads, [&](const m3c2::RunOptions& run) {
+          return m3c2::variogram_pairs(view(points), values, edges, sampling, run);
+        });
+        nb::dict d;
+        d["pairs"] = to_numpy(std::move(r.pairs));
+        d["lag_sum"] = to_numpy(std::move(r.lag_sum));
+        d["half_sq_sum"] = to_numpy(std::move(r.half_sq_sum));
+        return d;
+      },
+      "points"_a, "values"_a, "edges"_a, "seed"_a, "centres"_a, "near_radius"_a, "max_neighbours"_a, "far_pairs"_a,
+      "planar"_a, "threads"_a = 0, "progress"_a = nb::none());
+
+  // sum_i sum_j C(|x_i - x_j|) of an error model's correlated components over a region's points
+  // (include/m3c2/region_covariance.hpp): by bins, or exactly (O(N^2), for tests)
+  using PlanPoints = nb::ndarray<const double, nb::shape<-1, 2>, nb::c_contig, nb::device::cpu>;
+  const auto covariance_components = [](const std::vector<std::uint8_t>& kinds, const std::vector<double>& sills,
+                                        const std::vector<double>& ranges) {
+    if (kinds.size() != sills.size() || kinds.size() != ranges.size())
+      throw m3c2::InvalidArgument("components: kinds, sills and ranges differ in length");
+    std::vector<m3c2::CovarianceComponent> out;
+    for (std::size_t k = 0; k < kinds.size(); ++k)
+      out.push_back({static_cast<m3c2::CovarianceKind>(kinds[k]), sills[k], ranges[k]});
+    return out;
+  };
+  m.def(
+      "region_covariance_sum",
+      [covariance_components](const PlanPoints& xy, const std::vector<std::uint8_t>& kinds,
+                              const std::vector<double>& sills, const std::vector<double>& ranges, double bin_fraction,
+                              double exponential_reach, int threads, nb::object progress) {
+        const auto components = covariance_components(kinds, sills, ranges);
+        m3c2::CovarianceSumOptions options;
+        options.bin_fraction = bin_fraction;
+        options.exponential_reach = exponential_reach;
+        const std::span<const double> flat(xy.data(), 2 * xy.shape(0));
+        m3c2::CovarianceSum r = run_engine(std::move(progress), threads, [&](const m3c2::RunOptions& run) {
+          return m3c2::region_covariance_sum(flat, components, options, run);
+        });
+        return nb::make_tuple(r.sum, r.bin_side);
+      },
+      "xy"_a, "kinds"_a, "sills"_a, "ranges"_a, "bin_fraction"_a = 0.125, "exponential_reach"_a = 4.0, "threads"_a = 0,
+      "progress"_a = nb::none());
+  m.def(
+      "region_covariance_exact",
+      [covariance_components](const PlanPoints& xy, const std::vector<std::uint8_t>& kinds,
+                              const std::vector<double>& sills, const std::vector<double>& ranges, int threads,
+                              nb::object progress) {
+        const auto components = covariance_components(kinds, sills, ranges);
+        const std::span<const double> flat(xy.data(), 2 * xy.shape(0));
+        return run_engine(std::move(progress), threads, [&](const m3c2::RunOptions& run) {
+          return m3c2::region_covariance_exact(flat, components, run);
+        });
+      },
+      "xy"_a, "kinds"_a, "sills"_a, "ranges"_a, "threads"_a = 0, "progress"_a = nb::none());
 
   m.def(
       "subsample_min_spacing",
@@ -608,4 +687,85 @@ NB_MODULE(_core, m) {
         return d;
       },
       "distances"_a, "core_points"_a, "params"_a, "threads"_a = 0, "progress"_a = nb::none());
+
+  // The Kalman filter and RTS smoother of a series (include/m3c2/kalman.hpp).
+  using Moments = nb::ndarray<double, nb::ndim<3>, nb::c_contig, nb::device::cpu>;
+  nb::class_<m3c2::KalmanParams>(m, "KalmanParams")
+      .def(nb::init<>())
+      .def_prop_rw(
+          "order", [](const m3c2::KalmanParams& p) { return int(p.model); },
+          [](m3c2::KalmanParams& p, int v) {
+            if (v != 2 && v != 3) throw m3c2::InvalidArgument("the Kalman state's order must be 2 or 3");
+            p.model = m3c2::KalmanModel(v);
+          })
+      .def_prop_rw(
+          "discrete_noise", [](const m3c2::KalmanParams& p) { return p.noise == m3c2::KalmanNoise::kDiscrete; },
+          [](m3c2::KalmanParams& p, bool v) {
+            p.noise = v ? m3c2::KalmanNoise::kDiscrete : m3c2::KalmanNoise::kContinuous;
+          })
+      .def_rw("process_noise", &m3c2::KalmanParams::process_noise)
+      .def_rw("prior_given", &m3c2::KalmanParams::prior_given)
+      .def_rw("prior_time", &m3c2::KalmanParams::prior_time)
+      .def_rw("initial_variance", &m3c2::KalmanParams::initial_variance);
+  const auto kalman_block = [](const Series2D& values, const Series2D& variance, const Series1D& times,
+                               std::size_t resume_from, const std::optional<Series2D>& prior_mean) {
+    const std::size_t rows = values.shape(0), epochs = values.shape(1);
+    if (variance.shape(0) != rows || variance.shape(1) != epochs || times.shape(0) != epochs)
+      throw m3c2::InvalidArgument("values, variances (core x epoch) and times (epoch) must agree in shape");
+    m3c2::KalmanBlock b;
+    b.values = values.data(), b.variance = variance.data(), b.times = times.data();
+    b.rows = rows, b.epochs = epochs, b.resume_from = resume_from;
+    if (prior_mean) {
+      if (prior_mean->shape(0) != rows) throw m3c2::InvalidArgument("prior_mean must have a row per core point");
+      b.prior_mean = prior_mean->data();
+    }
+    return b;
+  };
+  m.def(
+      "kalman_smooth",
+      [kalman_block](const Series2D& values, const Series2D& variance, const Series1D& times, Moments moments,
+                     const m3c2::KalmanParams& params, std::size_t resume_from,
+                     const std::optional<Series2D>& prior_mean, int threads) {
+        m3c2::KalmanBlock b = kalman_block(values, variance, times, resume_from, prior_mean);
+        const std::size_t k = std::size_t(params.model), m_ = m3c2::kalman_moments(params.model);
+        if (prior_mean && prior_mean->shape(1) != k)
+          throw m3c2::InvalidArgument("prior_mean must have a column per state");
+        if (moments.shape(0) != b.rows || moments.shape(1) != b.epochs || moments.shape(2) != m_)
+          throw m3c2::InvalidArgument("moments must be core x epoch x " + std::to_string(m_));
+        b.moments = moments.data();
+        auto r = run_engine(nb::none(), threads,
+                            [&](const m3c2::RunOptions& run) { return m3c2::kalman_smooth(params, b, run); });
+        nb::dict d;
+        d["mean"] = to_numpy(std::move(r.mean), k);
+        d["sd"] = to_numpy(std::move(r.sd), k);
+        d["log_likelihood"] = to_numpy(std::move(r.log_likelihood));
+        return d;
+      },
+      "values"_a, "variance"_a, "times"_a, "moments"_a, "params"_a, "resume_from"_a = 0, "prior_mean"_a = nb::none(),
+      "threads"_a = 0);
+  m.def(
+      "kalman_log_likelihood",
+      [kalman_block](const Series2D& values, const Series2D& variance, const Series1D& times,
+                     const m3c2::KalmanParams& params, const std::optional<Series2D>& prior_mean, int threads) {
+        const m3c2::KalmanBlock b = kalman_block(values, variance, times, 0, prior_mean);
+        if (prior_mean && prior_mean->shape(1) != std::size_t(params.model))
+          throw m3c2::InvalidArgument("prior_mean must have a column per state");
+        return run_engine(nb::none(), threads,
+                          [&](const m3c2::RunOptions& run) { return m3c2::kalman_log_likelihood(params, b, run); });
+      },
+      "values"_a, "variance"_a, "times"_a, "params"_a, "prior_mean"_a = nb::none(), "threads"_a = 0);
+  m.def(
+      "lod_observation_variance",
+      [](const m3c2::Params& params, const Series1D& lod, const Series1D& sigma1, const Series1D& n1,
+         const Series1D& sigma2, const Series1D& n2, int threads) {
+        const std::size_t n = lod.shape(0);
+        for (const Series1D* a : {&sigma1, &n1, &sigma2, &n2})
+          if (a->shape(0) != n) throw m3c2::InvalidArgument("lod, sigma1, n1, sigma2 and n2 must have one length");
+        auto out = run_engine(nb::none(), threads, [&](const m3c2::RunOptions& run) {
+          return m3c2::lod_observation_variance(params, lod.data(), sigma1.data(), n1.data(), sigma2.data(), n2.data(),
+                                                n, run);
+        });
+        return to_numpy(std::move(out));
+      },
+      "params"_a, "lod"_a, "sigma1"_a, "n1"_a, "sigma2"_a, "n2"_a, "threads"_a = 0);
 }

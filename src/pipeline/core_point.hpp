@@ -214,13 +214,12 @@ inline void measure(const Params& params, double z, bool lod_by_model, const Cyl
     r.status[i] = PointStatus::kTooFewPointsForLod;
     return;
   }
-  if (params.lod == Lod::kBootstrap) {
-    r.lod[i] = z * (bootstrap_sigma(s.t1, s.t2, params, i, s.work, pulse) + params.registration_error);
-  } else {
-    const double critical = critical_value(params, z, a.spread.se, n1, b.spread.se, n2);
-    r.lod[i] = lod_parametric(critical, a.spread.se, b.spread.se, params.registration_error);
-  }
-  r.significant[i] = std::abs(r.distance[i]) > r.lod[i];
+  // The LOD and the test it expresses: `significant` and `p_value` decided together (p_value.hpp).
+  const LodTest test = params.lod == Lod::kBootstrap
+                           ? bootstrap_test(params, z, bootstrap_sigma(s.t1, s.t2, params, i, s.work, pulse))
+                           : parametric_test(params, z, a.spread.se, n1, b.spread.se, n2);
+  r.lod[i] = test.lod;
+  decide(test, 1.0 - params.confidence, i, r);
   r.status[i] = PointStatus::kOk;
 }
 

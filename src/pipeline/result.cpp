@@ -18,7 +18,7 @@ std::string_view status_name(PointStatus s) {
 
 void Result::resize(std::size_t n) {
   constexpr double nan = std::numeric_limits<double>::quiet_NaN();
-  for (auto* v : {&distance, &lod, &sigma1, &sigma2, &i1, &i2, &normal_scale, &roughness}) v->assign(n, nan);
+  for (auto* v : {&distance, &lod, &p_value, &sigma1, &sigma2, &i1, &i2, &normal_scale, &roughness}) v->assign(n, nan);
   normal.assign(3 * n, nan);
   significant.assign(n, 0);
   n1.assign(n, 0);

@@ -79,6 +79,8 @@ void validate_params(const Params& p) {
   if (!(p.registration_error >= 0.0) || !std::isfinite(p.registration_error))
     fail("registration_error", "finite and >= 0", p.registration_error);
   if (!(p.confidence > 0.0 && p.confidence < 1.0)) fail("confidence", "in (0, 1)", p.confidence);
+  if (!(p.correlated_variance >= 0.0) || !std::isfinite(p.correlated_variance))
+    fail("correlated_variance", "finite and >= 0", p.correlated_variance);
   if (p.min_points < 1) fail("min_points", ">= 1", p.min_points);
   if (p.lod == Lod::kBootstrap && p.bootstrap_samples < 2)
     fail("bootstrap_samples", ">= 2 with the bootstrap LOD", p.bootstrap_samples);

@@ -78,6 +78,12 @@ std::vector<std::int32_t> scan_rows(const CloudUncertainty& c, PointsView cloud,
 void validate_uncertainty_params(const Params& p) {
   if (p.uncertainty == Uncertainty::kEq1) return;
   const char* name = p.uncertainty == Uncertainty::kPrecisionMaps ? "pm" : "ep";
+  // PM's precision maps and EP's alignment covariance already model the correlated error the
+  // variogram measures: adding it would count it twice.
+  if (p.correlated_variance != 0.0)
+    throw InvalidArgument(
+        std::string("uncertainty ") + name +
+        " models correlated errors itself: an error model (correlated_variance) applies to eq. (1) only");
   // Its LOD has no n-dependent statistic: z applies (Lod::kAuto's rule gives z too); the bootstrap
   // and Welch's t are eq. (1)'s.
   if (p.lod == Lod::kBootstrap)
@@ -167,12 +173,15 @@ void UncertaintyModel::measure(const Vec3& core, const Vec3& normal, std::span<c
     const double s2 = precision_sigma(compared_, inputs_.compared.precision, points2, normal, params_.precision_scale2,
                                       params_.precision_rule);
     r.spread1[i] = s1, r.spread2[i] = s2;
-    r.lod[i] = z_ * (std::sqrt(s1 * s1 + s2 * s2) + params_.registration_error);
-    r.significant[i] = std::abs(r.distance[i]) > r.lod[i];
+    LodTest test;  // a normal test of d over the same scale (docs/algorithm.md, "p-values")
+    test.scale = std::sqrt(s1 * s1 + s2 * s2) + params_.registration_error;
+    test.lod = r.lod[i] = z_ * test.scale;
+    decide(test, 1.0 - params_.confidence, i, r);
     r.status[i] = PointStatus::kOk;
     return;
   }
   CentreOfGravity a, b;
+  LodTest test;  // EP's LOD and the test it expresses (set with the LOD below)
   if (params_.ep_covariance == EpCovariance::kEmpirical) {
     // eq. (1)'s distance and spreads (already in r), the alignment propagated (docs/algorithm.md §6.5)
     a.offset = r.i1[i] * normal, b.offset = r.i2[i] * normal;
@@ -196,10 +205,15 @@ void UncertaintyModel::measure(const Vec3& core, const Vec3& normal, std::span<c
       for (int e = 0; e < 9; ++e)
         r.covariance1[9 * i + e] = a.covariance(e / 3, e % 3), r.covariance2[9 * i + e] = b.covariance(e / 3, e % 3);
     if (params_.ep_lod == EpLod::kProjected) {
-      r.lod[i] = z_ * std::sqrt(normal.dot(sum * normal));
+      test.scale = std::sqrt(normal.dot(sum * normal));  // the distance's standard error
+      r.lod[i] = z_ * test.scale;
     } else {
+      // d^2 n^T S^-1 n > chi2(3, confidence): T = |d| / scale with scale = (n^T S^-1 n)^-1/2
       const Eigen::LLT<Eigen::Matrix3d> llt(sum);
-      r.lod[i] = llt.info() == Eigen::Success ? std::sqrt(chi2_ / normal.dot(llt.solve(normal))) : kNaN;
+      const double w = llt.info() == Eigen::Success ? normal.dot(llt.solve(normal)) : kNaN;
+      r.lod[i] = std::sqrt(chi2_ / w);
+      test.scale = 1.0 / std::sqrt(w);
+      test.law = {TestLaw::Kind::kChiSquared, 3.0};
     }
   } else {
     r.distance[i] = r.i1[i] = r.i2[i] = kNaN;
@@ -210,7 +224,8 @@ void UncertaintyModel::measure(const Vec3& core, const Vec3& normal, std::span<c
     r.status[i] = PointStatus::kTooFewPointsForLod;
     return;
   }
-  r.significant[i] = std::abs(r.distance[i]) > r.lod[i];
+  test.lod = r.lod[i];
+  decide(test, 1.0 - params_.confidence, i, r);
   r.status[i] = PointStatus::kOk;
 }
 

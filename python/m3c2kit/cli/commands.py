@@ -1,4 +1,4 @@
-"""`m3c2 normals`, `m3c2 subsample` and `m3c2 info`."""
+"""`m3c2 normals`, `m3c2 subsample`, `m3c2 info` and `m3c2 convert`."""
 from __future__ import annotations
 
 from pathlib import Path
@@ -48,6 +48,16 @@ def info_parser(sub) -> None:
     p.set_defaults(run=run_info)
 
 
+def convert_parser(sub) -> None:
+    # The QGIS provider's route from any output to a table QGIS reads (its Python has no m3c2kit).
+    p = sub.add_parser("convert", help="copy a point-cloud file into another format, every field kept")
+    p.add_argument("input", type=Path, help="a point-cloud file")
+    p.add_argument("-o", "--output", type=Path, required=True,
+                   help="the copy, format by extension: .csv .txt .ply .las .laz (the CRS kept where the format holds one)")
+    add_drop_nonfinite_option(p)
+    p.set_defaults(run=run_convert)
+
+
 def run_normals(args) -> int:
     resolve({p.name: getattr(args, p.name) for p in parameters_of("normals")}, "normals")  # before any file is read
     check_outputs({"-o": args.output}, input_files(args))
@@ -89,6 +99,14 @@ def run_subsample(args) -> int:
     fields = {name: np.asarray(values)[kept] for name, values in cloud.fields.items()}
     write_cloud_table(args.output, cloud.xyz[kept], fields, like=cloud)
     print(f"{args.output}: kept {len(kept)} of {len(cloud.xyz)} points (min spacing {args.spacing})")
+    return 0
+
+
+def run_convert(args) -> int:
+    check_outputs({"-o": args.output}, input_files(args))
+    cloud = read_input(args.input, args)
+    write_cloud_table(args.output, cloud.xyz, dict(cloud.fields), like=cloud)
+    print(f"wrote {args.output}: {len(cloud.xyz):,} points, columns x, y, z{''.join(', ' + n for n in cloud.fields)}")
     return 0
 
 

@@ -13,7 +13,7 @@ from ..io import laspy_local, laz_threads
 from ..io.input_file import os_error_message
 from .analysis import analysis_parsers
 from .classify import classify_parsers
-from .commands import info_parser, normals_parser, subsample_parser
+from .commands import convert_parser, info_parser, normals_parser, subsample_parser
 from .compare import compare_parser
 from .parser import ArgumentParser
 
@@ -28,8 +28,10 @@ def make_parser() -> argparse.ArgumentParser:
     parser.add_argument("--version", action="version", version=f"m3c2 (m3c2kit) {__version__}")
     sub = parser.add_subparsers(dest="command", required=True, parser_class=ArgumentParser)
     from .series import series_parsers  # noqa: PLC0415 - m3c2 series (docs/series.md)
-    for build in (compare_parser, normals_parser, subsample_parser, info_parser, analysis_parsers, classify_parsers,
-                  series_parsers):
+    from .variogram import variogram_parser  # noqa: PLC0415 - m3c2 variogram (docs/analysis.md)
+    from .aggregate import aggregate_parser  # noqa: PLC0415 - m3c2 aggregate (docs/analysis.md)
+    for build in (compare_parser, normals_parser, subsample_parser, info_parser, convert_parser, analysis_parsers, classify_parsers,
+                  series_parsers, variogram_parser, aggregate_parser):
         build(sub)
     return parser
 

@@ -3,6 +3,7 @@
     m3c2 series REFERENCE EPOCH... -o STORE [compare options]   create a store
     m3c2 series add STORE EPOCH...                               append epochs (resumes a killed run)
     m3c2 series smooth STORE --window N                          temporal median -> smoothed_distance
+    m3c2 series kalman STORE [--model M] [--process-noise Q|auto] Kalman filter and RTS smoother -> kalman_*
     m3c2 series changepoints STORE --core I                      change points of one core point
     m3c2 series objects STORE -o OBJECTS.csv                     4D objects-by-change
     m3c2 series report STORE -o REPORT.html                      time series and object plots
@@ -21,7 +22,7 @@ from .integers import COUNT_MAX, fraction_list, integer, positive_real
 from .options import add, add_table_option
 from ..io.files import add_drop_nonfinite_option
 
-ACTIONS = ("add", "smooth", "changepoints", "objects", "report", "import", "check")
+ACTIONS = ("add", "smooth", "kalman", "changepoints", "objects", "report", "import", "check")
 STORE_HELP = "the series store (a Zarr directory)"
 #: The compare parameters a series takes: the parameter table's engine parameters (their flags,
 #: types, ranges and help), the core spacing and --compat; not the per-point uncertainty's inputs
@@ -99,6 +100,42 @@ def smooth_parser():
     return p
 
 
+def _process_noise(text: str):
+    """--process-noise: 'auto' or q >= 0."""
+    if text == "auto":
+        return text
+    try:
+        value = float(text)
+    except ValueError:
+        value = float("nan")
+    if not (value >= 0.0 and value != float("inf")):
+        raise argparse.ArgumentTypeError(f"--process-noise must be 'auto' or a finite number >= 0, got {text!r}")
+    return value
+
+
+def kalman_parser():
+    p = _parser("m3c2 series kalman", "Kalman filter and Rauch-Tung-Striebel smoother of each core point's distance "
+                                      "series (Winiwarter et al. 2023), each epoch weighted by its LOD; writes "
+                                      "kalman_distance, kalman_rate (and kalman_acceleration) with their sigmas and "
+                                      "kalman_significant to the store. After m3c2 series add, a rerun filters only the "
+                                      "new epochs and smooths again over all (docs/series.md).")
+    p.add_argument("store", type=Path, help=STORE_HELP)
+    p.add_argument("--model", choices=("velocity", "acceleration"), default="velocity",
+                   help="the state: distance and rate (velocity), or also the acceleration (default velocity)")
+    p.add_argument("--process-noise", type=_process_noise, default="auto", metavar="Q|auto",
+                   help="q of the process noise Q = q M(dt), in the distances' unit and days; auto: the q of "
+                        "maximum likelihood (default auto)")
+    p.add_argument("--noise", choices=("continuous", "discrete"), default="continuous",
+                   help="continuous white noise on the highest derivative, or the piecewise-constant (discrete) "
+                        "noise of kalman4d and filterpy (default continuous)")
+    add_table_option(p, "confidence")  # of kalman_significant; default: the store's
+    p.add_argument("--from-scratch", action="store_true",
+                   help="filter every epoch again (and estimate q again with auto) instead of resuming")
+    add_table_option(p, "threads", filled=True)
+    add(p, "quiet")
+    return p
+
+
 def _objects_options(p) -> None:
     g = p.add_argument_group("seeds: change points (Anders et al. 2021, 2.3.1; py4dgeo's defaults)")
     g.add_argument("--window-width", type=integer(2, COUNT_MAX), default=24,
@@ -117,8 +154,9 @@ def _objects_options(p) -> None:
 
 
 def _use_option(p) -> None:
-    p.add_argument("--use", choices=("auto", "smoothed", "raw"), default="auto",
-                   help="the series: smoothed_distance when present (auto), or distance (raw)")
+    p.add_argument("--use", choices=("auto", "smoothed", "raw", "kalman"), default="auto",
+                   help="the series: smoothed_distance when present (auto), distance (raw), or kalman_distance "
+                        "(after m3c2 series kalman)")
 
 
 def _core_index_option(p, *, required: bool = False, default_text: str | None = None) -> None:
@@ -184,7 +222,7 @@ def check_parser():
     return p
 
 
-PARSERS = {"add": add_parser, "smooth": smooth_parser, "changepoints": changepoints_parser,
+PARSERS = {"add": add_parser, "smooth": smooth_parser, "kalman": kalman_parser, "changepoints": changepoints_parser,
            "objects": objects_parser, "report": report_parser, "import": import_parser, "check": check_parser}
 
 
@@ -292,6 +330,20 @@ def _run_smooth(args) -> int:
     from ..series.analysis import smooth
     n = smooth(args.store, args.window, args.threads or 0)
     print(f"{args.store}: smoothed_distance over {n} epochs (window {args.window})")
+    return 0
+
+
+def _run_kalman(args) -> int:
+    from ..series.kalman import KalmanOptions, kalman
+    options = KalmanOptions(model=args.model, process_noise=args.process_noise, noise=args.noise,
+                            confidence=args.confidence, from_scratch=args.from_scratch, threads=args.threads or 0)
+    out = kalman(args.store, options)
+    if not args.quiet:
+        how = (f"resumed after epoch {out['resumed_from'] - 1}" if out["resumed_from"]
+               else "from the first epoch")
+        q = f"q = {out['process_noise']:.6g} ({'maximum likelihood' if out['source'] == 'auto' else 'given'})"
+        print(f"{args.store}: Kalman {args.model} model over {out['epochs']} epochs, {how}, {q}"
+              f"{'; ' + out['note'] if out['note'] else ''}; significant at {out['confidence']:g}")
     return 0
 
 

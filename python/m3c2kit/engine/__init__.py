@@ -24,8 +24,8 @@ from ..base.errors import Cancelled, UsageError
 
 __all__ = ["PARAM_FIELDS", "RESULT_FIELDS", "OPTIONAL_RESULT_FIELDS", "STATUS_NAMES", "MAX_CELLS_PER_AXIS", "MAX_BOOTSTRAP_SAMPLES", "INDEX_MEMORY", "Params",
            "translated", "make_params", "default_fields", "params_fields", "compute", "compute_normals",
-           "subsample_min_spacing", "match_rows", "CylinderIndex", "grid_core_points", "roughness_by_scale", "dimensionality", "c2c", "max_abs_coordinate",
-           "neighbourhood_reach", "tile_halo"]
+           "subsample_min_spacing", "match_rows", "CylinderIndex", "grid_core_points", "roughness_by_scale", "variogram_pairs", "region_covariance_sum", "dimensionality", "c2c", "max_abs_coordinate",
+           "neighbourhood_reach", "tile_halo", "fdr_q_values"]
 
 Params = _core.Params
 #: Fields of the engine's Params, in the struct's order (include/m3c2/params.hpp visit_param_fields).
@@ -200,6 +200,41 @@ def roughness_by_scale(cloud, core, diameters, variance: str = "sample", min_poi
     return np.asarray(out).reshape(-1, len(diameters))  # (core points, scales): the binding drops a single scale's axis
 
 
+def variogram_pairs(points: np.ndarray, values: np.ndarray, edges, *, seed: int, centres: int, near_radius: float,
+                    max_neighbours: int, far_pairs: int, planar: bool, threads: int = 0, progress=None) -> dict:
+    """Pair sums of the empirical variogram over sampled pairs (include/m3c2/variogram.hpp):
+    per lag bin `pairs`, `lag_sum`, `half_sq_sum`."""
+    with translated():
+        return _core.variogram_pairs(np.ascontiguousarray(points, dtype=np.float64),
+                                     np.ascontiguousarray(values, dtype=np.float64),
+                                     [float(e) for e in edges], int(seed), int(centres), float(near_radius),
+                                     _count("max_neighbours", max_neighbours), int(far_pairs), bool(planar),
+                                     _threads(threads), _progress(progress))
+
+
+#: the binding's codes of the covariance kinds (include/m3c2/region_covariance.hpp)
+_COVARIANCE_KINDS = {"spherical": 0, "exponential": 1}
+
+
+def region_covariance_sum(xy: np.ndarray, components, *, exact: bool = False, threads: int = 0,
+                          progress=None) -> tuple[float, list[float]]:
+    """sum_i sum_j C(|x_i - x_j|) over the plan-view points `xy` ((n, 2)) for `components`
+    (objects with kind, sill, range: an error model's correlated part), by bins
+    (include/m3c2/region_covariance.hpp); (sum, the bin side per component). `exact`: the O(N^2)
+    sum, for tests (bin sides then empty)."""
+    xy = np.ascontiguousarray(xy, dtype=np.float64)
+    kinds = [_COVARIANCE_KINDS[c.kind] for c in components]
+    sills = [float(c.sill) for c in components]
+    ranges = [float(c.range) for c in components]
+    with translated():
+        if exact:
+            return float(_core.region_covariance_exact(xy, kinds, sills, ranges, _threads(threads),
+                                                       _progress(progress))), []
+        total, sides = _core.region_covariance_sum(xy, kinds, sills, ranges, threads=_threads(threads),
+                                                   progress=_progress(progress))
+    return float(total), [float(v) for v in sides]
+
+
 def dimensionality(cloud: np.ndarray, core: np.ndarray, diameters, min_points: int = 3, *, threads: int = 0,
                    progress=None) -> dict:
     """Multi-scale dimensionality features (Brodu & Lague 2012; include/m3c2/dimensionality.hpp)."""
@@ -257,6 +292,13 @@ def tile_halo(params: _core.Params) -> float:
     return float(_core.tile_halo(params))
 
 
+def fdr_q_values(p: np.ndarray, method: str) -> np.ndarray:
+    """Benjamini-Hochberg ("bh") or Benjamini-Yekutieli ("by") adjusted p-values of `p` (float64,
+    NaN where p is NaN), ranked globally by (p, index): m3c2::fdr_q_values (src/uncertainty/fdr.cpp)."""
+    with translated():
+        return _core.fdr_q_values(np.ascontiguousarray(p, dtype=np.float64), method)
+
+
 _DEFAULT = _core.Params()
 
 
@@ -289,6 +331,47 @@ def temporal_median(values: np.ndarray, window: int, *, threads: int = 0) -> np.
 def change_points(series: np.ndarray, width: int, min_size: int, jump: int, penalty: float) -> np.ndarray:
     with translated():
         return _core.change_points(series, width, min_size, jump, penalty)
+
+
+def kalman_params(*, order: int, discrete_noise: bool, process_noise: float, initial_variance=None,
+                  prior_time: float | None = None) -> "_core.KalmanParams":
+    """The engine's KalmanParams (include/m3c2/kalman.hpp; initial_variance: the engine's default
+    when None); `prior_time`: start every row there (its prior mean given to kalman_smooth)
+    instead of at its first observation."""
+    p = _core.KalmanParams()
+    with translated("--model"):
+        p.order = int(order)
+    p.discrete_noise = bool(discrete_noise)
+    p.process_noise = float(process_noise)
+    if initial_variance is not None:
+        p.initial_variance = [float(v) for v in initial_variance]
+    p.prior_given = prior_time is not None
+    p.prior_time = 0.0 if prior_time is None else float(prior_time)
+    return p
+
+
+def kalman_smooth(values, variance, times, moments, params, *, resume_from: int = 0, prior_mean=None,
+                  threads: int = 0) -> dict:
+    """Forward filter and RTS smoother; `moments` (core x epoch x moments) is read before
+    `resume_from` and written after. Returns mean and sd (core x epoch x order) and log_likelihood."""
+    rows, epochs = values.shape
+    with translated("--process-noise"):
+        out = _core.kalman_smooth(values, variance, times, moments, params, resume_from=resume_from,
+                                  prior_mean=prior_mean, threads=threads)
+    k = params.order
+    return {"mean": out["mean"].reshape(rows, epochs, k), "sd": out["sd"].reshape(rows, epochs, k),
+            "log_likelihood": out["log_likelihood"]}
+
+
+def kalman_log_likelihood(values, variance, times, params, *, prior_mean=None, threads: int = 0) -> float:
+    with translated("--process-noise"):
+        return _core.kalman_log_likelihood(values, variance, times, params, prior_mean=prior_mean, threads=threads)
+
+
+def lod_observation_variance(params, lod, sigma1, n1, sigma2, n2, *, threads: int = 0) -> np.ndarray:
+    """(LOD / critical value)^2 per core point and epoch (include/m3c2/kalman.hpp)."""
+    with translated():
+        return _core.lod_observation_variance(params, lod, sigma1, n1, sigma2, n2, threads=threads)
 
 
 def normalised_dtw(a: np.ndarray, b: np.ndarray, norm_a=0.0, norm_b=0.0, dmax_origin=0.0) -> float:

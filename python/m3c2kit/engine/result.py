@@ -8,14 +8,17 @@ import numpy as np
 from . import OPTIONAL_RESULT_FIELDS, RESULT_FIELDS, STATUS_NAMES
 
 #: Output columns in every format, in this order (a contract: see docs/cli.md).
-COLUMNS = ("x", "y", "z", "distance", "lod", "significant", "n1", "n2", "sigma1", "sigma2",
+COLUMNS = ("x", "y", "z", "distance", "lod", "significant", "p_value", "n1", "n2", "sigma1", "sigma2",
            "nx", "ny", "nz", "normal_scale", "roughness", "status")
 #: The columns of the core point and its normal, the same for every compared cloud (a series
-#: stores them once), and those of each comparison (a series stores them per epoch).
+#: stores them once), and those of each comparison (a series stores them per epoch). A series
+#: store does not hold p_value: its format (2) predates the column (docs/algorithm.md, "p-values").
 CORE_COLUMNS = ("x", "y", "z", "nx", "ny", "nz", "normal_scale", "roughness")
-COMPARISON_COLUMNS = tuple(c for c in COLUMNS if c not in CORE_COLUMNS)
+COMPARISON_COLUMNS = tuple(c for c in COLUMNS if c not in CORE_COLUMNS and c != "p_value")
 #: Written after the status when the run made them (uncertainty pm / ep; docs/algorithm.md §6.5).
 UNCERTAINTY_COLUMNS = ("spread1", "spread2")
+#: Written last with --fdr (m3c2kit.run.fdr: one global ranking of every core point's p_value).
+FDR_COLUMNS = ("q_value", "significant_fdr")
 
 #: Reason codes of the `status` column: STATUS_NAMES (the engine's, by code), and its groups, each
 #: owned here: a core point computed in full; without a normal (too few neighbours within D/2, or a
@@ -42,7 +45,11 @@ class _ResultMethods:
 
     distance = i2 - i1 along the oriented normal (NaN where not computed); lod is the level of
     detection at the requested confidence (NaN where n1 or n2 < min_points); significant is
-    True iff n1, n2 >= min_points and |distance| > lod; status says why anything is NaN.
+    True iff n1, n2 >= min_points and |distance| > lod; p_value is the two-sided p-value of the
+    test the LOD expresses, p_value < 1 - confidence exactly where significant (NaN where lod is);
+    with --fdr, the attributes q_value (the adjusted p-value) and significant_fdr (q <= Q) that
+    m3c2kit.run.fdr sets on the whole run's Result (they are not the engine's: no fields);
+    status says why anything is NaN.
     Its arrays are the engine's Result fields (m3c2kit.engine.RESULT_FIELDS), plus ``core`` (the
     core points) and ``params`` (what the run was asked).
     """
@@ -89,14 +96,14 @@ class _ResultMethods:
         significant = np.where(np.isnan(self.lod), np.nan, self.significant.astype(float))
         table = {
             "x": xyz[:, 0], "y": xyz[:, 1], "z": xyz[:, 2],
-            "distance": self.distance, "lod": self.lod, "significant": significant,
+            "distance": self.distance, "lod": self.lod, "significant": significant, "p_value": self.p_value,
             "n1": np.where(searched, self.n1, np.nan), "n2": np.where(searched, self.n2, np.nan),
             "sigma1": self.sigma1, "sigma2": self.sigma2,
             "nx": self.normal[:, 0], "ny": self.normal[:, 1], "nz": self.normal[:, 2],
             "normal_scale": self.normal_scale, "roughness": self.roughness,
             "status": self.status.astype(np.uint8),
         }
-        for name in UNCERTAINTY_COLUMNS:
+        for name in UNCERTAINTY_COLUMNS + FDR_COLUMNS:
             if getattr(self, name, None) is not None:
                 table[name] = getattr(self, name)
         if projected:

@@ -11,7 +11,8 @@ precision is 2**-24 = 6e-8: below 1 km that is under 0.06 mm, far below any lida
 photogrammetric precision; counts as float32 (exact below 2**24 points per cylinder; NaN where
 no cylinder was searched, never a 0 that reads as "an empty cylinder": ``status`` 1 or 2 says
 why); ``status`` as uint8; ``significant`` as float32 (0 or 1, NaN where there is no LOD:
-unknown is not "no change"). Projected positions (x1 ... z2) stay float64: they are
+unknown is not "no change"); ``p_value`` and ``q_value`` as float64 (float32 could round a p-value
+just below 1 - confidence onto it, breaking p < 1 - confidence <=> significant). Projected positions (x1 ... z2) stay float64: they are
 coordinates, and float32 would lose centimetres at UTM magnitudes. ``float64=True``
 (--float64) stores every float column as float64.
 
@@ -52,7 +53,7 @@ class Field:
     name: str
     cloudcompare: str | None
     pdal: str | None
-    dtype: str  # "measure" (float32, float64 on request), "coordinate" (float64), "uint8"
+    dtype: str  # "measure" (float32, float64 on request), "coordinate" and "probability" (float64), "uint8"
     meaning: str
     las: str | None = None  # LAS storage (m3c2kit.io.quantised.KINDS); None: as `dtype` says
     compact: bool = True  # in a LAS file without --all-fields
@@ -62,6 +63,7 @@ FIELDS: tuple[Field, ...] = (
     Field("distance", "M3C2 distance", "m3c2_distance", "measure", "M3C2 distance i2 - i1 along the normal (eq. 1)", las="length"),
     Field("lod", "distance uncertainty", "m3c2_uncertainty", "measure", "level of detection at --confidence (eq. 1)", las="length"),
     Field("significant", "significant change", "m3c2_significant", "measure", "1 when |distance| > lod, 0 when not, NaN without LOD", las="flag"),
+    Field("p_value", None, None, "probability", "two-sided p-value of the LOD's test: < 1 - confidence exactly where significant (algorithm.md)", compact=False),
     Field("n1", "Npoints_cloud1", "m3c2_count1", "measure", "reference points in the cylinder", las="count"),
     Field("n2", "Npoints_cloud2", "m3c2_count2", "measure", "compared points in the cylinder", las="count"),
     Field("sigma1", "STD_cloud1", "m3c2_std_dev1", "measure", "spread of the reference points along the normal", las="length", compact=False),
@@ -74,6 +76,8 @@ FIELDS: tuple[Field, ...] = (
     Field("status", None, None, "uint8", "reason code: 0 ok, 1-5 why a value is NaN (README)"),
     Field("spread1", None, None, "measure", "sqrt(n^T S_1 n), the reference mean's propagated spread along the normal (pm / ep, algorithm.md 6.5)", las="length", compact=False),
     Field("spread2", None, None, "measure", "sqrt(n^T S_2 n), the compared mean's propagated spread along the normal (pm / ep)", las="length", compact=False),
+    Field("q_value", None, None, "probability", "--fdr: the BH / BY adjusted p-value (algorithm.md)", compact=False),
+    Field("significant_fdr", None, None, "uint8", "--fdr: 1 when q_value <= Q, else 0"),
     Field("x1", None, None, "coordinate", "projection on the reference, x (--projected)"),
     Field("y1", None, None, "coordinate", "projection on the reference, y"),
     Field("z1", None, None, "coordinate", "projection on the reference, z"),
@@ -189,7 +193,8 @@ def core_attributes(source, index: np.ndarray | None, taken: set[str]) -> dict[s
 def markdown_table() -> str:
     """docs/python.md's table of output names and stored types, from :data:`FIELDS`."""
     from .quantised import KINDS
-    types = {"measure": "float32 (float64 with --float64)", "coordinate": "float64", "uint8": "uint8"}
+    types = {"measure": "float32 (float64 with --float64)", "coordinate": "float64", "probability": "float64",
+             "uint8": "uint8"}
 
     def in_las(f: Field) -> str:
         if f.las is None:

@@ -37,6 +37,7 @@ SMALL_FILE_LIMITS: dict[str, int] = {
     "polygon file": 256 * _MiB,
     "CRS file": 1 * _MiB,
     "epoch list file": 16 * _MiB,
+    "error model file": 16 * _MiB,
 }
 
 

@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..run.diagnostics import normal_accuracy
+from ..run.fdr import Fdr, sentences
 from .lod_rates import expectation_text, run_expectation
 from ..engine.result import Result
 
@@ -23,6 +24,7 @@ def summary_lines(result: Result, output) -> list[str]:
         expected = run_expectation(result)
         if expected:
             lines.append("expected false positives: " + expectation_text(expected))
+    lines += ["multiple testing: " + text for text in multiple_testing(result)]
     lines.append("status: " + ", ".join(f"{name} {count}" for name, count in result.status_counts().items()))
     acc = normal_accuracy(result)
     if acc:
@@ -31,3 +33,15 @@ def summary_lines(result: Result, output) -> list[str]:
                      f"({acc['planar']} exactly planar, xi = inf); median predicted E_norm "
                      f"{acc['median_e_norm_percent']:.2f}%")
     return lines
+
+
+def multiple_testing(result: Result) -> list[str]:
+    """What the run's significance means over all its core points (the summary's and the report's
+    sentences): the plain test's expected false positives, and with --fdr the expected false
+    discoveries (m3c2kit.run.fdr; docs/algorithm.md, "False-discovery control")."""
+    params = getattr(result, "params", {}) or {}
+    fdr = Fdr.of(params)
+    q = getattr(result, "significant_fdr", None) if fdr is not None else None
+    tested = int(np.isfinite(np.asarray(result.p_value, dtype=float)).sum())
+    return sentences(tested, int(np.asarray(result.significant).sum()), float(params.get("confidence") or 0.95),
+                     fdr if q is not None else None, int(q.sum()) if q is not None else 0)

@@ -16,6 +16,7 @@ from ..settings import engine_params, orientation, resolve
 from ..settings.parsers import positive
 from .checks import as_points, check_coordinate_range, check_core_normals, check_spacing
 from .cores import core_points_for
+from .fdr import Fdr
 from .memory import check_memory
 from .plan import make_plan
 from .tasks import compute_arrays
@@ -76,6 +77,9 @@ def run(reference, compared, core_points=None, *, core_normals=None, vegetation=
     raw = compute_arrays(ref, cmp_, core_xyz, plan.engine, normals, threads=values["threads"], progress=progress,
                          per_point=per_point, order_in_place=reorder_inputs)
     result = Result.from_engine(core_xyz, raw, plan.record)
+    fdr = Fdr.of(values)
+    if fdr is not None:  # --fdr: one ranking of every core point's p-value (m3c2kit.run.fdr)
+        fdr.apply(result)
     return result, values, given
 
 

@@ -16,6 +16,7 @@ from ..io.fields import TableStyle, carried_columns
 from ..io.registry import quantises
 from ..io.streaming import TableWriter
 from .attributes import AttributeRows
+from .fdr import Fdr
 from .outcome import TiledReport
 from .spill import SpillFolder
 
@@ -60,6 +61,16 @@ class ResultSpills:
                 del chunk
         if not np.array_equal(offsets, self.counts):
             raise M3C2Error("core-point bookkeeping failed: rows taken per tile differ from the plan")
+
+    def p_values(self, rows: int) -> np.ndarray:
+        """Every core point's p_value in core order (8 bytes each): what --fdr ranks (m3c2kit.run.fdr)."""
+        out = np.empty(self.n_core, dtype=np.float64)
+        start = 0
+        for chunk in self.chunks(rows):
+            out[start:start + len(chunk)] = chunk.p_value
+            start += len(chunk)
+            del chunk
+        return out
 
     def rows_at(self, idx: np.ndarray, rows: int) -> tuple[np.ndarray, np.ndarray]:
         """The core points and normals of the merged rows `idx` (sorted), in one more pass."""
@@ -109,23 +120,29 @@ def _bounds(results: ResultSpills, style: TableStyle, rows: int) -> tuple[np.nda
 
 
 def merge(results: ResultSpills, target: MergeTarget, report: TiledReport, rows: int,
-          merged: Callable[[Evidence], object] = lambda evidence: None) -> None:
+          merged: Callable[[Evidence], object] = lambda evidence: None, fdr: Fdr | None = None) -> None:
     """Streams the merged rows into `target`, filling `report` (status counts, significant
     changes, distances, the evidence, the gathered Result); `merged(evidence)` is called once
     every row is written and before the output file is closed (the warnings then come before
-    the writer's own, as in memory)."""
+    the writer's own, as in memory). `fdr` (--fdr): the q-values of every core point's p-value,
+    ranked once before the first row is written, go beside each chunk's rows."""
     style, output = target.style, target.output
     las = output is not None and quantises(output)
     gathered, carried = [], []
     evidence = {k: [] for k in EVIDENCE}
     status = np.zeros(256, dtype=np.int64)
     rows_written = 0
+    q = fdr.q_values(results.p_values(rows)) if fdr is not None else None
 
     def consume(chunk: Result, writer=None) -> None:
         nonlocal rows_written
+        if q is not None:
+            fdr.attach(chunk, q[rows_written:rows_written + len(chunk)])
+            report.significant_fdr += int(chunk.significant_fdr.sum())
         rows_written += len(chunk)
         status[:] += np.bincount(chunk.status, minlength=256)
         report.significant += int(chunk.significant.sum())
+        report.with_p_value += int(np.isfinite(chunk.p_value).sum())
         report.with_distance += int(np.isfinite(chunk.distance).sum())
         for k in EVIDENCE:
             evidence[k].append(np.asarray(getattr(chunk, k)))
@@ -150,6 +167,8 @@ def merge(results: ResultSpills, target: MergeTarget, report: TiledReport, rows:
             keys = ("core",) + tuple(k for k in results.dtype.names if k != "core")
             arrays = {k: np.concatenate([getattr(c, k) for c in gathered]) for k in keys}
             report.result = Result(core=arrays.pop("core"), params=results.record, **arrays)
+            if q is not None:
+                fdr.attach(report.result, q)
             if carried:
                 report.attributes = {k: np.concatenate([c[k] for c in carried]) for k in carried[0]}
             elif target.attributes is not None:

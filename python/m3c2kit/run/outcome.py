@@ -4,6 +4,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 from ..engine.result import Result
+from .fdr import sentences
 from .memory import MemoryPlan
 
 @dataclass
@@ -26,6 +27,10 @@ class TiledReport:
     seconds: dict = field(default_factory=dict)
     status_counts: dict = field(default_factory=dict)
     significant: int = 0
+    significant_fdr: int = 0          # --fdr: the discoveries (q <= Q)
+    fdr: object = None                # --fdr: the run's m3c2kit.run.fdr.Fdr
+    with_p_value: int = 0             # core points tested (a finite p_value)
+    confidence: float = 0.95          # the run's --confidence (the summary's multiple-testing line)
     with_distance: int = 0
     result: Result | None = None      # return_result: the merged Result
     attributes: dict | None = None    # with it, the core points' attributes (m3c2kit.run.attributes)
@@ -40,6 +45,8 @@ class TiledReport:
                f"tiled on {where}: {self.tiles} tiles of {self.tile_size:.6g} with a halo of {self.halo:.6g}; "
                f"largest tile {self.tile_points_max} cloud points (estimated {self.estimated_tile_bytes_max / 2**20:.0f} MiB)",
                "status: " + ", ".join(f"{k} {v}" for k, v in self.status_counts.items())]
+        out += ["multiple testing: " + text for text in
+                sentences(self.with_p_value, self.significant, self.confidence, self.fdr, self.significant_fdr)]
         return out
 
 

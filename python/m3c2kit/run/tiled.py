@@ -58,6 +58,8 @@ from .cylinder_points import StreamedCloud
 from .grid_cores import GridCores, streamed_grid
 from .memory import (BASE_BYTES, BYTES_PER_CORE, BYTES_PER_POINT, MemoryPlan, choose_tile_size, density,
     plan_memory, release_memory, rss_bytes)
+from .fdr import Fdr
+from .fdr import check_memory as check_fdr_memory
 from .merge import MergeTarget, ResultSpills, merge
 from .outcome import TiledReport
 from .partition import CoreStream, Tiles, distribute, plan_tiles
@@ -112,6 +114,10 @@ def run_tiled(reference, compared, core=None, *, core_normals=None, output=None,
             _core_points(run, core, core_normals)
             _tile_size(run)
             tasks = _partition(run)
+            report.fdr = Fdr.of(run.values)
+            report.confidence = float(run.values["confidence"])
+            if report.fdr is not None and run.memory is not None:  # its global ranking, before any work
+                check_fdr_memory(run.tiles.n_core, run.prepared.limit, run.memory.base + run.memory.merge_bytes)
             results = _compute(run, tasks)
             _merge(run, results, MergeTarget(output, ref_src.like(), style, run.attributes(style, output, return_result),
                                              return_result))
@@ -392,7 +398,7 @@ def _merge(run: _Run, results: ResultSpills, target: MergeTarget) -> None:
         # Named at run_tiled's caller: warn <- this <- merge's finish <- merge <- _merge <- run_tiled.
         report.warnings = diagnostics.warn(evidence, run.values, *clouds, stacklevel=7)
 
-    merge(results, target, report, run.merge_rows, warn)
+    merge(results, target, report, run.merge_rows, warn, fdr=report.fdr)
     if target.gather and not report.reference_points:  # the report names the reference's size
         report.reference_points = sum(len(xyz) for xyz in run.given[0].chunks(run.stream_rows))
     report.seconds["merge_write"] = time.perf_counter() - t0

@@ -27,10 +27,11 @@ from . import store as st
 from .outputs import members_path
 
 SMOOTHED = "smoothed_distance"
+KALMAN = st.KALMAN_VARIABLES[0]  # series/kalman.py's smoothed distance, which 4D-OBC can segment (--use kalman)
 LABEL = "object"
 #: Variables derived from the epochs: kept the length of the series by `add` (new epochs NaN /
 #: no object), their `epochs` attribute saying how many epochs they were computed from.
-DERIVED = (SMOOTHED, LABEL)
+DERIVED = st.DERIVED_VARIABLES  # smooth's, objects' labels and the Kalman filter's, listed once (store.py)
 
 
 def _core_chunks(group, name="distance"):
@@ -68,16 +69,28 @@ def publish(folder: Path, name: str) -> None:
     """Replaces the store's `name` by its staged array: marked (store.REWRITING) in one commit,
     the folders swapped, the metadata consolidated, the mark cleared in a last commit. A kill
     between the first and last commit leaves `name` marked half-written, never silently mixed."""
+    publish_many(folder, [name])
+
+
+def publish_many(folder: Path, names, removed=()) -> None:
+    """publish() of several staged arrays as one (a step's variables that only make sense
+    together, such as the Kalman filter's): all marked in one commit, swapped, the `removed`
+    ones (a variable of the step's earlier run it no longer writes) deleted, consolidated, the
+    marks cleared in a last commit. A kill in between leaves every one of them marked."""
+    names, removed = list(names), [r for r in removed if (Path(folder) / r).exists()]
     marked = st.rewriting(st.open_group(folder))
-    st.set_rewriting(folder, [*marked, name])
-    target, staged = Path(folder) / name, integrity.staged_name(folder, name)  # pinned: never through a link
-    old = staged.with_name(name + ".old")
-    shutil.rmtree(old, ignore_errors=True)
-    if target.exists():
-        os.rename(target, old)
-    os.rename(staged, target)
+    st.set_rewriting(folder, [*marked, *names, *removed])
+    for name in names:
+        target, staged = Path(folder) / name, integrity.staged_name(folder, name)  # pinned: never through a link
+        old = staged.with_name(name + ".old")
+        shutil.rmtree(old, ignore_errors=True)
+        if target.exists():
+            os.rename(target, old)
+        os.rename(staged, target)
+    for name in removed:
+        shutil.rmtree(Path(folder) / name)
     st.commit(folder)
-    st.set_rewriting(folder, [m for m in marked if m != name])
+    st.set_rewriting(folder, [m for m in marked if m not in names and m not in removed])
     integrity.remove_staging(folder)  # the step's only: it holds the lock
 
 
@@ -121,12 +134,18 @@ IN_MEMORY_LIMIT = 1 << 30
 
 
 def analysed_variable(store: Path, use: str = "auto", shown: Path | None = None) -> str:
-    """smoothed_distance when it covers every epoch (use auto or smoothed), else distance. A
+    """smoothed_distance when it covers every epoch (use auto or smoothed), else distance;
+    kalman_distance for use kalman (never chosen by auto). A
     half-written smoothed_distance is refused, never replaced by distance behind the user's back.
     `shown`: the store's path in messages (`store` may be a pinned path)."""
     shown = store if shown is None else shown
     group = st.open_group(store)
     n = group["distance"].shape[1]
+    if use == "kalman":  # the Kalman-smoothed series (series/kalman.py), covering every epoch
+        integrity.require_whole(group, [KALMAN], shown)
+        if KALMAN not in group or int(group[KALMAN].attrs.get("epochs", -1)) != n:
+            raise UsageError(f"{shown}: no kalman_distance covering all {n} epochs; run m3c2 series kalman {shown}")
+        return KALMAN
     if use in ("auto", "smoothed"):
         integrity.require_whole(group, [SMOOTHED], shown)
     if use in ("auto", "smoothed") and SMOOTHED in group and int(group[SMOOTHED].attrs.get("epochs", -1)) == n:

@@ -23,7 +23,8 @@ from .store import StoreError
 #: The step that writes each derived variable: the command a half-written one is fixed by
 #: ({window}: the window of the committed smoothed_distance, when there is one).
 REWRITTEN_BY = {"smoothed_distance": "m3c2 series smooth {store}{window}",
-                "object": "m3c2 series objects {store} -o OBJECTS.csv"}
+                "object": "m3c2 series objects {store} -o OBJECTS.csv",
+                **{name: "m3c2 series kalman {store} --from-scratch" for name in st.KALMAN_VARIABLES}}
 
 
 def rerun_command(group, name: str, store: Path) -> str:

@@ -12,6 +12,8 @@ the sign of every distance, so it may not drift between epochs):
   (a list of [x, y, z]) or ``"+z"`` -- as stores of format 1 and 2 have always recorded it;
 * ``sensor`` and a FILE of points: the points read, ``{"away": points}`` for ``away:``;
 * anything else (an axis, X,Y,Z, origin, barycentre of the stored core points): as given.
+
+``--error-model`` is recorded as the model's content (its JSON document), not the file's path.
 """
 from __future__ import annotations
 
@@ -21,7 +23,7 @@ import numpy as np
 
 from ..base.errors import UsageError
 from ..run.plan import make_plan
-from ..settings import orientation, resolve
+from ..settings import error_model, orientation, resolve
 from . import store as st
 
 #: The recorded form of an orientation away from points (a list of points is towards them).
@@ -40,6 +42,8 @@ def check_against_store(store, stored: dict, given: dict) -> None:
     is compared once the files it may depend on are read (:func:`check_orient`)."""
     resolve(dict(_keywords(stored), **given), "compare", api=True, check_needs=False)
     for name, value in given.items():
+        if name == "error_model":  # the store records the model's content: the file's is compared
+            value = recorded_error_model(value)
         if name not in ("threads", "orient") and st.canonical(stored.get(name)) != st.canonical(value):
             raise _other_parameters(store, name, stored.get(name), value)
 
@@ -74,12 +78,22 @@ def recorded_orient(spec, reference, core_cloud=None, *, reference_name: str, co
 def recorded(settings: dict, reference, core_cloud=None, *, reference_name: str, core_name: str | None = None,
              read_points: Callable | None = None) -> dict:
     """`settings` as the store records them: with --orient resolved (none with --normal-source
-    core, whose given normals are used as they are: settings.needs)."""
+    core, whose given normals are used as they are: settings.needs), and --error-model's model
+    by its content (:func:`recorded_error_model`)."""
+    if settings.get("error_model") is not None:
+        settings = dict(settings, error_model=recorded_error_model(settings["error_model"]))
     if settings.get("normal_source") == "core":
         return dict(settings)
     orient = recorded_orient(settings.get("orient"), reference, core_cloud, reference_name=reference_name,
                              core_name=core_name, read_points=read_points)
     return dict(settings, orient=orient)
+
+
+def recorded_error_model(value):
+    """--error-model as a store records it: the model's CONTENT (its JSON document), not the file's
+    path, so that ``add`` computes the same LOD when the file has moved or changed (a store holds
+    one parameter set); a content already recorded stays as it is."""
+    return None if value is None else error_model.for_compare(value).to_json()
 
 
 def engine_params(recorded_settings: dict, core: np.ndarray):

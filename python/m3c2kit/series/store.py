@@ -298,8 +298,16 @@ def epoch_chunk(path: Path) -> int:
     return int(open_group(path)["distance"].chunks[1])
 
 
-#: Fill of the epochs a derived variable was not computed for (analysis.DERIVED), by dtype kind.
+#: Fill of the epochs a derived variable (DERIVED_VARIABLES) was not computed for, by dtype kind.
 DERIVED_FILL = {"f": np.nan, "i": -1}
+#: The Kalman filter's variables (series/kalman.py; docs/series.md, "Kalman filter"): the smoothed
+#: state and its standard deviations, the significance flag, and the filtered moments (core,
+#: epoch, moment) a later run resumes from.
+KALMAN_VARIABLES = ("kalman_distance", "kalman_distance_sigma", "kalman_rate", "kalman_rate_sigma",
+                    "kalman_acceleration", "kalman_acceleration_sigma", "kalman_significant", "kalman_moments")
+#: Variables derived from the epochs (per core point and epoch), kept the length of the series
+#: by append_batch: smooth's, objects' labels, the Kalman filter's.
+DERIVED_VARIABLES = ("smoothed_distance", "object", *KALMAN_VARIABLES)
 
 
 def append_batch(path: Path, index: int, batch: list) -> None:
@@ -320,11 +328,11 @@ def append_batch(path: Path, index: int, batch: list) -> None:
             array.resize((array.shape[0], end))
         write(path, array, name, (slice(None), slice(index, end)),
               np.column_stack([encode(name, columns[name]) for columns, _ in batch]))
-    for name in ("smoothed_distance", "object"):  # derived variables (analysis.DERIVED): not for these epochs
+    for name in DERIVED_VARIABLES:  # not computed for these epochs (NaN / -1) until their step reruns
         if name in group:
             array = writable(group, name)
             if array.shape[1] != end:
-                array.resize((array.shape[0], end))
+                array.resize((array.shape[0], end, *array.shape[2:]))
             write(path, array, name, (slice(None), slice(index, end)), DERIVED_FILL[array.dtype.kind])
     for name in EPOCH_INFO:
         if name not in group:

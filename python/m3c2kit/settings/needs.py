@@ -50,6 +50,8 @@ WELCH_T = Needs(lambda v: _uncertainty(v) == "eq1" and not (v.get("median") and 
                 "with eq. (1) of the mean, or of the median with --median-lod cloudcompare: --uncertainty pm and ep "
                 "and the Maritz-Jarrett median LOD use z")
 PM = Needs(lambda v: _uncertainty(v) == "pm", "with --uncertainty pm (an M3C2-PM input)")
+EQ1 = Needs(lambda v: _uncertainty(v) == "eq1",
+            "with eq. (1)'s LOD: --uncertainty pm and ep model the correlated errors themselves (counted twice)")
 EP = Needs(lambda v: _uncertainty(v) == "ep", "with --uncertainty ep (an M3C2-EP input)")
 WEIGHTED_CENTRES = Needs(lambda v: v.get("ep_covariance") != "empirical",
                          "with --ep-covariance independent or mean-of-points: the empirical covariance takes eq. (1)'s "

@@ -4,10 +4,12 @@ validated in Python (the engine validates again as the last line, m3c2kit.engine
 from __future__ import annotations
 
 import difflib
+import warnings
 from typing import Callable, Iterable, Mapping
 
 from .. import engine
-from ..base.errors import UsageError
+from ..base.errors import M3C2Warning, UsageError
+from . import error_model
 from .needs import check_effective, inapplicable
 from .table import Parameter, by_name, parameters_of
 
@@ -112,9 +114,26 @@ def _required(*names: str, hint: str = ""):
     return rule
 
 
+def _error_model(values: dict, given: Mapping) -> None:
+    # The model's sills are the correlated variance of cylinder means at ITS d: another d would
+    # average the field over another footprint (docs/algorithm.md, "Spatially correlated errors").
+    if values["error_model"] is None:
+        return
+    model = error_model.for_compare(values["error_model"])
+    d, fitted, name = values["projection_scale"], model.projection_scale, error_model.label(values["error_model"])
+    if fitted is None:
+        warnings.warn(f"{name}: the error model does not record the projection scale it was "
+                      f"fitted at; its correlated variance is used as that of d = {d:g}", M3C2Warning, stacklevel=2)
+    elif d is not None and abs(d - fitted) > 1e-9 * fitted:
+        raise UsageError(f"--error-model {name} was fitted at --projection-scale {fitted:g}, this run's "
+                         f"is {d:g}: the correlated variance of a cylinder mean depends on d; fit a model on a result "
+                         f"of this d (m3c2 variogram)")
+
+
 #: Rules that tie several parameters, checked after each value is (in the table's order).
 RULES = {
     "compare": (_normal_scale_needed, _required("projection_scale", "max_depth",
-                                                hint=" (or a --params file that sets it)"), _depth_search, _lod),
+                                                hint=" (or a --params file that sets it)"), _depth_search, _lod,
+                _error_model),
     "normals": (_required("normal_scale"),),
 }

@@ -15,8 +15,8 @@ from dataclasses import dataclass
 from typing import Any, Callable
 
 from .. import engine
-from . import orientation, parsers
-from .needs import (A_VARIANCE, BOOTSTRAP, EP, FITTED_NORMALS, MOVED_OR_PROPAGATED, NOT_CORE_NORMALS,
+from . import error_model, orientation, parsers
+from .needs import (A_VARIANCE, BOOTSTRAP, EP, EQ1, FITTED_NORMALS, MOVED_OR_PROPAGATED, NOT_CORE_NORMALS,
     PARAMETRIC_MEDIAN, PM, SEVERAL_SCALES, TRANSFORM, TWO_PASS, WEIGHTED_CENTRES, WELCH_T, Needs)
 from .parsers import UINT32_MAX, UINT64_MAX, Choice, Flag, Integer, Positives, Real, Scales, Text
 
@@ -70,6 +70,13 @@ ORIENTATION = EngineField(("orientation_direction", "orientation_points", "orien
 PRECISION_SCALES = EngineField(("precision_scale1", "precision_scale2"),
                                lambda v, **_: {"precision_scale1": v[0], "precision_scale2": v[1]},
                                lambda f: [f["precision_scale1"], f["precision_scale2"]])
+# --error-model: the model's excess variance (the stable distances' total sill minus their mean
+# s1^2/n1 + s2^2/n2) inside eq. (1)'s square root (docs/algorithm.md, "Spatially correlated
+# errors"); resolve's rule checks its d against the run's.
+ERROR_MODEL = EngineField(("correlated_variance",),
+                          lambda v, **_: {"correlated_variance": 0.0 if v is None
+                                          else error_model.for_compare(v).excess_variance()},
+                          lambda f: None)
 STATISTIC = EngineField(("statistic",), lambda v, **_: {"statistic": "median" if v else "mean"},
                         lambda f: f["statistic"] == "median")
 
@@ -124,6 +131,8 @@ def _shown(value) -> str:
     return str(value)
 
 
+#: --fdr-method acts with --fdr only.
+FDR = Needs(lambda v: v.get("fdr") is not None, "with --fdr Q (the false-discovery control it chooses)")
 COUNT = Integer(1, UINT32_MAX, "an integer >= 1")
 PLANE_POINTS = Integer(3, UINT32_MAX, "an integer >= 3 (a plane needs 3 points)")
 NORMAL_SOURCES = ("reference", "compared", "mean", "vertical", "horizontal", "core")
@@ -214,6 +223,21 @@ PARAMETERS: tuple[Parameter, ...] = (
               help="LOD from N bootstrap resamples (implies --lod bootstrap)"),
     Parameter("seed", "--seed", Integer(0, UINT64_MAX, "a non-negative integer"), section="Appendix B",
               engine=same("bootstrap_seed"), cli_type=int, needs=(BOOTSTRAP,), help="bootstrap seed"),
+    Parameter("error_model", "--error-model", Text("an error model file"), section="docs/algorithm.md",
+              engine=ERROR_MODEL, default=None, cli_type=str, metavar="MODEL.json", needs=(EQ1,),
+              help="spatially correlated errors (m3c2 variogram's MODEL.json): the LOD is z sqrt(s1^2/n1 + "
+                   "s2^2/n2 + sigma_c^2) + reg, sigma_c^2 the model's excess variance (stable distances' total "
+                   "sill minus their mean s1^2/n1 + s2^2/n2) at its d, which must be the run's --projection-scale"),
+    # False-discovery control over every core point's p_value (m3c2kit.run.fdr; docs/algorithm.md)
+    Parameter("fdr", "--fdr", Real(0.0, below=1.0), section="docs/algorithm.md", default=None, metavar="Q",
+              scope="run",
+              help="false-discovery control at level Q over the p_value of every core point: adds q_value (the "
+                   "adjusted p-value) and significant_fdr (q_value <= Q); at most a share Q of the core points it "
+                   "flags are expected to be false (Benjamini & Hochberg 1995)"),
+    Parameter("fdr_method", "--fdr-method", Choice("bh", "by"), section="docs/algorithm.md", default="bh",
+              cli_type=str, scope="run", needs=(FDR,),
+              help="--fdr's procedure: Benjamini-Hochberg (bh: independent or positively dependent p-values) or "
+                   "Benjamini-Yekutieli (by: any dependence, BH at Q / sum_{i<=m} 1/i)"),
     # Per-point uncertainty (section 6.2; include/m3c2/uncertainty.hpp)
     Parameter("uncertainty", "--uncertainty", Choice("eq1", "pm", "ep"), section="6.2", engine=enum("uncertainty"),
               cli_type=str, cloudcompare_keys=("UsePrecisionMaps",), help="the LOD's uncertainty model: eq. (1), M3C2-PM (precision maps) or M3C2-EP "

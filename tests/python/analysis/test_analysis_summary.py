@@ -14,7 +14,7 @@ from m3c2kit.output.summary import normal_accuracy, summary_lines
 def make_result(normal_scale, roughness) -> Result:
     n = len(roughness)
     nan = np.full(n, np.nan)
-    return Result(core=np.zeros((n, 3)), distance=np.zeros(n), lod=np.ones(n), significant=np.zeros(n, bool),
+    return Result(core=np.zeros((n, 3)), distance=np.zeros(n), lod=np.ones(n), significant=np.zeros(n, bool), p_value=np.ones(n),
                   n1=np.full(n, 10, np.uint32), n2=np.full(n, 10, np.uint32), sigma1=nan, sigma2=nan,
                   i1=np.zeros(n), i2=np.zeros(n), normal=np.tile([0.0, 0.0, 1.0], (n, 1)),
                   normal_scale=np.asarray(normal_scale, float), roughness=np.asarray(roughness, float),

@@ -66,6 +66,9 @@ SEVERAL_MEANINGS = {
     "--orient": (2, "the table's (default: the sensor or +z); calibrate's and simplify's (+z)"),
     "--classifier": (2, "compare's vegetation filter (the table's); m3c2 classify apply's input"),
     "--label-field": (2, "classify train reads labels from it; classify apply writes class codes to it"),
+    "--model": (2, "c2c's local model (none, plane); m3c2 series kalman's state (velocity, acceleration)"),
+    "--confidence": (2, "the table's LOD confidence (compare, series); m3c2 aggregate's intervals (the row's range)"),
+    "--error-model": (2, "the table's LOD under correlated errors (compare, series); m3c2 aggregate's intervals"),
 }
 #: Each command's output is its own.
 PER_COMMAND = {"-o", "--output"}

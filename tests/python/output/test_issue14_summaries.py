@@ -17,7 +17,7 @@ def make_result(normal_scale, roughness, *, n=10, params=None, i1=None, status=N
     m = len(roughness)
     nan = np.full(m, np.nan)
     return Result(core=np.arange(3 * m, dtype=float).reshape(m, 3), distance=np.zeros(m), lod=np.ones(m),
-                  significant=np.zeros(m, bool), n1=np.full(m, n, np.uint32), n2=np.full(m, n, np.uint32),
+                  significant=np.zeros(m, bool), p_value=np.ones(m), n1=np.full(m, n, np.uint32), n2=np.full(m, n, np.uint32),
                   sigma1=nan, sigma2=nan, i1=np.zeros(m) if i1 is None else np.asarray(i1, float),
                   i2=np.ones(m), normal=np.tile([0.0, 0.0, 1.0], (m, 1)),
                   normal_scale=np.asarray(normal_scale, float), roughness=np.asarray(roughness, float),

@@ -119,7 +119,8 @@ def fake_result(n, seed=1):
     lod[status == 4] = np.nan
     n1 = rng.integers(4, 50, n).astype(np.uint32)
     scale = rng.choice([1.0, 2.0, 4.0], n)
-    return Result(core=core, distance=d, lod=lod, significant=np.abs(d) > lod, n1=n1, n2=n1, sigma1=lod, sigma2=lod,
+    return Result(core=core, distance=d, lod=lod, significant=np.abs(d) > lod,
+                  p_value=np.where(np.isnan(lod), np.nan, np.where(np.abs(d) > lod, 0.01, 0.5)), n1=n1, n2=n1, sigma1=lod, sigma2=lod,
                   i1=np.zeros(n), i2=d, normal=np.tile([0, 0, 1.0], (n, 1)), normal_scale=scale,
                   roughness=scale / np.exp(rng.normal(3.3, 0.5, n)), status=status,
                   params={"normal_scale": [1.0, 2.0, 4.0], "projection_scale": 1.0, "max_depth": 2.0})

@@ -134,7 +134,7 @@ NEEDS = {"scale_selection": ["--normal-scale", "1,2"], "min_points_multiscale": 
 
 
 @pytest.mark.parametrize("param", [p for p in PARAMETERS if p.engine is not None], ids=lambda p: p.name)
-def test_every_engine_parameter_is_reachable_from_the_command_line(param):
+def test_every_engine_parameter_is_reachable_from_the_command_line(param, tmp_path):
     values = {"normal_scale": "2,3", "normal_source": "mean", "scale_selection": "cloudcompare",
               "min_points_normal": "7", "min_points_multiscale": "11", "normal_subsample": "0.25",
               "orient": "1,2,3", "projection_scale": "2.5", "max_depth": "4", "depth_search": "progressive",
@@ -142,7 +142,10 @@ def test_every_engine_parameter_is_reachable_from_the_command_line(param):
               "confidence": "0.9", "min_points": "6", "bootstrap": "9", "seed": "17", "lod": "t",
               "median_lod": "cloudcompare", "uncertainty": "pm", "precision_rule": "all",
               "precision_scales": "2,3", "ep_covariance": "mean-of-points", "ep_lod": "published",
-              "ep_weights": "matrix"}
+              "ep_weights": "matrix", "error_model": str(tmp_path / "model.json")}
+    if param.name == "error_model":  # a file: m3c2 variogram's model, fitted at the run's d
+        from m3c2kit.analysis.error_model import Component, ErrorModel, save
+        save(values["error_model"], ErrorModel(0.0, (Component("spherical", 1e-4, 5.0),), 2.0, mean_u2=0.0))
     argv = ["compare", "r.xyz", "c.xyz", "-o", "o.csv", "--projection-scale", "2", "--max-depth", "3",
             "--normal-scale", "1"]
     argv += [param.flag] if param.cli_type is None else [param.flag, values[param.name]]

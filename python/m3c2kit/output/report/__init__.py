@@ -28,7 +28,7 @@ import numpy as np
 from ...base.errors import CloudWriteError, UsageError
 from ...engine.result import STATUS_NAMES, Result
 from ..lod_rates import expectation_text, run_expectation
-from ..summary import normal_accuracy
+from ..summary import multiple_testing, normal_accuracy
 
 __all__ = ["Report", "build_report", "render_html", "write_report", "png_paths", "FIGURES", "MAX_PLOT_POINTS"]
 
@@ -101,6 +101,7 @@ def _summary(result: Result, linthresh: float) -> list:
     expected = run_expectation(result)
     if expected:
         rows.append(("expected false positives on unchanged surfaces", expectation_text(expected)))
+    rows += [("multiple testing over the core points", text) for text in multiple_testing(result)]
     acc = normal_accuracy(result)
     if acc:
         rows += [("core points with a roughness sigma(D) (exactly planar: xi = inf)",

@@ -1,0 +1,10 @@
+"""The provider's algorithms (issue 33's names are a contract)."""
+from .c2c import C2CAlgorithm
+from .classify_apply import ClassifyApplyAlgorithm
+from .compare import CompareAlgorithm
+from .pdal_compare import PdalCompareAlgorithm
+from .series_objects import SeriesObjectsAlgorithm
+from .suggest import SuggestAlgorithm
+
+ALGORITHMS = (CompareAlgorithm, PdalCompareAlgorithm, SuggestAlgorithm, C2CAlgorithm, ClassifyApplyAlgorithm,
+              SeriesObjectsAlgorithm)

@@ -1,0 +1,131 @@
+"""Results into the project: m3c2 compare's point table as a layer styled by distance, and its
+rasters. Where QGIS reads LAZ (its 'pdal' provider: QGIS 4, or 3.x built with PDAL) a LAS/LAZ
+output is loaded as a point-cloud layer; elsewhere (Debian 12's QGIS 3.22 has no PDAL) as a
+vector point layer in a GeoPackage beside the output (OUTPUT + '.gpkg', written by QGIS's own
+writer) holding every column, its style saved in it as the default."""
+import csv
+import json
+import math
+import os
+
+from qgis.core import (Qgis, QgsCoordinateReferenceSystem, QgsFeature, QgsField, QgsFields, QgsGeometry, QgsPoint,
+                       QgsProcessingContext, QgsProcessingLayerPostProcessorInterface, QgsProcessingUtils,
+                       QgsProject, QgsProviderRegistry, QgsVectorFileWriter, QgsVectorLayer)
+
+from . import runner, style
+
+POINT_CLOUD_EXTENSIONS = (".las", ".laz")
+_KEPT = []  # post-processors must outlive processAlgorithm (QGIS holds no Python reference)
+
+
+def reads_point_clouds() -> bool:
+    """True where QGIS can open LAS/LAZ as a point-cloud layer (its 'pdal' provider)."""
+    return "pdal" in QgsProviderRegistry.instance().providerList()
+
+
+def _double_field(name):
+    if Qgis.QGIS_VERSION_INT >= 33800:  # QgsField takes a QMetaType from 3.38 on (QGIS 4: only it)
+        from qgis.PyQt.QtCore import QMetaType
+        return QgsField(name, QMetaType.Type.Double)
+    from qgis.PyQt.QtCore import QVariant
+    return QgsField(name, QVariant.Double)
+
+
+def _number(text):
+    value = float(text)
+    return None if math.isnan(value) else value
+
+
+def geopackage_path(output) -> str:
+    return f"{output}.gpkg"
+
+
+def write_geopackage(output, feedback, context) -> str:
+    """OUTPUT + '.gpkg': every column of the m3c2 output `output`, one point per row, styled."""
+    # QGIS's Python has no m3c2kit: m3c2 itself copies the output into a CSV (every column, float64
+    # written losslessly) and says its CRS.
+    table = QgsProcessingUtils.generateTempFilename("m3c2kit_table.csv")
+    runner.run(["convert", str(output), "-o", table], feedback)
+    wkt = (json.loads(runner.run(["info", "--json", str(output)], feedback)).get("crs") or {}).get("wkt") or ""
+    name = os.path.basename(str(output))
+    memory = QgsVectorLayer("PointZ", name, "memory")
+    if wkt:
+        memory.setCrs(QgsCoordinateReferenceSystem.fromWkt(wkt))
+    with open(table, newline="", encoding="utf-8") as f:
+        rows = csv.reader(f)
+        header = next(rows)
+        fields = QgsFields()
+        for column in header:
+            fields.append(_double_field(column))
+        memory.dataProvider().addAttributes(fields.toList())
+        memory.updateFields()
+        features = []
+        for row in rows:
+            values = [_number(v) for v in row]
+            feature = QgsFeature(memory.fields())
+            x, y, z = (float(v) for v in row[:3])
+            feature.setGeometry(QgsGeometry(QgsPoint(x, y, z)))
+            feature.setAttributes(values)
+            features.append(feature)
+    memory.dataProvider().addFeatures(features)
+    os.remove(table)
+    path = geopackage_path(output)
+    options = QgsVectorFileWriter.SaveVectorOptions()
+    options.driverName = "GPKG"
+    options.layerName = os.path.splitext(name)[0]
+    error = QgsVectorFileWriter.writeAsVectorFormatV3(memory, path, context.transformContext(), options)
+    if error[0] != QgsVectorFileWriter.NoError:
+        raise runner.QgsProcessingException(f"{path}: cannot write the GeoPackage: {error[1]}")
+    layer = QgsVectorLayer(path, options.layerName, "ogr")
+    if style.style_points(layer):
+        message = layer.saveStyleToDatabase("m3c2kit", "distance on a diverging ramp, not-significant faded",
+                                            True, "")
+        if message:
+            feedback.pushWarning(f"{path}: style not saved in the GeoPackage: {message}")
+    return path
+
+
+class _Styler(QgsProcessingLayerPostProcessorInterface):
+    def __init__(self, apply):
+        super().__init__()
+        self.apply = apply
+
+    def postProcessLayer(self, layer, context, feedback):  # noqa: N802 - QGIS's name
+        self.apply(layer)
+
+
+def load_on_completion(context, source, name, output_name, apply):
+    """`source` loaded into the project when the algorithm ends, then styled by `apply(layer)`."""
+    project = context.project() or QgsProject.instance()
+    details = QgsProcessingContext.LayerDetails(name, project, output_name)
+    styler = _Styler(apply)
+    _KEPT.append(styler)
+    details.setPostProcessor(styler)
+    context.addLayerToLoadOnCompletion(source, details)
+
+
+def _point_cloud_bound(layer):
+    try:  # QGIS >= 3.26: statistics of the attribute
+        stats = layer.statistics()
+        names = [a.name() for a in layer.attributes().attributes()]
+        distance = style.field_named(names, style.DISTANCE_NAMES)
+        return style.symmetric_bound([stats.minimum(distance), stats.maximum(distance)])
+    except Exception:  # noqa: BLE001 - older QGIS: a unit range, which the user can reclassify
+        return 1.0
+
+
+def table_layer(output, feedback, context, output_name="OUTPUT_LAYER"):
+    """The layer of m3c2's point table `output`, loaded on completion; its source."""
+    name = os.path.basename(str(output))
+    if reads_point_clouds() and str(output).lower().endswith(POINT_CLOUD_EXTENSIONS):
+        load_on_completion(context, str(output), name, output_name,
+                           lambda layer: style.style_point_cloud(layer, _point_cloud_bound(layer)))
+        return str(output)
+    path = write_geopackage(output, feedback, context)
+    load_on_completion(context, path, name, output_name, style.style_points)
+    return path
+
+
+def raster_layer(path, context, output_name, symmetric):
+    load_on_completion(context, str(path), os.path.basename(str(path)), output_name,
+                       lambda layer: style.style_raster(layer, symmetric))

@@ -1,0 +1,167 @@
+"""Runs the installed `m3c2` command for an algorithm: found through the provider's setting or
+PATH, its command line logged (shlex-quoted, to rerun it in a shell), its progress bars turned
+into the feedback's percent, Cancel turned into SIGTERM (m3c2 unwinds through its atomic writer:
+no output, no temporary left; docs/errors.md, "Interruption"), its error message into the
+Processing log and a QgsProcessingException.
+
+QGIS's Python and m3c2kit's environment stay apart: nothing here imports m3c2kit."""
+import os
+import re
+import shlex
+import shutil
+import signal
+import subprocess
+import threading
+import time
+
+from qgis.core import QgsProcessingException
+
+SETTING = "M3C2_EXECUTABLE"
+NOT_FOUND = ("m3c2 not found: install m3c2kit (docs/qgis.md) or set its path in Settings > Options > Processing > "
+             "Providers > m3c2kit > m3c2 executable (" + SETTING + ")")
+
+# `m3c2 compare --progress` draws one tqdm bar per phase on stderr ("reading:  50%|...| 1/2 ...",
+# rewritten in place with carriage returns; m3c2kit.base.phases). Each phase's share of the run:
+PHASE_SPANS = {"reading": (0.0, 10.0), "indexing, normals, distances": (10.0, 95.0), "indexing, normals": (10.0, 95.0),
+               "writing": (95.0, 100.0)}
+_BAR = re.compile(r"^(?P<phase>[^:|]+):\s+(?P<percent>\d{1,3})%\|")
+_MESSAGE = re.compile(r"m3c2: (?:(?P<kind>warning|error): )?(?P<text>.*)")
+POLL_S = 0.1
+
+
+def _setting() -> str:
+    try:
+        from processing.core.ProcessingConfig import ProcessingConfig
+    except ImportError:  # a bare PyQGIS script without the Processing plugin: PATH only
+        return ""
+    return (ProcessingConfig.getSetting(SETTING) or "").strip()
+
+
+def executable() -> str:
+    """The m3c2 command: the provider's setting when set (it must exist), else PATH."""
+    configured = _setting()
+    if configured:
+        if os.path.isfile(configured) and os.access(configured, os.X_OK):
+            return configured
+        raise QgsProcessingException(f"m3c2 not found at {configured} (the m3c2kit provider's setting {SETTING}): "
+                                     "install m3c2kit (docs/qgis.md) or correct the setting")
+    found = shutil.which("m3c2")
+    if found is None:
+        raise QgsProcessingException(NOT_FOUND)
+    return found
+
+
+def quoted(command) -> str:
+    return " ".join(shlex.quote(str(a)) for a in command)
+
+
+def progress_of(segment: str):
+    """The run's percent for one redrawn bar of `m3c2 --progress`, or None."""
+    match = _BAR.match(segment.strip())
+    if match is None:
+        return None
+    start, stop = PHASE_SPANS.get(match["phase"].strip(), (0.0, 100.0))
+    return start + (stop - start) * min(int(match["percent"]), 100) / 100.0
+
+
+class _Stream(threading.Thread):
+    """Reads one pipe of the child to its end, cutting it at \\r and \\n."""
+
+    def __init__(self, pipe, handle):
+        super().__init__(daemon=True)
+        self.pipe, self.handle, self.lines = pipe, handle, []
+
+    def run(self):
+        pending = ""
+        while True:
+            chunk = self.pipe.read1(4096) if hasattr(self.pipe, "read1") else self.pipe.read(4096)
+            if not chunk:
+                break
+            pending += chunk.decode("utf-8", "replace")
+            parts = re.split(r"[\r\n]", pending)
+            pending = parts.pop()
+            for part in parts:
+                self._line(part)
+        if pending:
+            self._line(pending)
+
+    def _line(self, text):
+        self.lines.append(text)
+        self.handle(text)
+
+
+class Run:
+    """One m3c2 run: stdout lines, stderr messages, the exit status."""
+
+    def __init__(self, command, feedback, progress=False):
+        self.command = [str(a) for a in command]
+        self.feedback = feedback
+        self.progress = progress
+        self.errors = []
+        self.last_line = ""  # of stderr: the message of a crash that printed no "m3c2: error:"
+
+    def _stdout(self, line):
+        if line.strip() and self.feedback is not None:
+            self.feedback.pushConsoleInfo(line)
+
+    def _stderr(self, segment):
+        percent = progress_of(segment)
+        if percent is not None:
+            if self.progress and self.feedback is not None:
+                self.feedback.setProgress(percent)
+            # a warning printed while a bar was drawn follows the bar on the same line
+            segment = segment[segment.find("m3c2: "):] if "m3c2: " in segment else ""
+        text = segment.strip()
+        if not text:
+            return
+        self.last_line = text
+        match = _MESSAGE.search(text)
+        if match is not None and match["kind"] == "error":
+            self.errors.append(match["text"])
+            if self.feedback is not None:
+                self.feedback.reportError(match["text"], True)
+        elif match is not None and match["kind"] == "warning":
+            if self.feedback is not None:
+                self.feedback.pushWarning(match["text"])
+        elif self.feedback is not None:
+            (self.feedback.pushConsoleInfo if match is None else self.feedback.pushInfo)(text)
+
+    def execute(self) -> str:
+        """Runs the command to its end; its stdout. Raises QgsProcessingException when it fails or
+        is cancelled (then m3c2 has written nothing: its atomic writer)."""
+        if self.feedback is not None:
+            self.feedback.pushCommandInfo(quoted(self.command))
+        try:
+            child = subprocess.Popen(self.command, stdin=subprocess.DEVNULL, stdout=subprocess.PIPE,
+                                     stderr=subprocess.PIPE)
+        except OSError as e:
+            raise QgsProcessingException(f"cannot run {self.command[0]}: {e.strerror or e}") from None
+        out, err = _Stream(child.stdout, self._stdout), _Stream(child.stderr, self._stderr)
+        out.start()
+        err.start()
+        cancelled = False
+        while child.poll() is None:
+            if not cancelled and self.feedback is not None and self.feedback.isCanceled():
+                cancelled = True
+                child.terminate()  # SIGTERM: m3c2 turns it into a clean exit without outputs (cli/main.py)
+                if hasattr(signal, "SIGCONT"):  # a stopped child would never see the TERM
+                    try:
+                        os.kill(child.pid, signal.SIGCONT)
+                    except OSError:
+                        pass
+            time.sleep(POLL_S)
+        out.join()
+        err.join()
+        child.stdout.close()
+        child.stderr.close()
+        if cancelled:
+            raise QgsProcessingException("cancelled: m3c2 was stopped (SIGTERM) and wrote no output")
+        if child.returncode != 0:
+            message = "; ".join(self.errors) or f"m3c2 failed (exit status {child.returncode}): {self.last_line}"
+            raise QgsProcessingException(message)
+        return "\n".join(out.lines)
+
+
+def run(arguments, feedback, progress=False) -> str:
+    """`m3c2 ARGUMENTS...`; its stdout."""
+    return Run([executable(), *arguments], feedback, progress).execute()

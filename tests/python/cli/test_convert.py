@@ -1,0 +1,43 @@
+"""`m3c2 convert`: every field and the CRS kept, float64 exact in text, never over its input."""
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import m3c2kit
+from m3c2kit.cli.main import main
+
+DATA = Path(__file__).resolve().parents[2] / "data" / "pairs" / "autzen-bmx"
+LAS = DATA / "autzen-bmx-2010.las"
+
+
+def test_las_to_csv_keeps_every_field_exactly(tmp_path):
+    out = tmp_path / "copy.csv"
+    assert main(["convert", str(LAS), "-o", str(out)]) == 0
+    original, copy = m3c2kit.read(LAS), m3c2kit.read(out)
+    assert np.array_equal(original.xyz, copy.xyz)
+    assert list(copy.fields) == list(original.fields)
+    for name, values in original.fields.items():
+        assert np.array_equal(np.asarray(values, dtype=np.float64), np.asarray(copy.fields[name], dtype=np.float64)), name
+
+
+def test_las_to_laz_keeps_the_crs(tmp_path):
+    out = tmp_path / "copy.laz"
+    assert main(["convert", str(LAS), "-o", str(out)]) == 0
+    assert m3c2kit.read(out).crs == m3c2kit.read(LAS).crs is not None
+
+
+def test_never_writes_over_its_input(tmp_path, capsys):
+    copy = tmp_path / "copy.csv"
+    assert main(["convert", str(LAS), "-o", str(copy)]) == 0
+    before = copy.read_bytes()
+    assert main(["convert", str(copy), "-o", str(copy)]) != 0
+    assert "would destroy the input" in capsys.readouterr().err
+    assert copy.read_bytes() == before
+
+
+def test_a_missing_input_names_the_file_and_writes_nothing(tmp_path, capsys):
+    out = tmp_path / "copy.csv"
+    assert main(["convert", str(tmp_path / "absent.laz"), "-o", str(out)]) != 0
+    assert "absent.laz" in capsys.readouterr().err
+    assert not out.exists()
