@@ -7,6 +7,7 @@
 #include <m3c2/objects_by_change.hpp>
 #include <m3c2/region_covariance.hpp>
 #include <m3c2/series.hpp>
+#include <m3c2/tam3c2.hpp>
 #include <m3c2/variogram.hpp>
 
 #include <nanobind/nanobind.h>
@@ -768,4 +769,61 @@ NB_MODULE(_core, m) {
         return to_numpy(std::move(out));
       },
       "params"_a, "lod"_a, "sigma1"_a, "n1"_a, "sigma2"_a, "n2"_a, "threads"_a = 0);
+
+  // Time-adaptive M3C2 over a pool of epochs (include/m3c2/tam3c2.hpp). The pool keeps its
+  // clouds' arrays alive (the engine views them) and each cloud's index, built once.
+  struct Tam3c2Pool {
+    std::vector<Points> clouds;
+    std::unique_ptr<m3c2::Tam3c2Pool> pool;
+  };
+  nb::class_<Tam3c2Pool>(m, "Tam3c2Pool")
+      .def(
+          "__init__",
+          [](Tam3c2Pool* self, std::vector<Points> clouds, std::vector<double> times) {
+            std::vector<m3c2::PointsView> views;
+            for (const Points& c : clouds) views.push_back(view(c));
+            new (self) Tam3c2Pool{std::move(clouds), nullptr};
+            nb::gil_scoped_release release;
+            self->pool = std::make_unique<m3c2::Tam3c2Pool>(std::move(views), std::move(times));
+          },
+          "clouds"_a, "times"_a)
+      .def_prop_ro("size", [](const Tam3c2Pool& p) { return p.pool->size(); });
+  m.def(
+      "tam3c2",
+      [](const Tam3c2Pool& pool, const Points& core, std::size_t reference, std::vector<std::size_t> targets,
+         std::vector<double> normal_radii, std::vector<double> window_ratios, std::uint32_t min_points,
+         double cylinder_radius, double max_distance, const std::string& weights, double sigma_ratio,
+         double space_time_ratio, double registration_error, double critical_value, std::array<double, 3> orientation,
+         int threads) {
+        if (targets.empty()) throw m3c2::InvalidArgument("TAM3C2 needs at least one target epoch");
+        m3c2::Tam3c2Params p;
+        p.normal_radii = std::move(normal_radii), p.window_ratios = std::move(window_ratios);
+        p.min_points = min_points, p.cylinder_radius = cylinder_radius, p.max_distance = max_distance;
+        if (weights == "none")
+          p.weights = m3c2::Tam3c2Weights::kNone;
+        else if (weights == "linear")
+          p.weights = m3c2::Tam3c2Weights::kLinear;
+        else if (weights == "gaussian")
+          p.weights = m3c2::Tam3c2Weights::kGaussian;
+        else
+          throw m3c2::InvalidArgument("TAM3C2 weights must be none, linear or gaussian");
+        p.sigma_ratio = sigma_ratio, p.space_time_ratio = space_time_ratio;
+        p.registration_error = registration_error, p.critical_value = critical_value;
+        p.orientation = m3c2::Vec3(orientation[0], orientation[1], orientation[2]);
+        auto r = run_engine(nb::none(), threads, [&](const m3c2::RunOptions& run) {
+          return m3c2::tam3c2(p, *pool.pool, reference, targets, view(core), run);
+        });
+        const std::size_t nt = targets.size();
+        nb::dict d;
+        d["normal"] = to_numpy(std::move(r.normal), 3), d["scale"] = to_numpy(std::move(r.scale));
+        d["distance"] = to_numpy(std::move(r.distance), nt), d["lod"] = to_numpy(std::move(r.lod), nt);
+        d["spread1"] = to_numpy(std::move(r.spread1), nt), d["spread2"] = to_numpy(std::move(r.spread2), nt);
+        d["n1"] = to_numpy(std::move(r.n1), nt), d["n2"] = to_numpy(std::move(r.n2), nt);
+        d["epochs1"] = to_numpy(std::move(r.epochs1), nt), d["epochs2"] = to_numpy(std::move(r.epochs2), nt);
+        d["points1"] = to_numpy(std::move(r.points1), nt), d["points2"] = to_numpy(std::move(r.points2), nt);
+        return d;
+      },
+      "pool"_a, "core"_a, "reference"_a, "targets"_a, "normal_radii"_a, "window_ratios"_a, "min_points"_a,
+      "cylinder_radius"_a, "max_distance"_a, "weights"_a, "sigma_ratio"_a, "space_time_ratio"_a, "registration_error"_a,
+      "critical_value"_a, "orientation"_a, "threads"_a = 0);
 }

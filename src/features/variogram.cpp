@@ -10,6 +10,7 @@
 #include "index/kdtree.hpp"
 #include "pipeline/validation.hpp"
 #include "support/parallel_for.hpp"
+#include "support/portable.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -34,9 +35,7 @@ std::uint64_t draw(std::uint64_t seed, std::uint64_t stream, std::uint64_t count
 }
 
 /// A draw in [0, n) (Lemire's multiply-shift; the bias is below n / 2^64).
-std::uint64_t below(std::uint64_t r, std::uint64_t n) {
-  return static_cast<std::uint64_t>((static_cast<unsigned __int128>(r) * n) >> 64);
-}
+std::uint64_t below(std::uint64_t r, std::uint64_t n) { return detail::mul_high(r, n); }
 
 enum Stream : std::uint64_t { kCentre = 1, kThin = 2, kFar = 3 };
 

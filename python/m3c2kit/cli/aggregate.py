@@ -38,8 +38,9 @@ def aggregate_parser(sub) -> None:
     p.add_argument("--error-model", type=Path, metavar="MODEL.json",
                    help="the spatially correlated error model (m3c2 variogram) the intervals account for "
                         "(default: none, uncorrelated intervals)")
-    p.add_argument("--confidence", type=table_type(by_name()["confidence"]), default=0.95,
-                   help="confidence level of the intervals (default 0.95)")
+    confidence = by_name()["confidence"]  # its range and default are the table's (compare's LOD level)
+    p.add_argument("--confidence", type=table_type(confidence), default=confidence.default_for(),
+                   help=f"confidence level of the intervals (default {confidence.default_for():g})")
     p.add_argument("--cell-size", type=positive_real("--cell-size"), metavar="CELL",
                    help="the --grid CELL of the compare run (its core points are checked to be on that grid): "
                         "volumes and areas (default: none, no volume)")

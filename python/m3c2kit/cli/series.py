@@ -4,6 +4,7 @@
     m3c2 series add STORE EPOCH...                               append epochs (resumes a killed run)
     m3c2 series smooth STORE --window N                          temporal median -> smoothed_distance
     m3c2 series kalman STORE [--model M] [--process-noise Q|auto] Kalman filter and RTS smoother -> kalman_*
+    m3c2 series tam3c2 STORE [--required-points N] [--window-ratio R] time-adaptive M3C2 -> tam3c2_*
     m3c2 series changepoints STORE --core I                      change points of one core point
     m3c2 series objects STORE -o OBJECTS.csv                     4D objects-by-change
     m3c2 series report STORE -o REPORT.html                      time series and object plots
@@ -22,7 +23,7 @@ from .integers import COUNT_MAX, fraction_list, integer, positive_real
 from .options import add, add_table_option
 from ..io.files import add_drop_nonfinite_option
 
-ACTIONS = ("add", "smooth", "kalman", "changepoints", "objects", "report", "import", "check")
+ACTIONS = ("add", "smooth", "kalman", "tam3c2", "changepoints", "objects", "report", "import", "check")
 STORE_HELP = "the series store (a Zarr directory)"
 #: The compare parameters a series takes: the parameter table's engine parameters (their flags,
 #: types, ranges and help), the core spacing and --compat; not the per-point uncertainty's inputs
@@ -64,8 +65,7 @@ def _run_options(p) -> None:
 def create_parser():
     p = _parser("m3c2 series", "Create a time-series store: core points and normals from REFERENCE once, then every "
                                "EPOCH compared with it (each equal to m3c2 compare REFERENCE EPOCH) and committed. "
-                               "Other forms: m3c2 series {add,smooth,changepoints,objects,report,import,check} ... "
-                               "(docs/series.md).")
+                               f"Other forms: m3c2 series {{{','.join(ACTIONS)}}} ... (docs/series.md).")
     p.add_argument("reference", type=Path, help="reference cloud")
     p.add_argument("epochs", nargs="+", help="epoch files, globs ('scans/*.laz'), or a list file of 'PATH, TIME' lines")
     p.add_argument("-o", "--output", type=Path, required=True, help="the store (a Zarr directory)")
@@ -111,6 +111,50 @@ def _process_noise(text: str):
     if not (value >= 0.0 and value != float("inf")):
         raise argparse.ArgumentTypeError(f"--process-noise must be 'auto' or a finite number >= 0, got {text!r}")
     return value
+
+
+
+def _positive_list(text: str) -> list[float]:
+    """Comma-separated finite numbers > 0, at least one."""
+    try:
+        values = [float(t) for t in text.split(",") if t.strip()]
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"must be a list of numbers like 0.5,1, got {text!r}") from None
+    if not values or not all(0 < v < float("inf") for v in values):
+        raise argparse.ArgumentTypeError(f"must be finite numbers > 0, at least one, got {text!r}")
+    return values
+
+
+def tam3c2_parser():
+    p = _parser("m3c2 series tam3c2", "Time-adaptive M3C2 (Huang et al., ISPRS Annals 2026): for each core point "
+                                      "and epoch, the reference's and the epoch's cylinders each aggregate the "
+                                      "epochs nearest in time until --required-points points, within a window of "
+                                      "--window-ratio times the epoch's time from the reference; the epochs are "
+                                      "read again from the store's recorded files. Writes tam3c2_distance, "
+                                      "tam3c2_lod, tam3c2_significant, tam3c2_window, tam3c2_n1, tam3c2_n2 "
+                                      "(docs/series.md, \"TAM3C2\").")
+    p.add_argument("store", type=Path, help=STORE_HELP)
+    p.add_argument("--required-points", type=integer(1, COUNT_MAX), default=10,
+                   help="aggregation stops when a side holds this many points (the reference's "
+                        "required_points; default 10)")
+    p.add_argument("--window-ratio", type=fraction_list, default=[0.2], metavar="R[,R...]",
+                   help="the window's half-width over |t_epoch - t_reference|, in (0, 1]; several: chosen per "
+                        "core point with the normal radius (the reference's max_window_ratio; default 0.2)")
+    p.add_argument("--normal-radius", type=_positive_list, default=None, metavar="R[,R...]",
+                   help="radii of the normal's sphere; several: chosen per core point (default: the store's "
+                        "normal scales / 2)")
+    p.add_argument("--weights", choices=("none", "linear", "gaussian"), default="none",
+                   help="space-time weights of the points, with Kish's effective n in the LOD (default none)")
+    p.add_argument("--sigma-ratio", type=positive_real("--sigma-ratio"), default=1.0,
+                   help="width of the gaussian weights in units of the radius and window (default 1)")
+    p.add_argument("--space-time-ratio", type=positive_real("--space-time-ratio"), default=1.0,
+                   help="the temporal kernel's window is the window times this (default 1)")
+    p.add_argument("--reference-time", default=None, metavar="TIME",
+                   help="the reference's time (ISO 8601) when the store has none recorded")
+    add_table_option(p, "confidence")  # of tam3c2_lod; default: the store's
+    add_table_option(p, "threads", filled=True)
+    add(p, "quiet")
+    return p
 
 
 def kalman_parser():
@@ -198,7 +242,8 @@ def changepoints_parser():
 
 
 def report_parser():
-    p = _parser("m3c2 series report", "HTML report of a store: time series with LOD band per core point, object "
+    p = _parser("m3c2 series report", "HTML report of a store: time series with LOD band per core point, the "
+                                      "Kalman-smoothed series with its band (after m3c2 series kalman), object "
                                       "extents and their series (after m3c2 series objects).")
     p.add_argument("store", type=Path, help=STORE_HELP)
     p.add_argument("-o", "--output", type=Path, required=True, help="the report (HTML)")
@@ -222,7 +267,8 @@ def check_parser():
     return p
 
 
-PARSERS = {"add": add_parser, "smooth": smooth_parser, "kalman": kalman_parser, "changepoints": changepoints_parser,
+PARSERS = {"add": add_parser, "smooth": smooth_parser, "kalman": kalman_parser, "tam3c2": tam3c2_parser,
+           "changepoints": changepoints_parser,
            "objects": objects_parser, "report": report_parser, "import": import_parser, "check": check_parser}
 
 
@@ -230,8 +276,7 @@ def series_parsers(sub) -> None:
     """Adds `series`: its words are parsed by the form's own parser (see the module docstring)."""
     p = sub.add_parser("series", help="M3C2 time series: a store of many epochs, 4D objects-by-change",
                        add_help=False, prefix_chars="\0",
-                       usage="m3c2 series REFERENCE EPOCH... -o STORE | m3c2 series {add,smooth,changepoints,"
-                             "objects,report,import,check} ...")
+                       usage=f"m3c2 series REFERENCE EPOCH... -o STORE | m3c2 series {{{','.join(ACTIONS)}}} ...")
     p.add_argument("words", nargs=argparse.REMAINDER, help="REFERENCE EPOCH... -o STORE, or an action and its "
                                                            "arguments (m3c2 series ACTION --help)")
     p.set_defaults(run=run_series)
@@ -346,6 +391,20 @@ def _run_kalman(args) -> int:
               f"{'; ' + out['note'] if out['note'] else ''}; significant at {out['confidence']:g}")
     return 0
 
+
+
+def _run_tam3c2(args) -> int:
+    from ..series.tam3c2 import Tam3c2Options, tam3c2
+    options = Tam3c2Options(normal_radii=None if args.normal_radius is None else tuple(args.normal_radius),
+                            window_ratios=tuple(args.window_ratio), min_points=args.required_points, weights=args.weights,
+                            sigma_ratio=args.sigma_ratio, space_time_ratio=args.space_time_ratio,
+                            reference_time=args.reference_time, confidence=args.confidence,
+                            threads=args.threads or 0)
+    out = tam3c2(args.store, options)
+    if not args.quiet:
+        print(f"{args.store}: TAM3C2 over {out['epochs']} epochs, {out['computed']} of {out['cells']} distances "
+              f"computed; LOD at {out['confidence']:g}")
+    return 0
 
 def objects_params(args):
     from ..series import engine

@@ -374,6 +374,27 @@ def lod_observation_variance(params, lod, sigma1, n1, sigma2, n2, *, threads: in
         return _core.lod_observation_variance(params, lod, sigma1, n1, sigma2, n2, threads=threads)
 
 
+def tam3c2_pool(clouds, times) -> "_core.Tam3c2Pool":
+    """The epochs of a TAM3C2 run (include/m3c2/tam3c2.hpp): float64 (N, 3) clouds and their
+    times, each cloud indexed once; the pool keeps the arrays alive."""
+    with translated():
+        return _core.Tam3c2Pool([np.ascontiguousarray(c, dtype=np.float64) for c in clouds],
+                                [float(t) for t in times])
+
+
+def tam3c2(pool, core, reference: int, targets, settings: dict, *, threads: int = 0) -> dict:
+    """TAM3C2 of `core` between the pool's epoch `reference` and each of `targets`; `settings`:
+    normal_radii, window_ratios, min_points, cylinder_radius, max_distance, weights, sigma_ratio,
+    space_time_ratio, registration_error, critical_value, orientation (tam3c2.hpp's Tam3c2Params).
+    Per-(core, target) arrays are core x targets; normal core x 3, scale per core point."""
+    core = np.ascontiguousarray(core, dtype=np.float64).reshape(-1, 3)
+    targets = [int(t) for t in targets]
+    with translated():
+        out = _core.tam3c2(pool, core, int(reference), targets, threads=threads, **settings)
+    shape = (len(core), len(targets))
+    return {k: (v if k in ("normal", "scale") else v.reshape(shape)) for k, v in out.items()}
+
+
 def normalised_dtw(a: np.ndarray, b: np.ndarray, norm_a=0.0, norm_b=0.0, dmax_origin=0.0) -> float:
     with translated():
         return float(_core.normalised_dtw(a, b, norm_a, norm_b, dmax_origin))

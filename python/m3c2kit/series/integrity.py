@@ -24,7 +24,8 @@ from .store import StoreError
 #: ({window}: the window of the committed smoothed_distance, when there is one).
 REWRITTEN_BY = {"smoothed_distance": "m3c2 series smooth {store}{window}",
                 "object": "m3c2 series objects {store} -o OBJECTS.csv",
-                **{name: "m3c2 series kalman {store} --from-scratch" for name in st.KALMAN_VARIABLES}}
+                **{name: "m3c2 series kalman {store} --from-scratch" for name in st.KALMAN_VARIABLES},
+                **{name: "m3c2 series tam3c2 {store}" for name in st.TAM3C2_VARIABLES}}
 
 
 def rerun_command(group, name: str, store: Path) -> str:

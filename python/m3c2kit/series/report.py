@@ -1,6 +1,7 @@
 """`m3c2 series report`: a self-contained HTML page of a store: per chosen core point its
 distance series with the LOD band (change is detected outside +-LOD, section 3.3) and, after
-`m3c2 series objects`, a map of the objects' extents and each object's series."""
+`m3c2 series objects`, a map of the objects' extents and each object's series; after `m3c2 series
+kalman`, the smoothed series with its band over the raw distances (report_kalman.py)."""
 from __future__ import annotations
 
 import base64
@@ -19,6 +20,7 @@ require("matplotlib", extra="report", purpose="the series report's figures")
 from matplotlib.figure import Figure  # noqa: E402
 
 from ..output.report.figures import png
+from . import report_kalman as rk
 from . import store as st
 from .outputs import members_path
 
@@ -61,7 +63,11 @@ def write_report(store: Path, output: Path, cores=None, objects_table=None) -> N
         cores = sorted({0, n_core // 2, n_core - 1}) if n_core else []
     parts = [f"<h1>M3C2 time series: {html.escape(str(store))}</h1>",
              f"<p>{n_core} core points, {n} epochs. Parameters: <code>{html.escape(group.attrs.get('parameters', ''))}"
-             f"</code></p>", "<h2>Core points</h2>"]
+             f"</code></p>"]
+    kalman = rk.kalman_run(store, group)  # None: the report is the one a store without the filter always had
+    if kalman is not None:
+        parts += rk.summary(store, group, kalman, n)
+    parts.append("<h2>Core points</h2>")
     for c in cores:
         if not 0 <= c < n_core:
             raise UsageError(f"--core {c} is not a core point of {store} (0..{n_core - 1})")
@@ -69,8 +75,12 @@ def write_report(store: Path, output: Path, cores=None, objects_table=None) -> N
         d = st.read(store, group, "distance", (c, slice(0, n)))
         lod = st.read(store, group, "lod", (c, slice(0, n)))
         xyz = [float(st.read(store, group, a, c)) for a in "xyz"]
-        parts.append(_img(_core_figure(x, xlabel, d, lod, f"core point {c} at ({xyz[0]:.3f}, {xyz[1]:.3f}, "
-                                                            f"{xyz[2]:.3f})"), f"core {c}"))
+        title = f"core point {c} at ({xyz[0]:.3f}, {xyz[1]:.3f}, {xyz[2]:.3f})"
+        if kalman is None:
+            parts.append(_img(_core_figure(x, xlabel, d, lod, title), f"core {c}"))
+        else:
+            series = rk.read_core(store, group, c, n, d, lod)
+            parts += [_img(rk.figure(x, xlabel, series, kalman, title), f"core {c}"), rk.data_block(x, series, kalman)]
     if objects is not None:
         parts += _objects_section(store, group, Path(objects_table), objects, x, xlabel, n)
     with atomic_output(output) as tmp:

@@ -305,9 +305,13 @@ DERIVED_FILL = {"f": np.nan, "i": -1}
 #: epoch, moment) a later run resumes from.
 KALMAN_VARIABLES = ("kalman_distance", "kalman_distance_sigma", "kalman_rate", "kalman_rate_sigma",
                     "kalman_acceleration", "kalman_acceleration_sigma", "kalman_significant", "kalman_moments")
+#: Time-adaptive M3C2's variables (series/tam3c2.py; docs/series.md, "TAM3C2"): distance, LOD,
+#: significance, epochs aggregated, and the two sides' (effective) point counts.
+TAM3C2_VARIABLES = ("tam3c2_distance", "tam3c2_lod", "tam3c2_significant", "tam3c2_window", "tam3c2_n1",
+                    "tam3c2_n2")
 #: Variables derived from the epochs (per core point and epoch), kept the length of the series
-#: by append_batch: smooth's, objects' labels, the Kalman filter's.
-DERIVED_VARIABLES = ("smoothed_distance", "object", *KALMAN_VARIABLES)
+#: by append_batch: smooth's, objects' labels, the Kalman filter's, TAM3C2's.
+DERIVED_VARIABLES = ("smoothed_distance", "object", *KALMAN_VARIABLES, *TAM3C2_VARIABLES)
 
 
 def append_batch(path: Path, index: int, batch: list) -> None:

@@ -5,7 +5,6 @@ at every write phase leaves the previous variables or all of them marked (never 
 4D-OBC can segment the filtered series (--use kalman)."""
 from __future__ import annotations
 
-import shutil
 import sys
 from pathlib import Path
 
@@ -25,6 +24,7 @@ sys.path.insert(0, str(REPO / "validation"))
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 import series_synthetic as ss  # noqa: E402
 from test_kalman import engine_smoother  # noqa: E402
+from test_series_trust import copy, run  # noqa: E402  (the store tests' helpers)
 
 Z95 = 1.959963984540054
 PARAMS = ["--core-spacing", "0.5", "--normal-scale", "1", "--projection-scale", "1", "--max-depth", "1",
@@ -61,19 +61,6 @@ def base(epochs, tmp_path_factory):
     assert main(["series", str(paths[0]), str(first), "-o", str(out), *PARAMS, "--quiet",
                  "--epoch-chunk", "2", "--core-chunk", "150"]) == 0
     return out
-
-
-def copy(store: Path, tmp_path: Path, name="s.zarr") -> Path:
-    out = tmp_path / name
-    shutil.copytree(store, out)
-    return out
-
-
-def run(capsys, *argv):
-    code = main([str(a) for a in argv])
-    out = capsys.readouterr()
-    assert "Traceback" not in out.err, out.err
-    return code, out.out, out.err
 
 
 def test_the_variables_are_the_engines_filter_of_the_stores_series(base, tmp_path, capsys):

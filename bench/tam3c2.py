@@ -1,0 +1,97 @@
+"""TAM3C2: ours (include/m3c2/tam3c2.hpp) against the authors' code (xyuhuang/py4dgeo,
+src/py4dgeo/tam3c2.py: a Python loop per core point, one thread) on the same synthetic series,
+the same thread count (1), and ours on 2 threads (docs/series.md, "TAM3C2").
+
+    .venv/bin/python bench/tam3c2.py --python /tmp/tam_ref_venv/bin/python --tam3c2 PATH/tam3c2.py \\
+        [--epochs 100] [--core 100000] [--reference-core 200]
+
+The reference runs on --reference-core core points (its time per core point is scaled to --core:
+its loop is per core point, so the scaling is linear); ours on all of them. Prints CPU seconds."""
+from __future__ import annotations
+
+import argparse
+import json
+import subprocess
+import sys
+import time
+
+import numpy as np
+
+SETTINGS = dict(normal_radii=[0.5, 1.0], window_ratios=[0.2], min_points=10, cylinder_radius=0.5, max_distance=2.0,
+                sigma_ratio=1.0, registration_error=0.0)
+
+
+def series(n_epochs: int, n_core: int, seed: int = 1):
+    """Epochs of a 100 m x 100 m rough slope, 2 to 20 points per m^2, hourly with gaps."""
+    rng = np.random.default_rng(seed)
+    hours = np.cumsum(rng.integers(1, 6, n_epochs)).astype(float)
+    side = max(10.0, min(100.0, np.sqrt(n_core)))  # about one core point per m^2
+    clouds = []
+    for h in hours:
+        n = int(side * side * rng.choice([2, 5, 20]))
+        x, y = rng.uniform(0, side, n), rng.uniform(0, side, n)
+        clouds.append(np.column_stack([x, y, 0.1 * x + 0.2 * np.sin(y / 3) + 0.001 * h + rng.normal(0, 0.01, n)]))
+    core = np.column_stack([rng.uniform(1, side - 1, n_core), rng.uniform(1, side - 1, n_core), np.zeros(n_core)])
+    core[:, 2] = 0.1 * core[:, 0] + 0.2 * np.sin(core[:, 1] / 3)
+    return hours, clouds, core
+
+
+def _reference(args) -> None:
+    import datetime as dt
+    import importlib.util
+    import py4dgeo
+    spec = importlib.util.spec_from_file_location("tam3c2_reference", args.tam3c2)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    hours, clouds, core = series(args.epochs, args.core)
+    core = core[: args.reference_core]
+    start = dt.datetime(2024, 1, 1)
+    epochs = [py4dgeo.Epoch(c, timestamp=start + dt.timedelta(hours=float(h))) for c, h in zip(clouds, hours)]
+    tam = module.TAM3C2(epochs_timeseries=epochs, max_window_ratio=SETTINGS["window_ratios"],
+                        normal_radii=SETTINGS["normal_radii"], required_points=SETTINGS["min_points"],
+                        weighting=module.Weighting("gaussian"), corepoints=core,
+                        cyl_radius=SETTINGS["cylinder_radius"], max_distance=SETTINGS["max_distance"])
+    t0 = time.process_time()
+    for e in epochs[1:]:
+        tam.calculate_distances(epochs[0], e)
+    print(json.dumps({"cpu_s": time.process_time() - t0, "core": len(core)}))
+
+
+def main() -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--python")
+    ap.add_argument("--tam3c2")
+    ap.add_argument("--epochs", type=int, default=100)
+    ap.add_argument("--core", type=int, default=100_000)
+    ap.add_argument("--reference-core", type=int, default=200)
+    ap.add_argument("--reference-side", action="store_true", help=argparse.SUPPRESS)
+    args = ap.parse_args()
+    if args.reference_side:
+        _reference(args)
+        return 0
+    from m3c2kit import engine as facade
+    hours, clouds, core = series(args.epochs, args.core)
+    s = dict(SETTINGS, weights="gaussian", space_time_ratio=1.0, critical_value=1.96, orientation=[0.0, 0.0, 1.0])
+    pool = facade.tam3c2_pool(clouds, hours / 24.0)
+    targets = list(range(1, len(clouds)))
+    ours = {}
+    for threads in (1, 2):
+        t0, c0 = time.perf_counter(), time.process_time()
+        facade.tam3c2(pool, core, 0, targets, s, threads=threads)
+        ours[threads] = (time.perf_counter() - t0, time.process_time() - c0)
+    print(f"epochs {args.epochs}, core points {args.core}, {sum(len(c) for c in clouds)} points in all")
+    print(f"ours, 1 thread: {ours[1][0]:.2f} s wall, {ours[1][1]:.2f} s CPU")
+    print(f"ours, 2 threads: {ours[2][0]:.2f} s wall, {ours[2][1]:.2f} s CPU")
+    if args.python and args.tam3c2:
+        out = subprocess.run([args.python, __file__, "--reference-side", "--tam3c2", args.tam3c2, "--epochs",
+                              str(args.epochs), "--core", str(args.core), "--reference-core",
+                              str(args.reference_core)], check=True, capture_output=True, text=True)
+        ref = json.loads(out.stdout.strip().splitlines()[-1])
+        scaled = ref["cpu_s"] / ref["core"] * args.core
+        print(f"reference, 1 thread: {ref['cpu_s']:.2f} s CPU on {ref['core']} core points, "
+              f"{scaled:.1f} s scaled to {args.core}: ours {scaled / ours[1][1]:.0f}x faster in CPU time")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,235 @@
+"""`m3c2 series tam3c2`: time-adaptive M3C2 over a store's epochs (docs/series.md, "TAM3C2";
+Huang, Letard, Lague, Hoefle, Tabernig, Leroy & Anders, ISPRS Annals 2026), the engine's
+(include/m3c2/tam3c2.hpp). The epochs are read again from the files the store recorded (the
+reference, attribute `reference`; each epoch's `source`), each checked against its recorded
+SHA-256, and, for each block of core points, read again and cropped to the block's reach: the pool
+is the reference at its time and every epoch at its own. For each core point and epoch, the distance between the reference's side and
+the epoch's side, each aggregated over the epochs nearest in time to it until `--required-points`
+points, within W = |t_epoch - t_reference| x ratio.
+
+The step writes tam3c2_distance, tam3c2_lod, tam3c2_significant, tam3c2_window (epochs
+aggregated, both sides together), tam3c2_n1, tam3c2_n2 (counts, or Kish's effective n when
+weighted) in the staging folder, one block of core points at a time, and publishes them together
+(analysis.publish_many): a kill leaves the previous variables, or all of them marked
+half-written, never a mix."""
+from __future__ import annotations
+
+import json
+import math
+from dataclasses import dataclass
+from pathlib import Path
+from statistics import NormalDist
+
+import numpy as np
+
+from ..base import fault_hook
+from ..base.errors import M3C2Error, UsageError
+from .. import engine as facade
+from ..io import read_cloud
+from ..run.checks import threads_count
+from . import analysis
+from . import epoch_files
+from . import integrity
+from . import parameters
+from . import step
+from . import store as st
+
+DISTANCE, LOD, SIGNIFICANT, WINDOW, N1, N2 = st.TAM3C2_VARIABLES
+WEIGHTS = ("none", "linear", "gaussian")
+MICROSECONDS_PER_DAY = 86_400_000_000
+#: Bytes of a block's per-(core, epoch) results (12 arrays of 8 bytes): memory is bounded by one
+#: block of core points: its results and its pool (the epochs' points within the block's reach).
+BLOCK_BYTES = 256 << 20
+
+
+@dataclass(frozen=True)
+class Tam3c2Options:
+    normal_radii: tuple | None = None  # the store's normal diameters / 2 when None
+    window_ratios: tuple = (0.2,)  # the reference's example; each in (0, 1]
+    min_points: int = 10  # the reference's required_points default
+    weights: str = "none"
+    sigma_ratio: float = 1.0
+    space_time_ratio: float = 1.0
+    reference_time: str | None = None  # the store's when None
+    confidence: float | None = None  # the store's when None
+    threads: int = 0
+
+
+def _check(o: Tam3c2Options) -> None:
+    if o.weights not in WEIGHTS:
+        raise UsageError(f"--weights must be one of {', '.join(WEIGHTS)}, got {o.weights!r}")
+    if not o.window_ratios or not all(0.0 < r <= 1.0 for r in o.window_ratios):
+        raise UsageError(f"--window-ratio: each ratio must be in (0, 1], got {list(o.window_ratios)}")
+    if o.normal_radii is not None and not all(math.isfinite(r) and r > 0 for r in o.normal_radii):
+        raise UsageError(f"--normal-radius: each radius must be finite and > 0, got {list(o.normal_radii)}")
+    if not (isinstance(o.min_points, int) and o.min_points >= 1):
+        raise UsageError(f"--required-points must be an integer >= 1, got {o.min_points!r}")
+    if not (math.isfinite(o.space_time_ratio) and o.space_time_ratio > 0):
+        raise UsageError(f"--space-time-ratio must be finite and > 0, got {o.space_time_ratio!r}")
+    if not (math.isfinite(o.sigma_ratio) and o.sigma_ratio > 0):
+        raise UsageError(f"--sigma-ratio must be finite and > 0, got {o.sigma_ratio!r}")
+    if o.confidence is not None and not 0.0 < o.confidence < 1.0:
+        raise UsageError(f"--confidence must be in (0, 1), got {o.confidence!r}")
+
+
+def _microseconds(text: str, what: str) -> int:
+    try:
+        value = np.datetime64(text, "us")
+    except ValueError:
+        raise UsageError(f"{what}: not a time (ISO 8601, such as 2024-01-01T12:00): {text!r}") from None
+    if np.isnat(value):
+        raise UsageError(f"{what}: not a time: {text!r}")
+    return int(value.astype(np.int64))
+
+
+def _days(store: Path, group, n: int, reference_time: str | None) -> np.ndarray:
+    """The epochs' times in days since the reference's; every one needed."""
+    given = reference_time if reference_time is not None else group.attrs.get("reference_time", "")
+    if not given:
+        raise UsageError(f"{store}: its reference has no recorded time: TAM3C2 needs it; give --reference-time TIME")
+    ref = _microseconds(given, "--reference-time" if reference_time is not None else f"{store}: reference_time")
+    times = st.read(store, group, "time", slice(0, n)).astype(np.int64)
+    if (times == st.NAT).any():
+        first = int(np.flatnonzero(times == st.NAT)[0])
+        raise UsageError(f"{store}: epoch {first} has no time (NaT): TAM3C2 needs every epoch's time "
+                         f"(give it in the epoch list file, 'PATH, TIME')")
+    return (times - ref).astype(np.float64) / MICROSECONDS_PER_DAY
+
+
+def _checked_file(store: Path, path: str, sha256: str, what: str) -> tuple[Path, tuple]:
+    """The recorded file, with the state it had when its SHA-256 was checked (each block re-reads it)."""
+    p = Path(path)
+    if not p.is_file():
+        raise M3C2Error(f"{store}: {what} {p} is gone; TAM3C2 reads the epochs' files again")
+    state = epoch_files.file_state(p)
+    if sha256 and epoch_files.file_digest(p) != sha256:
+        raise M3C2Error(f"{store}: {what} {p} changed since it was added (SHA-256 differs)")
+    return p, state
+
+
+def _files(store: Path, group, n: int) -> list[tuple[Path, tuple]]:
+    """The reference's and the n epochs' recorded files, each checked against its SHA-256."""
+    attrs = group.attrs
+    files = [_checked_file(store, attrs["reference"], attrs.get("reference_sha256", ""), "its reference")]
+    info = {name: st.read(store, group, name, slice(0, n)) for name in ("source", "source_sha256") if name in group}
+    for e in range(n):
+        sha = str(info["source_sha256"][e]) if "source_sha256" in info else ""
+        files.append(_checked_file(store, str(info["source"][e]), sha, f"epoch {e}'s file"))
+    return files
+
+
+def _pool(store: Path, files, core: np.ndarray, reach: float, times: np.ndarray):
+    """The engine's pool for a block of core points: every file read again and cropped to the
+    block's box widened by the reach (only those points can be in a sphere or cylinder), so
+    memory holds one block's neighbourhoods; a file written since its hash was checked is refused."""
+    lo, hi = core.min(axis=0) - reach, core.max(axis=0) + reach
+    clouds = []
+    for path, state in files:
+        xyz = read_cloud(path).xyz
+        if epoch_files.file_state(path) != state:
+            raise M3C2Error(f"{store}: {path} changed while TAM3C2 read it; rerun when it is written whole")
+        keep = np.all((xyz >= lo) & (xyz <= hi), axis=1)
+        clouds.append(np.ascontiguousarray(xyz[keep], dtype=np.float64))
+        del xyz
+    return facade.tam3c2_pool(clouds, times.tolist())
+
+
+def _settings(store: Path, group, o: Tam3c2Options) -> tuple[dict, float]:
+    """The engine's settings from the store's parameters (cylinder, normal scales, registration
+    error, confidence) and the options; and the confidence."""
+    if "imported_from" in group.attrs:
+        raise UsageError(f"{store} was imported: its M3C2 parameters are unknown; TAM3C2 needs its cylinder")
+    core = np.column_stack([st.read(store, group, a) for a in "xyz"])
+    params = parameters.engine_params(json.loads(group.attrs["parameters"]), core)
+    confidence = params.confidence if o.confidence is None else o.confidence
+    radii = o.normal_radii or tuple(d / 2.0 for d in params.normal_diameters)
+    settings = dict(normal_radii=[float(r) for r in radii], window_ratios=[float(r) for r in o.window_ratios],
+                    min_points=int(o.min_points), cylinder_radius=params.projection_diameter / 2.0,
+                    max_distance=params.max_depth, weights=o.weights, sigma_ratio=float(o.sigma_ratio),
+                    space_time_ratio=float(o.space_time_ratio), registration_error=params.registration_error,
+                    critical_value=NormalDist().inv_cdf(0.5 + 0.5 * confidence), orientation=[0.0, 0.0, 1.0])
+    return settings, confidence
+
+
+def _kept(store: Path, folder: Path) -> str:
+    try:
+        group = st.open_group(folder)
+    except M3C2Error:
+        return f"{store} is at its last commit"
+    marked = [n for n in st.rewriting(group) if n in st.TAM3C2_VARIABLES]
+    if marked:
+        return f"{', '.join(marked)} marked half-written in {store}; rerun m3c2 series tam3c2 {store}"
+    return f"the TAM3C2 variables of {store} unchanged" if DISTANCE in group else f"{store} unchanged (no TAM3C2 run)"
+
+
+def _block_rows(group, n: int) -> list[tuple[int, int]]:
+    most = max(1, BLOCK_BYTES // (max(1, n) * 8 * 12))
+    out = []
+    for begin, end in analysis._core_chunks(group):
+        out.extend((b, min(end, b + most)) for b in range(begin, end, most))
+    return out
+
+
+def tam3c2(store: Path, options: Tam3c2Options = Tam3c2Options()) -> dict:
+    """Computes TAM3C2 for every core point and epoch of the store and publishes its variables."""
+    _check(options)
+    store = Path(store)
+    threads = threads_count(options.threads)
+    with step.writing(store, "tam3c2", lambda folder: _kept(store, folder)) as folder:
+        group = st.open_group(folder)
+        n = group["distance"].shape[1]
+        if n == 0:
+            raise UsageError(f"{store} has no epoch to compare")
+        days = _days(store, group, n, options.reference_time)
+        settings, confidence = _settings(store, group, options)
+        core = np.ascontiguousarray(np.column_stack([st.read(store, group, a) for a in "xyz"]), dtype=np.float64)
+        reach = max(max(settings["normal_radii"]),
+                    math.hypot(settings["cylinder_radius"], settings["max_distance"]))
+        # The pool in time order (the engine breaks ties in time distance by pool order: the
+        # earlier epoch first), the reference among the epochs where its time falls.
+        times = np.array([0.0, *days])
+        order = np.argsort(times, kind="stable")
+        recorded = _files(store, group, n)
+        files = [recorded[k] for k in order]
+        position = np.argsort(order)  # of the reference (0) and epoch e (e + 1) in the pool
+        common = {"epochs": int(n), "min_points": settings["min_points"], "weights": options.weights,
+                  "window_ratios": settings["window_ratios"], "normal_radii": settings["normal_radii"],
+                  "space_time_ratio": settings["space_time_ratio"], "sigma_ratio": settings["sigma_ratio"],
+                  "confidence": confidence, "time_unit": "days since the reference"}
+        integrity.make_staging(folder)
+        out = _staged_all(folder, group, common)
+        fault_hook.checkpoint("store-write")
+        computed = 0
+        for begin, end in _block_rows(group, n):
+            pool = _pool(store, files, core[begin:end], reach, times[order])
+            r = facade.tam3c2(pool, core[begin:end], int(position[0]), position[1:].tolist(), settings,
+                              threads=threads)
+            rows = slice(begin, end)
+            out[DISTANCE][rows, :n] = r["distance"]
+            computed += int(np.isfinite(r["distance"]).sum())
+            out[LOD][rows, :n] = r["lod"]
+            with np.errstate(invalid="ignore"):
+                out[SIGNIFICANT][rows, :n] = np.where(np.isnan(r["distance"]), -1,
+                                                      np.abs(r["distance"]) > r["lod"]).astype(np.int8)
+            out[WINDOW][rows, :n] = (r["epochs1"] + r["epochs2"]).astype(np.int32)
+            out[N1][rows, :n] = r["n1"]
+            out[N2][rows, :n] = r["n2"]
+        analysis.publish_many(folder, list(st.TAM3C2_VARIABLES))
+    return {"epochs": n, "variables": list(st.TAM3C2_VARIABLES), "confidence": confidence, "computed": computed,
+            "cells": n * len(core)}
+
+
+def _staged_all(folder: Path, group, common: dict) -> dict:
+    _, zarr = st.require_extra()
+    spec = [(DISTANCE, np.float64, np.nan, "TAM3C2 distance (reference side to the epoch's side)"),
+            (LOD, np.float64, np.nan, "TAM3C2 level of detection: z sqrt(s1^2/n1 + s2^2/n2) + registration error"),
+            (SIGNIFICANT, np.int8, -1, "|tam3c2_distance| > tam3c2_lod (1 yes, 0 no, -1 no distance)"),
+            (WINDOW, np.int32, -1, "epochs aggregated, the reference's side and the epoch's side together"),
+            (N1, np.float64, np.nan, "points of the reference's side (Kish's effective n when weighted)"),
+            (N2, np.float64, np.nan, "points of the epoch's side (Kish's effective n when weighted)")]
+    out = {}
+    for name, dtype, fill, long_name in spec:
+        attrs = dict(common, long_name=long_name, **({"_FillValue": -1} if fill == -1 else {}))
+        out[name] = zarr.create_array(store=str(integrity.staged_name(folder, name)), zarr_format=3,
+                                      config=st.WRITE_CONFIG, **analysis._variable_spec(group, dtype, fill, attrs))
+    return out

@@ -1,0 +1,300 @@
+// Time-adaptive M3C2 (include/m3c2/tam3c2.hpp; docs/series.md, "TAM3C2"; Huang et al., ISPRS
+// Annals 2026). The definitions are the paper's as its authors' code (xyuhuang/py4dgeo,
+// tam3c2.py) computes them; the spatial search is the engine's k-d tree (index/kdtree.hpp) and
+// its one squared distance (index/distance.hpp), each epoch indexed once.
+//
+//   order     epochs by |t_e - t_c|, ties by time order (earlier first): nearest in time first
+//   aggregate walk the order while |t_e - t_c| <= W, adding each epoch's points in the
+//             neighbourhood, until the side holds min_points points
+//   normal    PCA of the aggregated sphere (covariance / N), smallest eigenvector towards
+//             `orientation`; planarity (l1 - l0) / l2 (0 when l2 <= 1e-12); the combination
+//             (radius, ratio) of highest planarity wins, W = (time range) * ratio for this contest
+//   distance  m2 - m1, m the (weighted) mean of (p - c) . n on each side
+//   LOD       z sqrt(s1^2 / n1 + s2^2 / n2) + reg, n = max(1, count or (sum w)^2 / sum w^2)
+
+#include <m3c2/errors.hpp>
+#include <m3c2/tam3c2.hpp>
+
+#include "index/distance.hpp"
+#include "index/kdtree.hpp"
+#include "support/parallel_for.hpp"
+
+#include <Eigen/Eigenvalues>
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <numeric>
+#include <string>
+
+namespace m3c2 {
+
+struct Tam3c2Pool::Impl {
+  std::vector<PointsView> clouds;
+  std::vector<detail::KdTree> trees;
+};
+
+Tam3c2Pool::Tam3c2Pool(std::vector<PointsView> clouds, std::vector<double> times)
+    : times_(std::move(times)), impl_(std::make_unique<Impl>()) {
+  if (clouds.size() != times_.size()) throw InvalidArgument("TAM3C2: one time per epoch of the pool");
+  for (double t : times_)
+    if (!std::isfinite(t)) throw InvalidArgument("TAM3C2: every epoch of the pool needs a finite time");
+  impl_->clouds = std::move(clouds);
+  impl_->trees.reserve(impl_->clouds.size());
+  for (const PointsView& c : impl_->clouds) impl_->trees.emplace_back(c);
+}
+Tam3c2Pool::~Tam3c2Pool() = default;
+Tam3c2Pool::Tam3c2Pool(Tam3c2Pool&&) noexcept = default;
+
+namespace {
+
+constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
+
+/// One side's aggregated neighbourhood: the points (x, y, z) and each point's dt = t_e - t_c.
+/// `ends`: the count after each epoch added, in walk order.
+struct Side {
+  std::vector<double> xyz, dt;
+  std::vector<std::size_t> ends;
+  std::uint32_t epochs = 0;
+  std::size_t count() const { return dt.size(); }
+  void clear() { xyz.clear(), dt.clear(), ends.clear(), epochs = 0; }
+  /// The side a walk capped at `window` would have made: the walk is in order of |dt|, so its
+  /// epochs within the window are a prefix of this uncapped walk's.
+  void prefix_of(const Side& full, double window) {
+    clear();
+    std::size_t k = 0;
+    while (k < full.ends.size() && std::abs(full.dt[full.ends[k] - 1]) <= window) ++k;
+    const std::size_t n = k ? full.ends[k - 1] : 0;
+    xyz.assign(full.xyz.begin(), full.xyz.begin() + std::ptrdiff_t(3 * n));
+    dt.assign(full.dt.begin(), full.dt.begin() + std::ptrdiff_t(n));
+    ends.assign(full.ends.begin(), full.ends.begin() + std::ptrdiff_t(k));
+    epochs = std::uint32_t(k);
+  }
+};
+
+struct Scratch {
+  std::vector<std::uint32_t> found;
+  Side a, b, reference;
+};
+
+/// The pool's indices nearest in time to `centre` first; equal distances in pool order (time
+/// order for a pool sorted by time). Made once per centre epoch: every core point walks it.
+std::vector<std::size_t> nearest_first(const std::vector<double>& times, double centre) {
+  std::vector<std::size_t> order(times.size());
+  std::iota(order.begin(), order.end(), std::size_t(0));
+  std::stable_sort(order.begin(), order.end(), [&](std::size_t i, std::size_t j) {
+    return std::abs(times[i] - centre) < std::abs(times[j] - centre);
+  });
+  return order;
+}
+
+/// Aggregates around time `centre` (nearest first, within `window`, until min_points); `keep`
+/// tests a point (its coordinates) against the neighbourhood, `reach` bounds it as a ball.
+template <class Keep>
+void aggregate(const Tam3c2Pool& pool, const Vec3& c, const std::vector<std::size_t>& order, double centre,
+               double window, double reach, std::uint32_t min_points, Scratch& s, Side& side, Keep&& keep) {
+  side.clear();
+  for (std::size_t e : order) {
+    const double dt = pool.times()[e] - centre;
+    if (std::abs(dt) > window) break;
+    s.found.clear();
+    pool.impl().trees[e].ball(c, reach, s.found);
+    std::sort(s.found.begin(), s.found.end());  // the cloud's order, whatever the tree's
+    const PointsView cloud = pool.impl().clouds[e];
+    std::size_t added = 0;
+    for (std::uint32_t i : s.found) {
+      const double* p = cloud.data() + 3 * std::size_t(i);
+      if (!keep(p)) continue;
+      side.xyz.insert(side.xyz.end(), p, p + 3);
+      side.dt.push_back(dt);
+      ++added;
+    }
+    if (added == 0) continue;
+    ++side.epochs;
+    side.ends.push_back(side.count());
+    if (side.count() >= min_points) break;
+  }
+}
+
+/// Planarity and normal of the points (tam3c2_readme.md 4.3); -inf with fewer than 3 points.
+double planarity(const Side& side, const Vec3& orientation, Vec3& normal) {
+  const std::size_t n = side.count();
+  if (n < 3) return -std::numeric_limits<double>::infinity();
+  Vec3 mean = Vec3::Zero();
+  for (std::size_t i = 0; i < n; ++i) mean += Vec3(side.xyz[3 * i], side.xyz[3 * i + 1], side.xyz[3 * i + 2]);
+  mean /= double(n);
+  Eigen::Matrix3d cov = Eigen::Matrix3d::Zero();
+  for (std::size_t i = 0; i < n; ++i) {
+    const Vec3 d = Vec3(side.xyz[3 * i], side.xyz[3 * i + 1], side.xyz[3 * i + 2]) - mean;
+    cov += d * d.transpose();
+  }
+  cov /= double(n);
+  const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig(cov);  // ascending eigenvalues
+  const Vec3 l = eig.eigenvalues();
+  normal = eig.eigenvectors().col(0);
+  if (normal.dot(orientation) < 0.0) normal = -normal;
+  return l[2] > 1e-12 ? (l[1] - l[0]) / l[2] : 0.0;
+}
+
+/// The weight of each point of a side (tam3c2_readme.md 4.5), empty for unweighted.
+void weights(const Tam3c2Params& p, const Side& side, const Vec3& c, const Vec3& n, double window,
+             std::vector<double>& w) {
+  w.clear();
+  if (p.weights == Tam3c2Weights::kNone) return;
+  const double win = window * p.space_time_ratio;
+  const double sigma = p.sigma_ratio > 0.0 ? p.sigma_ratio : 1.0;
+  bool any = false;
+  for (std::size_t i = 0; i < side.count(); ++i) {
+    const double* q = side.xyz.data() + 3 * i;
+    const double dx = q[0] - c.x(), dy = q[1] - c.y(), dz = q[2] - c.z();
+    const double along = dx * n.x() + dy * n.y() + dz * n.z();
+    const double radial = std::sqrt(std::max(dx * dx + dy * dy + dz * dz - along * along, 0.0));
+    const double us = radial / p.cylinder_radius, ut = std::abs(side.dt[i]) / win;
+    double ws = 1.0, wt = 1.0;
+    if (p.weights == Tam3c2Weights::kLinear) {
+      ws = std::clamp(1.0 - us, 0.0, 1.0);
+      if (win > 0.0) wt = std::clamp(1.0 - ut, 0.0, 1.0);
+    } else {
+      ws = std::exp(-(us * us) / (2.0 * sigma * sigma));
+      if (win > 0.0) wt = std::exp(-(ut * ut) / (2.0 * sigma * sigma));
+    }
+    w.push_back(ws * wt);
+    any = any || w.back() > 0.0;
+  }
+  if (!any) std::fill(w.begin(), w.end(), 1.0);  // all weights vanished: the side unweighted
+}
+
+struct Moments {
+  double mean, spread, n;
+};
+
+/// Mean, spread and n of the side's projections on n (tam3c2_readme.md 4.6).
+Moments side_moments(const Side& side, const std::vector<double>& w, const Vec3& c, const Vec3& n,
+                     std::vector<double>& proj) {
+  const std::size_t k = side.count();
+  proj.resize(k);
+  for (std::size_t i = 0; i < k; ++i) {
+    const double* q = side.xyz.data() + 3 * i;
+    proj[i] = (q[0] - c.x()) * n.x() + (q[1] - c.y()) * n.y() + (q[2] - c.z()) * n.z();
+  }
+  Moments m{};
+  if (w.empty()) {
+    double sum = 0.0;
+    for (double v : proj) sum += v;
+    m.mean = sum / double(k);
+    double ss = 0.0;
+    for (double v : proj) ss += (v - m.mean) * (v - m.mean);
+    m.spread = std::sqrt(ss / double(k - 1));  // the sample standard deviation (k >= 2)
+    m.n = double(k);
+  } else {
+    double sw = 0.0, swp = 0.0, sw2 = 0.0;
+    for (std::size_t i = 0; i < k; ++i) sw += w[i], swp += w[i] * proj[i], sw2 += w[i] * w[i];
+    m.mean = swp / sw;
+    double ss = 0.0;
+    for (std::size_t i = 0; i < k; ++i) ss += w[i] * (proj[i] - m.mean) * (proj[i] - m.mean);
+    m.spread = std::sqrt(ss / sw);
+    m.n = sw2 > 0.0 ? sw * sw / sw2 : double(k);  // Kish's effective sample size
+  }
+  m.n = std::max(m.n, 1.0);
+  return m;
+}
+
+void check(const Tam3c2Params& p, const Tam3c2Pool& pool, std::size_t reference, const std::vector<std::size_t>& targets) {
+  if (p.normal_radii.empty() || p.window_ratios.empty())
+    throw InvalidArgument("TAM3C2 needs at least one normal radius and one window ratio");
+  for (double r : p.normal_radii)
+    if (!(r > 0.0 && std::isfinite(r))) throw InvalidArgument("TAM3C2: normal radii must be finite and > 0");
+  for (double r : p.window_ratios)
+    if (!(r > 0.0 && r <= 1.0)) throw InvalidArgument("TAM3C2: window ratios must be in (0, 1]");
+  if (!(p.cylinder_radius > 0.0 && std::isfinite(p.cylinder_radius)) ||
+      !(p.max_distance > 0.0 && std::isfinite(p.max_distance)))
+    throw InvalidArgument("TAM3C2: the cylinder's radius and half-length must be finite and > 0");
+  if (p.min_points < 1) throw InvalidArgument("TAM3C2: min_points must be >= 1");
+  if (!(p.space_time_ratio > 0.0 && std::isfinite(p.space_time_ratio)) || !std::isfinite(p.sigma_ratio))
+    throw InvalidArgument("TAM3C2: space_time_ratio must be finite and > 0, sigma_ratio finite");
+  if (!(p.registration_error >= 0.0) || !(p.critical_value > 0.0))
+    throw InvalidArgument("TAM3C2: the registration error must be >= 0 and the critical value > 0");
+  if (reference >= pool.size()) throw InvalidArgument("TAM3C2: the reference is not an epoch of the pool");
+  for (std::size_t t : targets)
+    if (t >= pool.size()) throw InvalidArgument("TAM3C2: a target is not an epoch of the pool");
+}
+
+}  // namespace
+
+Tam3c2Result tam3c2(const Tam3c2Params& p, const Tam3c2Pool& pool, std::size_t reference,
+                    const std::vector<std::size_t>& targets, PointsView core, const RunOptions& run) {
+  check(p, pool, reference, targets);
+  const std::size_t nc = core.size(), nt = targets.size();
+  const std::size_t ratios = p.window_ratios.size();
+  const auto [lo, hi] = std::minmax_element(pool.times().begin(), pool.times().end());
+  double range = pool.size() ? *hi - *lo : 0.0;
+  if (!(range > 0.0)) range = 1.0;  // one time: any positive window takes only that time
+  const double t_ref = pool.times()[reference];
+  const double reach = std::sqrt(p.cylinder_radius * p.cylinder_radius + p.max_distance * p.max_distance);
+  const double r2 = p.cylinder_radius * p.cylinder_radius;
+
+  // The walk of each centre: the reference's, and each target's.
+  const std::vector<std::size_t> ref_order = nearest_first(pool.times(), t_ref);
+  std::vector<std::vector<std::size_t>> target_order;
+  for (std::size_t t : targets) target_order.push_back(nearest_first(pool.times(), pool.times()[t]));
+
+  Tam3c2Result out;
+  out.normal.assign(3 * nc, kNaN);
+  out.scale.assign(nc, -1);
+  for (auto* v : {&out.distance, &out.lod, &out.spread1, &out.spread2, &out.n1, &out.n2}) v->assign(nc * nt, kNaN);
+  for (auto* v : {&out.epochs1, &out.epochs2, &out.points1, &out.points2}) v->assign(nc * nt, 0u);
+
+  detail::parallel_blocks<Scratch>(nc, run, [&](std::size_t begin, std::size_t end, Scratch& s) {
+    std::vector<double> w1, w2, proj;
+    for (std::size_t i = begin; i < end; ++i) {
+      const Vec3 c = core[i];
+      // The scale contest on the reference (4.4): the most planar aggregated sphere.
+      double best = -std::numeric_limits<double>::infinity();
+      Vec3 normal = p.orientation;
+      std::int32_t chosen = -1;
+      for (std::size_t a = 0; a < p.normal_radii.size(); ++a)
+        for (std::size_t b = 0; b < ratios; ++b) {
+          const double r = p.normal_radii[a], rr = r * r;
+          aggregate(pool, c, ref_order, t_ref, range * p.window_ratios[b], r, p.min_points, s, s.a,
+                    [&](const double* q) { return detail::squared_distance(q, c) <= rr; });
+          Vec3 nrm = p.orientation;
+          const double pl = planarity(s.a, p.orientation, nrm);
+          if (pl > best) best = pl, normal = nrm, chosen = std::int32_t(a * ratios + b);
+        }
+      for (int k = 0; k < 3; ++k) out.normal[3 * i + k] = normal[k];
+      out.scale[i] = chosen;
+      const double ratio = p.window_ratios[chosen < 0 ? 0 : std::size_t(chosen) % ratios];
+      const auto in_cylinder = [&](const double* q) {
+        const double dx = q[0] - c.x(), dy = q[1] - c.y(), dz = q[2] - c.z();
+        const double along = dx * normal.x() + dy * normal.y() + dz * normal.z();
+        return dx * dx + dy * dy + dz * dz - along * along <= r2 && std::abs(along) <= p.max_distance;
+      };
+      // The reference's side, walked once without a cap; each target's window takes a prefix.
+      aggregate(pool, c, ref_order, t_ref, std::numeric_limits<double>::infinity(), reach, p.min_points, s,
+                s.reference, in_cylinder);
+      for (std::size_t j = 0; j < nt; ++j) {
+        const double t_tgt = pool.times()[targets[j]];
+        double gap = std::abs(t_tgt - t_ref);
+        if (gap == 0.0) gap = range;  // the target at the reference's time: the whole range (4.7)
+        const double window = gap * ratio;
+        s.a.prefix_of(s.reference, window);
+        aggregate(pool, c, target_order[j], t_tgt, window, reach, p.min_points, s, s.b, in_cylinder);
+        const std::size_t o = i * nt + j;
+        out.epochs1[o] = s.a.epochs, out.epochs2[o] = s.b.epochs;
+        out.points1[o] = std::uint32_t(s.a.count()), out.points2[o] = std::uint32_t(s.b.count());
+        if (s.a.count() < 2 || s.b.count() < 2) continue;  // no spread on a side: no distance
+        weights(p, s.a, c, normal, window, w1);
+        weights(p, s.b, c, normal, window, w2);
+        const Moments m1 = side_moments(s.a, w1, c, normal, proj);
+        const Moments m2 = side_moments(s.b, w2, c, normal, proj);
+        out.distance[o] = m2.mean - m1.mean;
+        out.lod[o] = p.critical_value * std::sqrt(m1.spread * m1.spread / m1.n + m2.spread * m2.spread / m2.n) +
+                     p.registration_error;
+        out.spread1[o] = m1.spread, out.spread2[o] = m2.spread, out.n1[o] = m1.n, out.n2[o] = m2.n;
+      }
+    }
+  }, 16);
+  return out;
+}
+
+}  // namespace m3c2

@@ -1,0 +1,156 @@
+"""TAM3C2 (include/m3c2/tam3c2.hpp; docs/series.md, "TAM3C2") against a brute-force numpy
+implementation written here from the paper's definitions (tam3c2_readme.md of xyuhuang/py4dgeo:
+nearest-in-time aggregation within W = gap x ratio until min_points, the most planar sphere's
+normal, (weighted) means and spreads, Kish's effective n, the LOD), on tiny seeded series: the
+same distances and LODs to 1e-9, for every weighting and several scales; the same bits for any
+thread count."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from m3c2kit import engine as facade
+
+
+def brute_force(clouds, times, core, ref, targets, s):
+    """TAM3C2 by exhaustive search: every point of every epoch tested (no spatial index)."""
+    times = np.asarray(times, dtype=float)
+    span = times.max() - times.min() or 1.0
+    o = np.asarray(s["orientation"], dtype=float)
+
+    def aggregate(c, centre, window, inside):
+        order = sorted(range(len(times)), key=lambda e: (abs(times[e] - centre), e))
+        pts, dts, epochs = [], [], 0
+        for e in order:
+            dt = times[e] - centre
+            if abs(dt) > window:
+                break
+            found = clouds[e][inside(clouds[e] - c)]
+            if len(found) == 0:
+                continue
+            pts.append(found), dts.append(np.full(len(found), dt))
+            epochs += 1
+            if sum(len(p) for p in pts) >= s["min_points"]:
+                break
+        if not pts:
+            return np.zeros((0, 3)), np.zeros(0), 0
+        return np.vstack(pts), np.concatenate(dts), epochs
+
+    def weights(v, dt, n, window):
+        if s["weights"] == "none":
+            return None
+        along = v @ n
+        us = np.sqrt(np.maximum((v * v).sum(1) - along ** 2, 0)) / s["cylinder_radius"]
+        win = window * s["space_time_ratio"]
+        ut = np.abs(dt) / win
+        sg = s["sigma_ratio"]
+        if s["weights"] == "linear":
+            w = np.clip(1 - us, 0, 1) * np.clip(1 - ut, 0, 1)
+        else:
+            w = np.exp(-us ** 2 / (2 * sg * sg)) * np.exp(-ut ** 2 / (2 * sg * sg))
+        return w if (w > 0).any() else np.ones_like(w)
+
+    def moments(p, w):
+        if w is None:
+            return p.mean(), p.std(ddof=1), float(len(p))
+        m = (w * p).sum() / w.sum()
+        return m, np.sqrt((w * (p - m) ** 2).sum() / w.sum()), max(w.sum() ** 2 / (w * w).sum(), 1.0)
+
+    combos = [(r, q) for r in s["normal_radii"] for q in s["window_ratios"]]
+    out = {k: np.full((len(core), len(targets)), np.nan) for k in ("distance", "lod", "n1", "n2")}
+    for i, c in enumerate(core):
+        best, normal, ratio = -np.inf, o, combos[0][1]
+        for r, q in combos:
+            pts, _, _ = aggregate(c, times[ref], span * q, lambda v: (v * v).sum(1) <= r * r)
+            if len(pts) < 3:
+                continue
+            lam, vec = np.linalg.eigh(np.cov(pts.T, bias=True))
+            pl = (lam[1] - lam[0]) / lam[2] if lam[2] > 1e-12 else 0.0
+            if pl > best:
+                best, normal, ratio = pl, vec[:, 0] * (1 if vec[:, 0] @ o >= 0 else -1), q
+        cyl = lambda v: ((v * v).sum(1) - (v @ normal) ** 2 <= s["cylinder_radius"] ** 2) & (
+            np.abs(v @ normal) <= s["max_distance"])
+        for j, t in enumerate(targets):
+            window = (abs(times[t] - times[ref]) or span) * ratio
+            p1, d1, _ = aggregate(c, times[ref], window, cyl)
+            p2, d2, _ = aggregate(c, times[t], window, cyl)
+            if len(p1) < 2 or len(p2) < 2:
+                continue
+            m1, s1, n1 = moments((p1 - c) @ normal, weights(p1 - c, d1, normal, window))
+            m2, s2, n2 = moments((p2 - c) @ normal, weights(p2 - c, d2, normal, window))
+            out["distance"][i, j] = m2 - m1
+            out["lod"][i, j] = s["critical_value"] * np.sqrt(s1 ** 2 / n1 + s2 ** 2 / n2) + s["registration_error"]
+            out["n1"][i, j], out["n2"][i, j] = n1, n2
+    return out
+
+
+def tiny_series(seed: int, epochs: int = 7):
+    """A tilted rough plane rising 3 cm per day, epochs of very different density, irregular times."""
+    rng = np.random.default_rng(seed)
+    times = np.cumsum(rng.uniform(0.5, 3.0, epochs))
+    clouds = []
+    for e, t in enumerate(times):
+        n = int(rng.choice([15, 60, 200]))
+        x, y = rng.uniform(-2, 2, n), rng.uniform(-2, 2, n)
+        z = 0.2 * x - 0.1 * y + 0.03 * t + 0.05 * np.sin(3 * x) + rng.normal(0, 0.01, n)
+        clouds.append(np.column_stack([x, y, z]))
+    core = np.column_stack([rng.uniform(-1.2, 1.2, 25), rng.uniform(-1.2, 1.2, 25), np.zeros(25)])
+    return clouds, times, core
+
+
+def settings(**kw):
+    s = dict(normal_radii=[0.5, 1.0], window_ratios=[0.3, 1.0], min_points=12, cylinder_radius=0.35,
+             max_distance=1.0, weights="none", sigma_ratio=1.0, space_time_ratio=1.0, registration_error=0.005,
+             critical_value=1.96, orientation=[0.0, 0.0, 1.0])
+    s.update(kw)
+    return s
+
+
+@pytest.mark.parametrize("weights", ["none", "linear", "gaussian"])
+@pytest.mark.parametrize("seed", [1, 2])
+def test_the_engine_equals_a_brute_force_tam3c2(seed, weights):
+    clouds, times, core = tiny_series(seed)
+    s = settings(weights=weights, space_time_ratio=1.5 if weights == "gaussian" else 1.0)
+    ref, targets = 2, [0, 1, 3, 4, 5, 6, 2]  # the reference's own time too (the whole span as window)
+    pool = facade.tam3c2_pool(clouds, times)
+    got = facade.tam3c2(pool, core, ref, targets, s, threads=1)
+    want = brute_force(clouds, times, core, ref, targets, s)
+    for key in ("distance", "lod", "n1", "n2"):
+        assert np.array_equal(np.isnan(got[key]), np.isnan(want[key])), key
+        np.testing.assert_allclose(got[key], want[key], rtol=0, atol=1e-9, err_msg=key)
+    assert np.isfinite(got["distance"]).sum() > 0.3 * got["distance"].size  # a test that compares numbers
+
+
+def test_the_window_cap_and_min_points_change_the_result():
+    """Sensitivity: a smaller cap borrows fewer epochs (more NaN), a larger min_points borrows more."""
+    clouds, times, core = tiny_series(3)
+    pool = facade.tam3c2_pool(clouds, times)
+    wide = facade.tam3c2(pool, core, 0, range(1, 7), settings(window_ratios=[1.0]))
+    narrow = facade.tam3c2(pool, core, 0, range(1, 7), settings(window_ratios=[0.01]))
+    assert np.isfinite(wide["distance"]).sum() > np.isfinite(narrow["distance"]).sum()
+    assert (wide["epochs2"] >= narrow["epochs2"]).all() and (wide["epochs2"] > narrow["epochs2"]).any()
+    more = facade.tam3c2(pool, core, 0, range(1, 7), settings(window_ratios=[1.0], min_points=40))
+    assert more["points2"].sum() > wide["points2"].sum()  # (min_points also moves the normal's contest)
+
+
+def test_the_same_bits_for_any_thread_count():
+    clouds, times, core = tiny_series(4, epochs=9)
+    pool = facade.tam3c2_pool(clouds, times)
+    s = settings(weights="gaussian")
+    a = facade.tam3c2(pool, core, 0, range(9), s, threads=1)
+    b = facade.tam3c2(pool, core, 0, range(9), s, threads=3)
+    for key in a:
+        assert a[key].tobytes() == b[key].tobytes(), key
+
+
+def test_a_tie_in_time_distance_borrows_the_earlier_epoch():
+    """Epochs 1 h before and after the target are equally near: the earlier one is taken."""
+    g = np.linspace(-0.5, 0.5, 11)
+    plane = lambda z: np.column_stack([np.repeat(g, 11), np.tile(g, 11), np.full(121, z)])  # noqa: E731
+    clouds = [plane(0.0), plane(0.1), np.array([[0.0, 0.0, 0.2]]), plane(0.3)]
+    pool = facade.tam3c2_pool(clouds, [0.0, 4.0, 5.0, 6.0])
+    s = settings(normal_radii=[0.5], window_ratios=[1.0], min_points=5, cylinder_radius=0.25, weights="none")
+    r = facade.tam3c2(pool, np.zeros((1, 3)), 0, [2], s)
+    assert r["epochs2"][0, 0] == 2
+    k = r["points2"][0, 0] - 1  # the plane's points besides the target's one
+    assert abs(r["distance"][0, 0] - (0.2 + 0.1 * k) / (k + 1)) < 1e-12

@@ -1,0 +1,177 @@
+"""`m3c2 series tam3c2` on a store (series/tam3c2.py; docs/series.md, "TAM3C2"): the variables
+equal the engine's TAM3C2 on the store's recorded files and times, more core points get a distance
+than plain per-epoch M3C2 on sparse epochs (the paper's completeness gain, seeded simulation), the
+store stays sound, bad input is refused naming it, and a kill at every write phase keeps the
+previous variables or marks all of them half-written (never a mix)."""
+from __future__ import annotations
+
+import shutil
+from statistics import NormalDist
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+xr = pytest.importorskip("xarray")
+pytest.importorskip("zarr")
+
+from m3c2kit import engine as facade  # noqa: E402
+from m3c2kit.base import fault_hook  # noqa: E402
+from m3c2kit.cli.main import main  # noqa: E402
+from m3c2kit.series import store as st  # noqa: E402
+
+PARAMS = ["--core-spacing", "0.6", "--normal-scale", "1", "--projection-scale", "0.6", "--max-depth", "1",
+          "--lod", "z"]
+REF_TIME = "2024-01-01T00:00"
+RISE = 0.01  # m per hour, everywhere: the truth
+
+
+def surface(rng, n, hours):
+    x, y = rng.uniform(0, 6, n), rng.uniform(0, 6, n)
+    z = 0.1 * x + 0.05 * np.sin(2 * y) + RISE * hours + rng.normal(0, 0.005, n)
+    return np.column_stack([x, y, z])
+
+
+@pytest.fixture(scope="module")
+def base(tmp_path_factory):
+    """A dense reference and 10 sparse epochs (about 1.5 points per cylinder), irregular hours."""
+    folder = tmp_path_factory.mktemp("tam_epochs")
+    rng = np.random.default_rng(35)
+    np.save(folder / "ref.npy", surface(rng, 36 * 60, 0.0))
+    hours = [1, 2, 3, 5, 6, 9, 10, 11, 14, 15]
+    lines = []
+    for k, h in enumerate(hours):
+        np.save(folder / f"e{k:02d}.npy", surface(rng, int(36 * 5.5), h))
+        lines.append(f"e{k:02d}.npy, {np.datetime64(REF_TIME) + np.timedelta64(h, 'h')}\n")
+    (folder / "epochs.txt").write_text("".join(lines))
+    out = tmp_path_factory.mktemp("tam_base") / "base.zarr"
+    assert main(["series", str(folder / "ref.npy"), str(folder / "epochs.txt"), "-o", str(out), *PARAMS,
+                 "--quiet", "--core-chunk", "40", "--epoch-chunk", "4"]) == 0
+    return out, folder, hours
+
+
+def copy(store: Path, tmp_path: Path) -> Path:
+    out = tmp_path / "s.zarr"
+    shutil.copytree(store, out)
+    return out
+
+
+def run(capsys, *argv):
+    code = main([str(a) for a in argv])
+    out = capsys.readouterr()
+    assert "Traceback" not in out.err, out.err
+    return code, out.out, out.err
+
+
+def test_the_variables_are_the_engines_tam3c2_on_the_recorded_files(base, tmp_path, capsys):
+    store0, folder, hours = base
+    store = copy(store0, tmp_path)
+    code, out, _ = run(capsys, "series", "tam3c2", store, "--reference-time", REF_TIME, "--required-points", "6",
+                       "--window-ratio", "0.5,1", "--weights", "gaussian")
+    assert code == 0 and "TAM3C2 over 10 epochs" in out
+    ds = xr.open_zarr(store).load()
+    core = np.column_stack([ds["x"].values, ds["y"].values, ds["z"].values])
+    clouds = [np.load(folder / "ref.npy")] + [np.load(folder / f"e{k:02d}.npy") for k in range(10)]
+    pool = facade.tam3c2_pool(clouds, [0.0] + [h / 24.0 for h in hours])
+    s = dict(normal_radii=[0.5], window_ratios=[0.5, 1.0], min_points=6, cylinder_radius=0.3, max_distance=1.0,
+             weights="gaussian", sigma_ratio=1.0, space_time_ratio=1.0, registration_error=0.0,
+             critical_value=NormalDist().inv_cdf(0.975), orientation=[0.0, 0.0, 1.0])
+    want = facade.tam3c2(pool, core, 0, range(1, 11), s)
+    np.testing.assert_array_equal(ds["tam3c2_distance"].values, want["distance"])
+    np.testing.assert_array_equal(ds["tam3c2_lod"].values, want["lod"])
+    np.testing.assert_array_equal(ds["tam3c2_n2"].values, want["n2"])
+    np.testing.assert_array_equal(ds["tam3c2_window"].values, (want["epochs1"] + want["epochs2"]).astype(np.int32))
+    sig = ds["tam3c2_significant"].values
+    # xarray decodes the fill (-1, no distance) to NaN
+    assert np.array_equal(np.isnan(sig), np.isnan(want["distance"]))
+    ok = ~np.isnan(sig)
+    assert np.array_equal(sig[ok] == 1, np.abs(want["distance"][ok]) > want["lod"][ok]) and (sig == 1).any()
+    assert ds["tam3c2_distance"].attrs["weights"] == "gaussian"
+    assert run(capsys, "series", "check", store)[0] == 0
+
+
+def test_more_core_points_get_a_distance_than_with_plain_m3c2_on_sparse_epochs(base, tmp_path, capsys):
+    """The paper's completeness gain: per-epoch M3C2 needs points of that epoch in the cylinder;
+    TAM3C2 borrows the nearest epochs. The truth (RISE per hour) stays within a few LODs."""
+    store = copy(base[0], tmp_path)
+    assert run(capsys, "series", "tam3c2", store, "--reference-time", REF_TIME, "--required-points", "5",
+               "--window-ratio", "1")[0] == 0
+    ds = xr.open_zarr(store).load()
+    plain, tam = np.isfinite(ds["distance"].values), np.isfinite(ds["tam3c2_distance"].values)
+    assert tam.sum() > 1.1 * plain.sum(), (tam.sum(), plain.sum())
+    truth = RISE * np.array(base[2])[None, :] * np.ones_like(ds["tam3c2_distance"].values)
+    error = np.abs(ds["tam3c2_distance"].values - truth)[tam]
+    assert np.median(error) < 0.02
+
+
+def test_bad_input_is_refused_naming_it(base, tmp_path, capsys):
+    store = copy(base[0], tmp_path)
+    code, _, err = run(capsys, "series", "tam3c2", store)
+    assert code == 2 and "--reference-time" in err  # the .npy reference has no time
+    code, _, err = run(capsys, "series", "tam3c2", store, "--reference-time", REF_TIME, "--window-ratio", "1.5")
+    assert code == 2 and "--window-ratio" in err
+    code, _, err = run(capsys, "series", "tam3c2", store, "--reference-time", "yesterday")
+    assert code == 2 and "--reference-time" in err
+    assert not any(name in st.open_group(store) for name in st.TAM3C2_VARIABLES)
+
+
+@pytest.mark.slow
+def test_a_kill_at_every_write_phase_keeps_the_previous_variables_or_marks_them_all(base, tmp_path, capsys,
+                                                                                     monkeypatch):
+    store = copy(base[0], tmp_path)
+    args = ["series", "tam3c2", store, "--reference-time", REF_TIME]
+    assert run(capsys, *args)[0] == 0
+    before = xr.open_zarr(store).load()
+    names = st.TAM3C2_VARIABLES
+    for phase in ("store-write", "store-commit"):
+        monkeypatch.setenv(fault_hook.ENV, f"{phase}:SIGTERM")
+        monkeypatch.setattr(fault_hook, "_fired", set())
+        code, _, err = run(capsys, *args, "--required-points", "20")
+        monkeypatch.delenv(fault_hook.ENV)
+        assert code == 1 and "interrupted by SIGTERM" in err, err
+        if phase == "store-write":
+            assert "TAM3C2 variables" in err and "unchanged" in err
+            after = xr.open_zarr(store).load()
+            for name in names:
+                assert after[name].equals(before[name]) and after[name].attrs == before[name].attrs
+            assert run(capsys, "series", "check", store)[0] == 0
+        else:
+            assert "half-written" in err and "m3c2 series tam3c2" in err
+            assert set(names) <= set(st.rewriting(st.open_group(store)))
+            code, out, _ = run(capsys, "series", "check", store)
+            assert code == 1 and "m3c2 series tam3c2" in out
+            assert run(capsys, *args, "--required-points", "20")[0] == 0  # the rerun replaces them whole
+            assert run(capsys, "series", "check", store)[0] == 0
+            assert xr.open_zarr(store)["tam3c2_distance"].attrs["min_points"] == 20
+
+
+def test_add_extends_the_variables_unset_until_the_step_reruns(base, tmp_path, capsys):
+    store0, folder, _ = base
+    store = copy(store0, tmp_path)
+    args = ["series", "tam3c2", store, "--reference-time", REF_TIME]
+    assert run(capsys, *args)[0] == 0
+    late = tmp_path / "late.npy"
+    np.save(late, surface(np.random.default_rng(36), int(36 * 5.5), 20))
+    (tmp_path / "late.txt").write_text(f"{late}, {np.datetime64(REF_TIME) + np.timedelta64(20, 'h')}\n")
+    assert run(capsys, "series", "add", store, tmp_path / "late.txt", "--quiet")[0] == 0
+    ds = xr.open_zarr(store)
+    assert ds["tam3c2_distance"].shape == (ds.sizes["core"], 11)
+    assert np.isnan(ds["tam3c2_distance"].values[:, 10]).all()
+    assert run(capsys, "series", "check", store)[0] == 0
+    assert run(capsys, *args)[0] == 0
+    assert np.isfinite(xr.open_zarr(store)["tam3c2_distance"].values[:, 10]).any()
+
+
+def test_an_epoch_file_changed_since_it_was_added_is_refused_naming_it(base, tmp_path, capsys):
+    store = copy(base[0], tmp_path)
+    ds = xr.open_zarr(store)
+    first = Path(str(ds["source"].values[0]))
+    assert first.is_file()
+    original = first.read_bytes()
+    try:
+        np.save(first, np.load(first) + 0.001)
+        code, _, err = run(capsys, "series", "tam3c2", store, "--reference-time", REF_TIME)
+        assert code == 1 and str(first) in err and "SHA-256" in err
+        assert "tam3c2_distance" not in st.open_group(store)
+    finally:
+        first.write_bytes(original)
