@@ -33,13 +33,13 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from statistics import NormalDist
 
 import numpy as np
 
 from .. import engine
 from ..base.errors import UsageError
 from ..io.polygons import Polygon, region_index
+from ..base.quantiles import z_critical
 from .error_model import ErrorModel
 from .random_fields import sample_field
 
@@ -197,7 +197,7 @@ def aggregate(survey: Survey, polygons: list[Polygon], *, model: ErrorModel | No
         raise UsageError(f"regions: {TOTAL!r} is the name of the total row: rename that region")
     if cell is not None:
         check_grid(survey.xy, cell, source)
-    z = NormalDist().inv_cdf(0.5 + confidence / 2)
+    z = z_critical(confidence)
     n = len(survey.xy)
     masks = np.zeros((len(polygons) + 1, n), dtype=bool)
     for r, poly in enumerate(polygons):

@@ -94,15 +94,19 @@ def publish_many(folder: Path, names, removed=()) -> None:
     integrity.remove_staging(folder)  # the step's only: it holds the lock
 
 
-def _kept(store: Path, folder: Path, name: str) -> str:
-    """What an interrupted or failed step kept of `name`, from the store as it is now."""
+def what_was_kept(store: Path, folder: Path, names: tuple[str, ...], what: str) -> str:
+    """What an interrupted or failed step kept of its variables `names` (`what`, in words), from
+    the store as it is now: its last commit, the half-written ones and the command that rewrites
+    them, or the variables unchanged."""
     try:
         group = st.open_group(folder)
     except M3C2Error:
         return f"{store} is at its last commit"
-    if name in st.rewriting(group):
-        return f"{name} is marked half-written in {store}; rerun {integrity.rerun_command(group, name, store)}"
-    return f"{name} unchanged in {store}" if name in group else f"{store} unchanged (it has no {name})"
+    marked = [n for n in st.rewriting(group) if n in names]
+    if marked:
+        return (f"{', '.join(marked)} {'is' if len(marked) == 1 else 'are'} marked half-written in {store}; "
+                f"rerun {integrity.rerun_command(group, marked[0], store)}")
+    return f"{what} unchanged in {store}" if any(n in group for n in names) else f"{store} unchanged (it has no {what})"
 
 
 def smooth(store: Path, window: int, threads: int = 0) -> int:
@@ -110,7 +114,7 @@ def smooth(store: Path, window: int, threads: int = 0) -> int:
     if window < 1:
         raise UsageError(f"--window must be >= 1 epoch, got {window}")
     store = Path(store)
-    with step.writing(store, "smooth", lambda folder: _kept(store, folder, SMOOTHED)) as folder:
+    with step.writing(store, "smooth", lambda folder: what_was_kept(store, folder, (SMOOTHED,), SMOOTHED)) as folder:
         group = st.open_group(folder)
         epochs = group["distance"].shape[1]
         if epochs == 0:
@@ -196,7 +200,7 @@ def objects(store: Path, output: Path, params, *, use="auto", threads=0, first_e
 
     def kept(folder):
         written = f"{output} and its members table written; " if tables else f"no objects table written; "
-        return written + _kept(store, folder, LABEL)
+        return written + what_was_kept(store, folder, (LABEL,), LABEL)
 
     with step.writing(store, "objects", kept) as folder:
         group = st.open_group(folder)

@@ -19,14 +19,14 @@ import json
 import math
 from dataclasses import dataclass
 from pathlib import Path
-from statistics import NormalDist
 
 import numpy as np
 
 from ..base import fault_hook
-from ..base.errors import M3C2Error, UsageError
+from ..base.errors import UsageError
 from .. import engine as facade
 from ..run.checks import threads_count
+from ..base.quantiles import z_critical
 from . import analysis
 from . import integrity
 from . import parameters
@@ -214,23 +214,13 @@ def _resumable(group, options: KalmanOptions, n: int) -> tuple[int, float | None
     return epochs, float(kept_q)
 
 
-def _kept(store: Path, folder: Path) -> str:
-    try:
-        group = st.open_group(folder)
-    except M3C2Error:
-        return f"{store} is at its last commit"
-    marked = [n for n in st.rewriting(group) if n in st.KALMAN_VARIABLES]
-    if marked:
-        return f"{', '.join(marked)} marked half-written in {store}; rerun m3c2 series kalman {store} --from-scratch"
-    return f"the Kalman variables of {store} unchanged" if MOMENTS in group else f"{store} unchanged (no Kalman run)"
-
-
 def kalman(store: Path, options: KalmanOptions = KalmanOptions()) -> dict:
     """Runs the filter and smoother on the store and publishes its variables; returns what it did."""
     _check(options)
     store = Path(store)
     threads = threads_count(options.threads)
-    with step.writing(store, "kalman", lambda folder: _kept(store, folder)) as folder:
+    kept = lambda folder: analysis.what_was_kept(store, folder, st.KALMAN_VARIABLES, "the Kalman variables")  # noqa: E731
+    with step.writing(store, "kalman", kept) as folder:
         group = st.open_group(folder)
         if not options.from_scratch:  # a half-written run is resumed from nothing but replaced whole
             integrity.require_whole(group, st.KALMAN_VARIABLES, store)
@@ -287,7 +277,7 @@ def _write(store: Path, folder: Path, group, run: _Run) -> list[str]:
         dict(common, confidence=run.confidence, _FillValue=-1,
              long_name="|kalman_distance| > z_C kalman_distance_sigma (1 yes, 0 no, -1 no estimate)"))
     out[MOMENTS] = _staged_moments(folder, group, m, common)
-    z_c = NormalDist().inv_cdf(0.5 + 0.5 * run.confidence)
+    z_c = z_critical(run.confidence)
     p = _kalman_params(model, run.options.noise, run.q)
     kept = group[MOMENTS] if run.resume else None
     fault_hook.checkpoint("store-write")

@@ -12,12 +12,12 @@ import html
 import json
 from dataclasses import dataclass
 from pathlib import Path
-from statistics import NormalDist
 
 import numpy as np
 from matplotlib.figure import Figure
 
 from ..base.errors import M3C2Error
+from ..base.quantiles import z_critical
 from . import integrity
 from . import store as st
 
@@ -39,7 +39,7 @@ class KalmanRun:
 
     @property
     def z(self) -> float:
-        return NormalDist().inv_cdf(0.5 + 0.5 * self.confidence)
+        return z_critical(self.confidence)
 
 
 def kalman_run(store: Path, group) -> KalmanRun | None:

@@ -18,7 +18,6 @@ import json
 import math
 from dataclasses import dataclass
 from pathlib import Path
-from statistics import NormalDist
 
 import numpy as np
 
@@ -27,6 +26,7 @@ from ..base.errors import M3C2Error, UsageError
 from .. import engine as facade
 from ..io import read_cloud
 from ..run.checks import threads_count
+from ..base.quantiles import z_critical
 from . import analysis
 from . import epoch_files
 from . import integrity
@@ -147,19 +147,8 @@ def _settings(store: Path, group, o: Tam3c2Options) -> tuple[dict, float]:
                     min_points=int(o.min_points), cylinder_radius=params.projection_diameter / 2.0,
                     max_distance=params.max_depth, weights=o.weights, sigma_ratio=float(o.sigma_ratio),
                     space_time_ratio=float(o.space_time_ratio), registration_error=params.registration_error,
-                    critical_value=NormalDist().inv_cdf(0.5 + 0.5 * confidence), orientation=[0.0, 0.0, 1.0])
+                    critical_value=z_critical(confidence), orientation=[0.0, 0.0, 1.0])
     return settings, confidence
-
-
-def _kept(store: Path, folder: Path) -> str:
-    try:
-        group = st.open_group(folder)
-    except M3C2Error:
-        return f"{store} is at its last commit"
-    marked = [n for n in st.rewriting(group) if n in st.TAM3C2_VARIABLES]
-    if marked:
-        return f"{', '.join(marked)} marked half-written in {store}; rerun m3c2 series tam3c2 {store}"
-    return f"the TAM3C2 variables of {store} unchanged" if DISTANCE in group else f"{store} unchanged (no TAM3C2 run)"
 
 
 def _block_rows(group, n: int) -> list[tuple[int, int]]:
@@ -175,7 +164,8 @@ def tam3c2(store: Path, options: Tam3c2Options = Tam3c2Options()) -> dict:
     _check(options)
     store = Path(store)
     threads = threads_count(options.threads)
-    with step.writing(store, "tam3c2", lambda folder: _kept(store, folder)) as folder:
+    kept = lambda folder: analysis.what_was_kept(store, folder, st.TAM3C2_VARIABLES, "the TAM3C2 variables")  # noqa: E731
+    with step.writing(store, "tam3c2", kept) as folder:
         group = st.open_group(folder)
         n = group["distance"].shape[1]
         if n == 0:
