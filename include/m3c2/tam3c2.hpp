@@ -36,7 +36,7 @@ struct Tam3c2Params {
   double sigma_ratio = 1.0;       ///< Gaussian width in units of the radius / window
   double space_time_ratio = 1.0;  ///< r_st > 0: the temporal kernel's window is W r_st
   double registration_error = 0.0;
-  double critical_value = 1.96;  ///< z of the LOD (1.96: the reference's 95 %)
+  double critical_value = 1.96;     ///< z of the LOD (1.96: the reference's 95 %)
   Vec3 orientation{0.0, 0.0, 1.0};  ///< normals point to this side (n . o >= 0)
 };
 

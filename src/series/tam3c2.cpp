@@ -199,7 +199,8 @@ Moments side_moments(const Side& side, const std::vector<double>& w, const Vec3&
   return m;
 }
 
-void check(const Tam3c2Params& p, const Tam3c2Pool& pool, std::size_t reference, const std::vector<std::size_t>& targets) {
+void check(const Tam3c2Params& p, const Tam3c2Pool& pool, std::size_t reference,
+           const std::vector<std::size_t>& targets) {
   if (p.normal_radii.empty() || p.window_ratios.empty())
     throw InvalidArgument("TAM3C2 needs at least one normal radius and one window ratio");
   for (double r : p.normal_radii)
@@ -244,56 +245,59 @@ Tam3c2Result tam3c2(const Tam3c2Params& p, const Tam3c2Pool& pool, std::size_t r
   for (auto* v : {&out.distance, &out.lod, &out.spread1, &out.spread2, &out.n1, &out.n2}) v->assign(nc * nt, kNaN);
   for (auto* v : {&out.epochs1, &out.epochs2, &out.points1, &out.points2}) v->assign(nc * nt, 0u);
 
-  detail::parallel_blocks<Scratch>(nc, run, [&](std::size_t begin, std::size_t end, Scratch& s) {
-    std::vector<double> w1, w2, proj;
-    for (std::size_t i = begin; i < end; ++i) {
-      const Vec3 c = core[i];
-      // The scale contest on the reference (4.4): the most planar aggregated sphere.
-      double best = -std::numeric_limits<double>::infinity();
-      Vec3 normal = p.orientation;
-      std::int32_t chosen = -1;
-      for (std::size_t a = 0; a < p.normal_radii.size(); ++a)
-        for (std::size_t b = 0; b < ratios; ++b) {
-          const double r = p.normal_radii[a], rr = r * r;
-          aggregate(pool, c, ref_order, t_ref, range * p.window_ratios[b], r, p.min_points, s, s.a,
-                    [&](const double* q) { return detail::squared_distance(q, c) <= rr; });
-          Vec3 nrm = p.orientation;
-          const double pl = planarity(s.a, p.orientation, nrm);
-          if (pl > best) best = pl, normal = nrm, chosen = std::int32_t(a * ratios + b);
+  detail::parallel_blocks<Scratch>(
+      nc, run,
+      [&](std::size_t begin, std::size_t end, Scratch& s) {
+        std::vector<double> w1, w2, proj;
+        for (std::size_t i = begin; i < end; ++i) {
+          const Vec3 c = core[i];
+          // The scale contest on the reference (4.4): the most planar aggregated sphere.
+          double best = -std::numeric_limits<double>::infinity();
+          Vec3 normal = p.orientation;
+          std::int32_t chosen = -1;
+          for (std::size_t a = 0; a < p.normal_radii.size(); ++a)
+            for (std::size_t b = 0; b < ratios; ++b) {
+              const double r = p.normal_radii[a], rr = r * r;
+              aggregate(pool, c, ref_order, t_ref, range * p.window_ratios[b], r, p.min_points, s, s.a,
+                        [&](const double* q) { return detail::squared_distance(q, c) <= rr; });
+              Vec3 nrm = p.orientation;
+              const double pl = planarity(s.a, p.orientation, nrm);
+              if (pl > best) best = pl, normal = nrm, chosen = std::int32_t(a * ratios + b);
+            }
+          for (int k = 0; k < 3; ++k) out.normal[3 * i + k] = normal[k];
+          out.scale[i] = chosen;
+          const double ratio = p.window_ratios[chosen < 0 ? 0 : std::size_t(chosen) % ratios];
+          const auto in_cylinder = [&](const double* q) {
+            const double dx = q[0] - c.x(), dy = q[1] - c.y(), dz = q[2] - c.z();
+            const double along = dx * normal.x() + dy * normal.y() + dz * normal.z();
+            return dx * dx + dy * dy + dz * dz - along * along <= r2 && std::abs(along) <= p.max_distance;
+          };
+          // The reference's side, walked once without a cap; each target's window takes a prefix.
+          aggregate(pool, c, ref_order, t_ref, std::numeric_limits<double>::infinity(), reach, p.min_points, s,
+                    s.reference, in_cylinder);
+          for (std::size_t j = 0; j < nt; ++j) {
+            const double t_tgt = pool.times()[targets[j]];
+            double gap = std::abs(t_tgt - t_ref);
+            if (gap == 0.0) gap = range;  // the target at the reference's time: the whole range (4.7)
+            const double window = gap * ratio;
+            s.a.prefix_of(s.reference, window);
+            aggregate(pool, c, target_order[j], t_tgt, window, reach, p.min_points, s, s.b, in_cylinder);
+            const std::size_t o = i * nt + j;
+            out.epochs1[o] = s.a.epochs, out.epochs2[o] = s.b.epochs;
+            out.points1[o] = std::uint32_t(s.a.count()), out.points2[o] = std::uint32_t(s.b.count());
+            if (s.a.count() < 2 || s.b.count() < 2) continue;  // no spread on a side: no distance
+            weights(p, s.a, c, normal, window, w1);
+            weights(p, s.b, c, normal, window, w2);
+            const Moments m1 = side_moments(s.a, w1, c, normal, proj);
+            const Moments m2 = side_moments(s.b, w2, c, normal, proj);
+            out.distance[o] = m2.mean - m1.mean;
+            out.lod[o] = p.critical_value * std::sqrt(m1.spread * m1.spread / m1.n + m2.spread * m2.spread / m2.n) +
+                         p.registration_error;
+            out.spread1[o] = m1.spread, out.spread2[o] = m2.spread, out.n1[o] = m1.n, out.n2[o] = m2.n;
+          }
         }
-      for (int k = 0; k < 3; ++k) out.normal[3 * i + k] = normal[k];
-      out.scale[i] = chosen;
-      const double ratio = p.window_ratios[chosen < 0 ? 0 : std::size_t(chosen) % ratios];
-      const auto in_cylinder = [&](const double* q) {
-        const double dx = q[0] - c.x(), dy = q[1] - c.y(), dz = q[2] - c.z();
-        const double along = dx * normal.x() + dy * normal.y() + dz * normal.z();
-        return dx * dx + dy * dy + dz * dz - along * along <= r2 && std::abs(along) <= p.max_distance;
-      };
-      // The reference's side, walked once without a cap; each target's window takes a prefix.
-      aggregate(pool, c, ref_order, t_ref, std::numeric_limits<double>::infinity(), reach, p.min_points, s,
-                s.reference, in_cylinder);
-      for (std::size_t j = 0; j < nt; ++j) {
-        const double t_tgt = pool.times()[targets[j]];
-        double gap = std::abs(t_tgt - t_ref);
-        if (gap == 0.0) gap = range;  // the target at the reference's time: the whole range (4.7)
-        const double window = gap * ratio;
-        s.a.prefix_of(s.reference, window);
-        aggregate(pool, c, target_order[j], t_tgt, window, reach, p.min_points, s, s.b, in_cylinder);
-        const std::size_t o = i * nt + j;
-        out.epochs1[o] = s.a.epochs, out.epochs2[o] = s.b.epochs;
-        out.points1[o] = std::uint32_t(s.a.count()), out.points2[o] = std::uint32_t(s.b.count());
-        if (s.a.count() < 2 || s.b.count() < 2) continue;  // no spread on a side: no distance
-        weights(p, s.a, c, normal, window, w1);
-        weights(p, s.b, c, normal, window, w2);
-        const Moments m1 = side_moments(s.a, w1, c, normal, proj);
-        const Moments m2 = side_moments(s.b, w2, c, normal, proj);
-        out.distance[o] = m2.mean - m1.mean;
-        out.lod[o] = p.critical_value * std::sqrt(m1.spread * m1.spread / m1.n + m2.spread * m2.spread / m2.n) +
-                     p.registration_error;
-        out.spread1[o] = m1.spread, out.spread2[o] = m2.spread, out.n1[o] = m1.n, out.n2[o] = m2.n;
-      }
-    }
-  }, 16);
+      },
+      16);
   return out;
 }
 
