@@ -5,7 +5,6 @@ store stays sound, bad input is refused naming it, and a kill at every write pha
 previous variables or marks all of them half-written (never a mix)."""
 from __future__ import annotations
 
-import shutil
 from statistics import NormalDist
 from pathlib import Path
 
@@ -19,6 +18,7 @@ from m3c2kit import engine as facade  # noqa: E402
 from m3c2kit.base import fault_hook  # noqa: E402
 from m3c2kit.cli.main import main  # noqa: E402
 from m3c2kit.series import store as st  # noqa: E402
+from test_series_trust import copy, run  # noqa: E402  (the store tests' helpers)
 
 PARAMS = ["--core-spacing", "0.6", "--normal-scale", "1", "--projection-scale", "0.6", "--max-depth", "1",
           "--lod", "z"]
@@ -48,19 +48,6 @@ def base(tmp_path_factory):
     assert main(["series", str(folder / "ref.npy"), str(folder / "epochs.txt"), "-o", str(out), *PARAMS,
                  "--quiet", "--core-chunk", "40", "--epoch-chunk", "4"]) == 0
     return out, folder, hours
-
-
-def copy(store: Path, tmp_path: Path) -> Path:
-    out = tmp_path / "s.zarr"
-    shutil.copytree(store, out)
-    return out
-
-
-def run(capsys, *argv):
-    code = main([str(a) for a in argv])
-    out = capsys.readouterr()
-    assert "Traceback" not in out.err, out.err
-    return code, out.out, out.err
 
 
 def test_the_variables_are_the_engines_tam3c2_on_the_recorded_files(base, tmp_path, capsys):
