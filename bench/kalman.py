@@ -15,8 +15,10 @@ from __future__ import annotations
 
 import argparse
 import importlib.util
+import os
 import subprocess
 import sys
+import tempfile
 import time
 
 import numpy as np
@@ -84,8 +86,10 @@ def main() -> int:
     wall = ours(days, z, sd ** 2, args.threads, prior=True)
     print(f"ours, 100 epochs x {args.cores:,} core points, {args.threads} thread(s): {wall:.2f} s")
     if args.python and args.tum_rsa:
-        out = subprocess.run([args.python, __file__, "--reference-side", args.tum_rsa, str(args.sample), "100"],
-                             check=True, capture_output=True, text=True).stdout
+        with tempfile.TemporaryDirectory() as tmp:  # py4dgeo writes its py4dgeo.log into the working directory
+            out = subprocess.run([args.python, os.path.abspath(__file__), "--reference-side",
+                                  os.path.abspath(args.tum_rsa), str(args.sample), "100"],
+                                 check=True, capture_output=True, text=True, cwd=tmp).stdout
         per_core = float(out.strip().splitlines()[-1]) / args.sample
         scaled = per_core * args.cores / args.threads
         print(f"tum-rsa fork (filterpy), {args.sample} core points: {per_core * 1e3:.2f} ms CPU each; "

@@ -11,13 +11,19 @@ implementations on shared seeded synthetic series (docs/series.md, "Kalman filte
 
 Ours is configured to each model (KalmanParams: discrete noise, a given prior at the same time,
 kalman4d's grid as epochs without an observation), so the estimates must agree to rounding.
-Their code is run, never copied: give the paths of their files (a clone of each repository) and
-a Python with their dependencies (filterpy, numpy, scipy; kalman4d's module also imports tqdm,
-matplotlib and laspy), kept apart from m3c2kit's environment:
+Their code is run, never copied: give the paths of their files and a Python with their
+dependencies (filterpy, numpy, scipy; kalman4d's module also imports tqdm, matplotlib and laspy,
+the tum-rsa one pandas), kept apart from m3c2kit's environment. Where the files come from:
+kalman4d's from its repository (main, v0.0.4, d2f5d5a); the tum-rsa fork's is in no branch of its
+public repository snapshot (main, 15e757a), only in the code index, at commit
+40fee9717bb23e6f55ee8a9389c38c20175f3534 (the index's other version, a7300db, renames the function
+`_kalman_smooth_series`; same numbers here): the table in docs/series.md was made with a whole
+transcription of that version, kept outside this repository (two independent transcriptions
+agree on every statement both hold).
 
-    python -m venv /tmp/kalman_ref_venv && /tmp/kalman_ref_venv/bin/pip install filterpy scipy tqdm matplotlib laspy
+    python -m venv /tmp/kalman_ref_venv && /tmp/kalman_ref_venv/bin/pip install filterpy scipy tqdm matplotlib laspy pandas
     .venv/bin/python validation/kalman_reference.py --python /tmp/kalman_ref_venv/bin/python \\
-        --kalman4d kalman4d/kalman_m3c2.py --tum-rsa py4dgeo-kalmanfiltering/src/py4dgeo/m3c2_kalman.py
+        --kalman4d kalman4d/kalman_m3c2.py --tum-rsa TRANSCRIPT/m3c2_kalman.py
 
 It prints a markdown table (docs/series.md) of the largest differences."""
 from __future__ import annotations
@@ -207,8 +213,10 @@ def main() -> int:
         return 0
     with tempfile.TemporaryDirectory() as tmp:
         out = Path(tmp) / "ref.json"
-        subprocess.run([args.python, __file__, "--reference-side", "--python", args.python, "--kalman4d",
-                        args.kalman4d, "--tum-rsa", args.tum_rsa, "--out", str(out)], check=True)
+        # in the temporary folder: py4dgeo writes its py4dgeo.log into the working directory
+        subprocess.run([args.python, str(Path(__file__).resolve()), "--reference-side", "--python", args.python,
+                        "--kalman4d", str(Path(args.kalman4d).resolve()), "--tum-rsa",
+                        str(Path(args.tum_rsa).resolve()), "--out", str(out)], check=True, cwd=tmp)
         ref = json.loads(out.read_text())
     rows = compare(ref)
     print(f"| reference and model | estimate | largest difference ({CORES} series, seed {SEED}) |")

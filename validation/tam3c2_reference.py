@@ -5,12 +5,16 @@ every target, for each weighting with several normal radii and window ratios.
 
 Ours is configured to their model (critical value 1.96, +z orientation, the same cylinder,
 registration error, min points), so the distances and LODs must agree to rounding (1e-9). Their
-code is run, never copied: give the path of their file (from a clone of the fork) and a Python
-with py4dgeo and scipy, kept apart from m3c2kit's environment:
+code is run, never copied: give the path of their file and a Python with py4dgeo and scipy, kept
+apart from m3c2kit's environment. Where the file comes from: it is in no branch of the fork's
+public repository snapshot (main, 0f60116, nor tam3c2-test and the others), only in the code
+index, at commit 45285b0a0f6e7af55481bb42bceb54fa42534a04: the table in docs/series.md was made
+with a whole transcription of it, kept outside this repository (two independent transcriptions
+agree on every statement both hold).
 
     python -m venv /tmp/tam_ref_venv && /tmp/tam_ref_venv/bin/pip install py4dgeo scipy
     .venv/bin/python validation/tam3c2_reference.py --python /tmp/tam_ref_venv/bin/python \\
-        --tam3c2 py4dgeo-fork/src/py4dgeo/tam3c2.py
+        --tam3c2 TRANSCRIPT/tam3c2.py
 
 It prints a markdown table (docs/series.md) of the largest differences and exits 1 when one
 exceeds 1e-9."""
@@ -104,7 +108,9 @@ def main() -> int:
     if not (args.python and args.tam3c2):
         ap.error("give --python and --tam3c2")
     with tempfile.TemporaryDirectory() as tmp:
-        subprocess.run([args.python, __file__, "--tam3c2", str(args.tam3c2.resolve()), "--reference-side", tmp],
+        # in the temporary folder: py4dgeo writes its py4dgeo.log into the working directory
+        subprocess.run([args.python, str(Path(__file__).resolve()), "--tam3c2", str(args.tam3c2.resolve()),
+                        "--reference-side", tmp], cwd=tmp,
                        check=True)
         rows, worst = [], 0.0
         for name in CASES:

@@ -37,7 +37,7 @@ struct Tam3c2Params {
   double space_time_ratio = 1.0;  ///< r_st > 0: the temporal kernel's window is W r_st
   double registration_error = 0.0;
   double critical_value = 1.96;     ///< z of the LOD (1.96: the reference's 95 %)
-  Vec3 orientation{0.0, 0.0, 1.0};  ///< normals point to this side (n . o >= 0)
+  Vec3 orientation{0.0, 0.0, 1.0};  ///< normals point to this side (n . o >= 0), unless `orientations` says
 };
 
 /// The pool: one cloud per epoch with its time (any unit), the views' memory outliving the pool.
@@ -58,7 +58,7 @@ class Tam3c2Pool {
 };
 
 /// Per core point: normal (3), the chosen (radius, ratio)'s index (radius-major: radius i,
-/// ratio j -> i * ratios + j; -1 when no sphere held 3 points, the normal then `orientation`).
+/// ratio j -> i * ratios + j; -1 when no sphere held 3 points, the normal then its orientation).
 /// Per core point and target (row-major, core x targets): distance, lod, the sides' spreads
 /// (standard deviation, sample for unweighted sides, weighted population otherwise), their n
 /// (count or Kish's effective n), and the epochs aggregated on each side; NaN distance when a
@@ -71,7 +71,11 @@ struct Tam3c2Result {
 };
 
 /// TAM3C2 of `core` between the pool's epoch `reference` and each of `targets` (pool indices).
+/// `orientations`: empty, or one direction per core point that its normal points to (n . o >= 0),
+/// such as the normal the store's M3C2 used, so that both distances share a sign; a direction
+/// not finite or zero falls back to `params.orientation`.
 Tam3c2Result tam3c2(const Tam3c2Params& params, const Tam3c2Pool& pool, std::size_t reference,
-                    const std::vector<std::size_t>& targets, PointsView core, const RunOptions& run = {});
+                    const std::vector<std::size_t>& targets, PointsView core, PointsView orientations = {},
+                    const RunOptions& run = {});
 
 }  // namespace m3c2

@@ -77,24 +77,6 @@ void KdTree::build(std::vector<std::uint32_t>& order) {
   }
 }
 
-template <class Prune, class Accept>
-void KdTree::visit(Prune&& prune, Accept&& accept) const {
-  if (nodes_.empty()) return;
-  std::uint32_t stack[128];
-  int top = 0;
-  stack[top++] = 0;
-  while (top > 0) {
-    const Node& node = nodes_[stack[--top]];
-    if (prune(node.lo, node.hi)) continue;
-    if (node.left == 0) {
-      for (std::uint32_t s = node.begin; s < node.end; ++s) accept(s, xyz_.data() + 3 * std::size_t(s));
-    } else {
-      stack[top++] = node.left + 1;
-      stack[top++] = node.left;
-    }
-  }
-}
-
 void KdTree::ball(const Vec3& centre, double radius, std::vector<std::uint32_t>& out) const {
   const double r2 = radius * radius, prune_r2 = r2 * (1.0 + kRelativeMargin) + 1e-300;
   visit([&](const auto& lo, const auto& hi) { return box_distance2(lo, hi, centre) > prune_r2; },

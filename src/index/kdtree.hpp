@@ -26,6 +26,17 @@ class KdTree {
   /// Appends the original indices of the points with squared_distance <= radius^2 (tree order).
   void ball(const Vec3& centre, double radius, std::vector<std::uint32_t>& out) const;
 
+  /// Appends the original indices of the points `keep(p)` accepts (p: the point's 3 coordinates,
+  /// the input's float64 values), visiting only the nodes whose box `prune(lo, hi)` does not
+  /// reject (tree order). `prune` must be conservative: it may reject a box only when `keep`
+  /// would reject every point in it.
+  template <class Prune, class Keep>
+  void select(Prune&& prune, Keep&& keep, std::vector<std::uint32_t>& out) const {
+    visit(prune, [&](std::uint32_t s, const double* p) {
+      if (keep(p)) out.push_back(index_[s]);
+    });
+  }
+
  private:
   struct Node {
     std::array<double, 3> lo, hi;  // bounding box of the node's points
@@ -34,7 +45,22 @@ class KdTree {
   };
   void build(std::vector<std::uint32_t>& order);
   template <class Prune, class Accept>
-  void visit(Prune&& prune, Accept&& accept) const;
+  void visit(Prune&& prune, Accept&& accept) const {
+    if (nodes_.empty()) return;
+    std::uint32_t stack[128];
+    int top = 0;
+    stack[top++] = 0;
+    while (top > 0) {
+      const Node& node = nodes_[stack[--top]];
+      if (prune(node.lo, node.hi)) continue;
+      if (node.left == 0) {
+        for (std::uint32_t s = node.begin; s < node.end; ++s) accept(s, xyz_.data() + 3 * std::size_t(s));
+      } else {
+        stack[top++] = node.left + 1;
+        stack[top++] = node.left;
+      }
+    }
+  }
 
   PointsView points_;
   std::vector<double> xyz_;           // 3 per slot, in leaf order

@@ -1,13 +1,14 @@
 // Time-adaptive M3C2 (include/m3c2/tam3c2.hpp; docs/series.md, "TAM3C2"; Huang et al., ISPRS
 // Annals 2026). The definitions are the paper's as its authors' code (xyuhuang/py4dgeo,
-// tam3c2.py) computes them; the spatial search is the engine's k-d tree (index/kdtree.hpp) and
-// its one squared distance (index/distance.hpp), each epoch indexed once.
+// tam3c2.py) computes them; the spatial search is the engine's k-d tree (index/kdtree.hpp), each
+// epoch indexed once: its balls for the normal's spheres, its boxes pruned by the cylinder's
+// bounds (index/cylinder.hpp) for the projection cylinders.
 //
 //   order     epochs by |t_e - t_c|, ties by time order (earlier first): nearest in time first
 //   aggregate walk the order while |t_e - t_c| <= W, adding each epoch's points in the
 //             neighbourhood, until the side holds min_points points
 //   normal    PCA of the aggregated sphere (covariance / N), smallest eigenvector towards
-//             `orientation`; planarity (l1 - l0) / l2 (0 when l2 <= 1e-12); the combination
+//             the core point's orientation; planarity (l1 - l0) / l2 (0 when l2 <= 1e-12); the combination
 //             (radius, ratio) of highest planarity wins, W = (time range) * ratio for this contest
 //   distance  m2 - m1, m the (weighted) mean of (p - c) . n on each side
 //   LOD       z sqrt(s1^2 / n1 + s2^2 / n2) + reg, n = max(1, count or (sum w)^2 / sum w^2)
@@ -15,7 +16,7 @@
 #include <m3c2/errors.hpp>
 #include <m3c2/tam3c2.hpp>
 
-#include "index/distance.hpp"
+#include "index/cylinder.hpp"
 #include "index/kdtree.hpp"
 #include "support/parallel_for.hpp"
 
@@ -88,28 +89,25 @@ std::vector<std::size_t> nearest_first(const std::vector<double>& times, double 
   return order;
 }
 
-/// Aggregates around time `centre` (nearest first, within `window`, until min_points); `keep`
-/// tests a point (its coordinates) against the neighbourhood, `reach` bounds it as a ball.
-template <class Keep>
-void aggregate(const Tam3c2Pool& pool, const Vec3& c, const std::vector<std::size_t>& order, double centre,
-               double window, double reach, std::uint32_t min_points, Scratch& s, Side& side, Keep&& keep) {
+/// Aggregates around time `centre` (nearest first, within `window`, until min_points); `query`
+/// appends the indices of an epoch's points in the neighbourhood (a sphere or a cylinder).
+template <class Query>
+void aggregate(const Tam3c2Pool& pool, const std::vector<std::size_t>& order, double centre, double window,
+               std::uint32_t min_points, Scratch& s, Side& side, Query&& query) {
   side.clear();
   for (std::size_t e : order) {
     const double dt = pool.times()[e] - centre;
     if (std::abs(dt) > window) break;
     s.found.clear();
-    pool.impl().trees[e].ball(c, reach, s.found);
+    query(pool.impl().trees[e], s.found);
+    if (s.found.empty()) continue;
     std::sort(s.found.begin(), s.found.end());  // the cloud's order, whatever the tree's
     const PointsView cloud = pool.impl().clouds[e];
-    std::size_t added = 0;
     for (std::uint32_t i : s.found) {
       const double* p = cloud.data() + 3 * std::size_t(i);
-      if (!keep(p)) continue;
       side.xyz.insert(side.xyz.end(), p, p + 3);
       side.dt.push_back(dt);
-      ++added;
     }
-    if (added == 0) continue;
     ++side.epochs;
     side.ends.push_back(side.count());
     if (side.count() >= min_points) break;
@@ -211,6 +209,8 @@ void check(const Tam3c2Params& p, const Tam3c2Pool& pool, std::size_t reference,
       !(p.max_distance > 0.0 && std::isfinite(p.max_distance)))
     throw InvalidArgument("TAM3C2: the cylinder's radius and half-length must be finite and > 0");
   if (p.min_points < 1) throw InvalidArgument("TAM3C2: min_points must be >= 1");
+  if (!(p.orientation.allFinite() && p.orientation.norm() > 0.0))
+    throw InvalidArgument("TAM3C2: the orientation must be a finite, non-zero direction");
   if (!(p.space_time_ratio > 0.0 && std::isfinite(p.space_time_ratio)) || !std::isfinite(p.sigma_ratio))
     throw InvalidArgument("TAM3C2: space_time_ratio must be finite and > 0, sigma_ratio finite");
   if (!(p.registration_error >= 0.0) || !(p.critical_value > 0.0))
@@ -223,15 +223,27 @@ void check(const Tam3c2Params& p, const Tam3c2Pool& pool, std::size_t reference,
 }  // namespace
 
 Tam3c2Result tam3c2(const Tam3c2Params& p, const Tam3c2Pool& pool, std::size_t reference,
-                    const std::vector<std::size_t>& targets, PointsView core, const RunOptions& run) {
+                    const std::vector<std::size_t>& targets, PointsView core, PointsView orientations,
+                    const RunOptions& run) {
   check(p, pool, reference, targets);
+  if (!orientations.empty() && orientations.size() != core.size())
+    throw InvalidArgument("TAM3C2: one orientation per core point, or none");
+  // The side each core point's normal points to, of unit length (also the normal of a core point
+  // without one, the scale contest's fallback).
+  const auto orientation_of = [&](std::size_t i) {
+    if (!orientations.empty()) {
+      const Vec3 o = orientations[i];
+      const double norm = o.norm();
+      if (std::isfinite(norm) && norm > 0.0) return Vec3(o / norm);
+    }
+    return Vec3(p.orientation / p.orientation.norm());
+  };
   const std::size_t nc = core.size(), nt = targets.size();
   const std::size_t ratios = p.window_ratios.size();
   const auto [lo, hi] = std::minmax_element(pool.times().begin(), pool.times().end());
   double range = pool.size() ? *hi - *lo : 0.0;
   if (!(range > 0.0)) range = 1.0;  // one time: any positive window takes only that time
   const double t_ref = pool.times()[reference];
-  const double reach = std::sqrt(p.cylinder_radius * p.cylinder_radius + p.max_distance * p.max_distance);
   const double r2 = p.cylinder_radius * p.cylinder_radius;
 
   // The walk of each centre: the reference's, and each target's.
@@ -250,38 +262,45 @@ Tam3c2Result tam3c2(const Tam3c2Params& p, const Tam3c2Pool& pool, std::size_t r
       [&](std::size_t begin, std::size_t end, Scratch& s) {
         std::vector<double> w1, w2, proj;
         for (std::size_t i = begin; i < end; ++i) {
-          const Vec3 c = core[i];
+          const Vec3 c = core[i], towards = orientation_of(i);
           // The scale contest on the reference (4.4): the most planar aggregated sphere.
           double best = -std::numeric_limits<double>::infinity();
-          Vec3 normal = p.orientation;
+          Vec3 normal = towards;
           std::int32_t chosen = -1;
           for (std::size_t a = 0; a < p.normal_radii.size(); ++a)
             for (std::size_t b = 0; b < ratios; ++b) {
-              const double r = p.normal_radii[a], rr = r * r;
-              aggregate(pool, c, ref_order, t_ref, range * p.window_ratios[b], r, p.min_points, s, s.a,
-                        [&](const double* q) { return detail::squared_distance(q, c) <= rr; });
-              Vec3 nrm = p.orientation;
-              const double pl = planarity(s.a, p.orientation, nrm);
+              const double r = p.normal_radii[a];
+              aggregate(pool, ref_order, t_ref, range * p.window_ratios[b], p.min_points, s, s.a,
+                        [&](const detail::KdTree& tree, std::vector<std::uint32_t>& found) { tree.ball(c, r, found); });
+              Vec3 nrm = towards;
+              const double pl = planarity(s.a, towards, nrm);
               if (pl > best) best = pl, normal = nrm, chosen = std::int32_t(a * ratios + b);
             }
           for (int k = 0; k < 3; ++k) out.normal[3 * i + k] = normal[k];
           out.scale[i] = chosen;
           const double ratio = p.window_ratios[chosen < 0 ? 0 : std::size_t(chosen) % ratios];
-          const auto in_cylinder = [&](const double* q) {
-            const double dx = q[0] - c.x(), dy = q[1] - c.y(), dz = q[2] - c.z();
-            const double along = dx * normal.x() + dy * normal.y() + dz * normal.z();
-            return dx * dx + dy * dy + dz * dz - along * along <= r2 && std::abs(along) <= p.max_distance;
+          // The reference code's membership test (radial^2 = |v|^2 - along^2), its boxes pruned
+          // by the cylinder's bounds (index/cylinder.hpp).
+          const detail::Cylinder bounds{c, normal, p.cylinder_radius, -p.max_distance, p.max_distance};
+          const auto in_cylinder = [&](const detail::KdTree& tree, std::vector<std::uint32_t>& found) {
+            tree.select([&](const auto& lo, const auto& hi) { return !detail::box_may_meet(lo, hi, bounds); },
+                        [&](const double* q) {
+                          const double dx = q[0] - c.x(), dy = q[1] - c.y(), dz = q[2] - c.z();
+                          const double along = dx * normal.x() + dy * normal.y() + dz * normal.z();
+                          return dx * dx + dy * dy + dz * dz - along * along <= r2 && std::abs(along) <= p.max_distance;
+                        },
+                        found);
           };
           // The reference's side, walked once without a cap; each target's window takes a prefix.
-          aggregate(pool, c, ref_order, t_ref, std::numeric_limits<double>::infinity(), reach, p.min_points, s,
-                    s.reference, in_cylinder);
+          aggregate(pool, ref_order, t_ref, std::numeric_limits<double>::infinity(), p.min_points, s, s.reference,
+                    in_cylinder);
           for (std::size_t j = 0; j < nt; ++j) {
             const double t_tgt = pool.times()[targets[j]];
             double gap = std::abs(t_tgt - t_ref);
             if (gap == 0.0) gap = range;  // the target at the reference's time: the whole range (4.7)
             const double window = gap * ratio;
             s.a.prefix_of(s.reference, window);
-            aggregate(pool, c, target_order[j], t_tgt, window, reach, p.min_points, s, s.b, in_cylinder);
+            aggregate(pool, target_order[j], t_tgt, window, p.min_points, s, s.b, in_cylinder);
             const std::size_t o = i * nt + j;
             out.epochs1[o] = s.a.epochs, out.epochs2[o] = s.b.epochs;
             out.points1[o] = std::uint32_t(s.a.count()), out.points2[o] = std::uint32_t(s.b.count());

@@ -53,6 +53,31 @@ TEST(Tam3c2, FlatPlanesGiveTheirOffsets) {
   }
 }
 
+TEST(Tam3c2, NormalsPointToEachCorePointsOrientation) {
+  // The planes of FlatPlanesGiveTheirOffsets; core points 0 and 1 at the centre, 2 far from every
+  // point (no normal: it keeps its orientation, made unit). Orientations: down, not finite (the
+  // parameters' +z), and (3, 0, 4).
+  std::vector<std::vector<double>> clouds;
+  for (int e = 0; e < 4; ++e) clouds.push_back(plane(21, 0.1 * e));
+  std::vector<m3c2::PointsView> views;
+  for (auto& c : clouds) views.emplace_back(c.data(), c.size() / 3);
+  m3c2::Tam3c2Pool pool(views, {0.0, 1.0, 2.0, 3.0});
+  const std::vector<double> core{0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 50.0, 50.0, 0.0};
+  const std::vector<double> towards{0.0, 0.0, -2.0, NAN, 0.0, 1.0, 3.0, 0.0, 4.0};
+  const auto r = m3c2::tam3c2(params(), pool, 0, {1, 2, 3}, {core.data(), 3}, {towards.data(), 3});
+  EXPECT_NEAR(r.normal[2], -1.0, 1e-12);
+  EXPECT_NEAR(r.normal[5], 1.0, 1e-12);
+  EXPECT_EQ(r.scale[2], -1);
+  EXPECT_EQ(r.normal[6], 0.6);
+  EXPECT_EQ(r.normal[8], 0.8);
+  for (int j = 0; j < 3; ++j) {
+    EXPECT_NEAR(r.distance[j], -0.1 * (j + 1), 1e-12);  // the same change, seen along -z
+    EXPECT_NEAR(r.distance[3 + j], 0.1 * (j + 1), 1e-12);
+    EXPECT_TRUE(std::isnan(r.distance[6 + j]));
+  }
+  EXPECT_THROW(m3c2::tam3c2(params(), pool, 0, {1}, {core.data(), 3}, {towards.data(), 2}), m3c2::InvalidArgument);
+}
+
 TEST(Tam3c2, BorrowsNearestEpochsWithinTheCap) {
   // The target epoch (time 10) has 1 point in the cylinder; its neighbours at 9 and 12 have a
   // plane each: nearest first takes 9, then stops (enough points). With the cap at 0.05 of the
@@ -95,8 +120,8 @@ TEST(Tam3c2, SameBitsForAnyThreadCount) {
   p.weights = m3c2::Tam3c2Weights::kGaussian;
   m3c2::RunOptions one, many;
   one.threads = 1, many.threads = 4;
-  const auto a = m3c2::tam3c2(p, pool, 0, {1, 2, 3, 4, 5}, {core.data(), 200}, one);
-  const auto b = m3c2::tam3c2(p, pool, 0, {1, 2, 3, 4, 5}, {core.data(), 200}, many);
+  const auto a = m3c2::tam3c2(p, pool, 0, {1, 2, 3, 4, 5}, {core.data(), 200}, {}, one);
+  const auto b = m3c2::tam3c2(p, pool, 0, {1, 2, 3, 4, 5}, {core.data(), 200}, {}, many);
   ASSERT_EQ(a.distance.size(), b.distance.size());
   EXPECT_EQ(0, std::memcmp(a.distance.data(), b.distance.data(), 8 * a.distance.size()));
   EXPECT_EQ(0, std::memcmp(a.lod.data(), b.lod.data(), 8 * a.lod.size()));
@@ -115,6 +140,8 @@ TEST(Tam3c2, RefusesBadParameters) {
   p = params();
   EXPECT_THROW(m3c2::tam3c2(p, pool, 1, {0}, {core.data(), 1}), m3c2::InvalidArgument);
   EXPECT_THROW(m3c2::Tam3c2Pool({{c.data(), 9}}, {NAN}), m3c2::InvalidArgument);
+  p.orientation = m3c2::Vec3(0.0, 0.0, 0.0);
+  EXPECT_THROW(m3c2::tam3c2(p, pool, 0, {0}, {core.data(), 1}), m3c2::InvalidArgument);
 }
 
 }  // namespace

@@ -382,15 +382,20 @@ def tam3c2_pool(clouds, times) -> "_core.Tam3c2Pool":
                                 [float(t) for t in times])
 
 
-def tam3c2(pool, core, reference: int, targets, settings: dict, *, threads: int = 0) -> dict:
+def tam3c2(pool, core, reference: int, targets, settings: dict, *, orientations=None, threads: int = 0) -> dict:
     """TAM3C2 of `core` between the pool's epoch `reference` and each of `targets`; `settings`:
     normal_radii, window_ratios, min_points, cylinder_radius, max_distance, weights, sigma_ratio,
-    space_time_ratio, registration_error, critical_value, orientation (tam3c2.hpp's Tam3c2Params).
+    space_time_ratio, registration_error, critical_value, orientation (tam3c2.hpp's Tam3c2Params);
+    `orientations`: None or (N, 3), the side each core point's normal points to (the engine falls
+    back to `orientation` where a row is not finite or zero).
     Per-(core, target) arrays are core x targets; normal core x 3, scale per core point."""
     core = np.ascontiguousarray(core, dtype=np.float64).reshape(-1, 3)
     targets = [int(t) for t in targets]
+    if orientations is not None:
+        orientations = np.ascontiguousarray(orientations, dtype=np.float64).reshape(-1, 3)
     with translated():
-        out = _core.tam3c2(pool, core, int(reference), targets, threads=threads, **settings)
+        out = _core.tam3c2(pool, core, int(reference), targets, orientations=orientations, threads=threads,
+                           **settings)
     shape = (len(core), len(targets))
     return {k: (v if k in ("normal", "scale") else v.reshape(shape)) for k, v in out.items()}
 

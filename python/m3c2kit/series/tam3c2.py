@@ -173,6 +173,9 @@ def tam3c2(store: Path, options: Tam3c2Options = Tam3c2Options()) -> dict:
         days = _days(store, group, n, options.reference_time)
         settings, confidence = _settings(store, group, options)
         core = np.ascontiguousarray(np.column_stack([st.read(store, group, a) for a in "xyz"]), dtype=np.float64)
+        # Each core point's normal turned to the side of the store's (which followed its --orient),
+        # so that tam3c2_distance and distance share a sign; +z where the store has no normal.
+        towards = np.column_stack([st.read(store, group, a) for a in ("nx", "ny", "nz")])
         reach = max(max(settings["normal_radii"]),
                     math.hypot(settings["cylinder_radius"], settings["max_distance"]))
         # The pool in time order (the engine breaks ties in time distance by pool order: the
@@ -193,7 +196,7 @@ def tam3c2(store: Path, options: Tam3c2Options = Tam3c2Options()) -> dict:
         for begin, end in _block_rows(group, n):
             pool = _pool(store, files, core[begin:end], reach, times[order])
             r = facade.tam3c2(pool, core[begin:end], int(position[0]), position[1:].tolist(), settings,
-                              threads=threads)
+                              orientations=towards[begin:end], threads=threads)
             rows = slice(begin, end)
             out[DISTANCE][rows, :n] = r["distance"]
             computed += int(np.isfinite(r["distance"]).sum())

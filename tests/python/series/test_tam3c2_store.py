@@ -63,7 +63,8 @@ def test_the_variables_are_the_engines_tam3c2_on_the_recorded_files(base, tmp_pa
     s = dict(normal_radii=[0.5], window_ratios=[0.5, 1.0], min_points=6, cylinder_radius=0.3, max_distance=1.0,
              weights="gaussian", sigma_ratio=1.0, space_time_ratio=1.0, registration_error=0.0,
              critical_value=NormalDist().inv_cdf(0.975), orientation=[0.0, 0.0, 1.0])
-    want = facade.tam3c2(pool, core, 0, range(1, 11), s)
+    towards = np.column_stack([ds["nx"].values, ds["ny"].values, ds["nz"].values])
+    want = facade.tam3c2(pool, core, 0, range(1, 11), s, orientations=towards)
     np.testing.assert_array_equal(ds["tam3c2_distance"].values, want["distance"])
     np.testing.assert_array_equal(ds["tam3c2_lod"].values, want["lod"])
     np.testing.assert_array_equal(ds["tam3c2_n2"].values, want["n2"])
@@ -75,6 +76,23 @@ def test_the_variables_are_the_engines_tam3c2_on_the_recorded_files(base, tmp_pa
     assert np.array_equal(sig[ok] == 1, np.abs(want["distance"][ok]) > want["lod"][ok]) and (sig == 1).any()
     assert ds["tam3c2_distance"].attrs["weights"] == "gaussian"
     assert run(capsys, "series", "check", store)[0] == 0
+
+
+def test_the_distances_share_the_sign_of_the_stores_oriented_normals(base, tmp_path, capsys):
+    """A store whose normals were turned down (--orient -z) measures the rise as negative, and
+    TAM3C2 on it too: the same magnitudes as on the +z store, the opposite sign."""
+    _, folder, _ = base
+    down = tmp_path / "down.zarr"
+    assert main(["series", str(folder / "ref.npy"), str(folder / "epochs.txt"), "-o", str(down), *PARAMS,
+                 "--orient", "-z", "--quiet", "--core-chunk", "40", "--epoch-chunk", "4"]) == 0
+    up = copy(base[0], tmp_path)
+    options = ["--reference-time", REF_TIME, "--required-points", "6", "--window-ratio", "0.5,1"]
+    assert run(capsys, "series", "tam3c2", down, *options)[0] == 0
+    assert run(capsys, "series", "tam3c2", up, *options)[0] == 0
+    d_down, d_up = (xr.open_zarr(s)["tam3c2_distance"].values for s in (down, up))
+    plain = xr.open_zarr(down)["distance"].values
+    assert np.nanmedian(plain) < 0 and np.nanmedian(d_down) < 0 < np.nanmedian(d_up)
+    np.testing.assert_allclose(d_down, -d_up, rtol=0, atol=1e-12)
 
 
 def test_more_core_points_get_a_distance_than_with_plain_m3c2_on_sparse_epochs(base, tmp_path, capsys):
