@@ -219,7 +219,7 @@ def kalman(store: Path, options: KalmanOptions = KalmanOptions()) -> dict:
     _check(options)
     store = Path(store)
     threads = threads_count(options.threads)
-    kept = lambda folder: analysis.what_was_kept(store, folder, st.KALMAN_VARIABLES, "the Kalman variables")  # noqa: E731
+    kept = lambda folder: analysis.what_was_kept(store, folder, st.KALMAN_VARIABLES, "Kalman variables")  # noqa: E731
     with step.writing(store, "kalman", kept) as folder:
         group = st.open_group(folder)
         if not options.from_scratch:  # a half-written run is resumed from nothing but replaced whole

@@ -1,7 +1,8 @@
 """`m3c2 series report`: a self-contained HTML page of a store: per chosen core point its
 distance series with the LOD band (change is detected outside +-LOD, section 3.3) and, after
 `m3c2 series objects`, a map of the objects' extents and each object's series; after `m3c2 series
-kalman`, the smoothed series with its band over the raw distances (report_kalman.py)."""
+kalman`, the smoothed series with its band over the raw distances (report_kalman.py); after `m3c2
+series tam3c2`, a row of TAM3C2 distances under each core point's plot (report_tam3c2.py)."""
 from __future__ import annotations
 
 import base64
@@ -21,6 +22,7 @@ from matplotlib.figure import Figure  # noqa: E402
 
 from ..output.report.figures import png
 from . import report_kalman as rk
+from . import report_tam3c2 as rt
 from . import store as st
 from .outputs import members_path
 
@@ -65,8 +67,11 @@ def write_report(store: Path, output: Path, cores=None, objects_table=None) -> N
              f"<p>{n_core} core points, {n} epochs. Parameters: <code>{html.escape(group.attrs.get('parameters', ''))}"
              f"</code></p>"]
     kalman = rk.kalman_run(store, group)  # None: the report is the one a store without the filter always had
+    tam = rt.tam3c2_run(store, group, n)  # None: likewise without TAM3C2
     if kalman is not None:
         parts += rk.summary(store, group, kalman, n)
+    if tam is not None:
+        parts += rt.summary(store, group, tam, n)
     parts.append("<h2>Core points</h2>")
     for c in cores:
         if not 0 <= c < n_core:
@@ -77,10 +82,15 @@ def write_report(store: Path, output: Path, cores=None, objects_table=None) -> N
         xyz = [float(st.read(store, group, a, c)) for a in "xyz"]
         title = f"core point {c} at ({xyz[0]:.3f}, {xyz[1]:.3f}, {xyz[2]:.3f})"
         if kalman is None:
-            parts.append(_img(_core_figure(x, xlabel, d, lod, title), f"core {c}"))
+            fig, blocks = _core_figure(x, xlabel, d, lod, title), []
         else:
             series = rk.read_core(store, group, c, n, d, lod)
-            parts += [_img(rk.figure(x, xlabel, series, kalman, title), f"core {c}"), rk.data_block(x, series, kalman)]
+            fig, blocks = rk.figure(x, xlabel, series, kalman, title), [rk.data_block(x, series, kalman)]
+        if tam is not None:
+            adaptive = rt.read_core(store, group, c, tam, d)
+            rt.add_row(fig, x, xlabel, adaptive, tam)
+            blocks.append(rt.data_block(x, adaptive, tam))
+        parts += [_img(fig, f"core {c}"), *blocks]
     if objects is not None:
         parts += _objects_section(store, group, Path(objects_table), objects, x, xlabel, n)
     with atomic_output(output) as tmp:

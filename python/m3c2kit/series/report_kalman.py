@@ -45,9 +45,11 @@ class KalmanRun:
 def kalman_run(store: Path, group) -> KalmanRun | None:
     """The store's Kalman run, None when it has none; a half-written or incomplete set is an error
     naming the fix (drawn, it would mix two runs)."""
+    # the mark first: a first run killed while publishing has marked its variables before the
+    # store's metadata lists them
+    integrity.require_whole(group, st.KALMAN_VARIABLES, store)
     if MEAN not in group:
         return None
-    integrity.require_whole(group, st.KALMAN_VARIABLES, store)
     missing = [name for name in (SIGMA, SIGNIFICANT) if name not in group]
     if missing:
         raise M3C2Error(f"{store}: {MEAN} without {', '.join(missing)}; rerun m3c2 series kalman {store} "

@@ -164,7 +164,7 @@ def tam3c2(store: Path, options: Tam3c2Options = Tam3c2Options()) -> dict:
     _check(options)
     store = Path(store)
     threads = threads_count(options.threads)
-    kept = lambda folder: analysis.what_was_kept(store, folder, st.TAM3C2_VARIABLES, "the TAM3C2 variables")  # noqa: E731
+    kept = lambda folder: analysis.what_was_kept(store, folder, st.TAM3C2_VARIABLES, "TAM3C2 variables")  # noqa: E731
     with step.writing(store, "tam3c2", kept) as folder:
         group = st.open_group(folder)
         n = group["distance"].shape[1]

@@ -1,7 +1,8 @@
 """The series store against a hostile world (issue 31, item 3; docs/errors.md "The series
 store"): concurrent writers end with exact epoch counts; SIGKILL and SIGTERM at every write phase
-(fault_hook `store-write`, `store-commit`) of create, add, smooth, objects and import leave a
-store that `m3c2 series check` accepts (or that names the one half-written variable to rerun),
+(fault_hook `store-write`, `store-commit`) of create, add, smooth, objects, import, kalman and
+tam3c2 leave a store that `m3c2 series check` accepts (or that names the half-written variables of
+that step, with its rerun),
 and the resumed or rerun step gives the uninterrupted run's store; a full disk leaves the store
 at its last commit; damaged and foreign stores are refused and left as they were."""
 from __future__ import annotations
@@ -37,6 +38,8 @@ SCENARIO = ss.Scenario(extent=10.0, density=12.0, epochs=15, offset_epoch=20,
 OBJECTS = ["--window-width", "6", "--window-min-size", "2", "--min-period", "2", "--min-segments", "3",
            "--max-cv", "5", "--thresholds", "0.5,0.9", "--quiet"]
 ARCHIVE = REPO / "tests" / "data" / "py4dgeo_series" / "analysis.zip"
+REFERENCE_TIME = "2024-01-01T00:00"  # series_synthetic's epoch 0
+TAM3C2 = ["--reference-time", REFERENCE_TIME, "--required-points", "5", "--window-ratio", "0.5,1"]
 PHASES = ("store-write", "store-commit")
 
 
@@ -60,6 +63,16 @@ def world(tmp_path_factory):
     assert len((root / "objects.csv").read_text().splitlines()) > 1, "no object: the comparison would be weak"
     w["imported"] = root / "imported.zarr"
     assert main(["series", "import", str(ARCHIVE), "-o", str(w["imported"])]) == 0
+    # epochs 1-8 with their times (the list file series_synthetic wrote): what kalman and tam3c2 need
+    listed = (root / "epochs" / "epochs.txt").read_text().splitlines()[1:9]
+    (root / "timed.txt").write_text("".join(f"{root / 'epochs' / line}\n" for line in listed))
+    w["timed"] = root / "timed.zarr"
+    assert main(["series", str(e[0]), str(root / "timed.txt"), "-o", str(w["timed"]), *PARAMS, *CHUNKS,
+                 "--quiet"]) == 0
+    for name, options in (("kalman", []), ("tam3c2", TAM3C2)):
+        w[name] = root / f"{name}.zarr"
+        shutil.copytree(w["timed"], w[name])
+        assert main(["series", name, str(w[name]), *options]) == 0
     return w
 
 
@@ -73,7 +86,7 @@ def same_values(x: Path, y: Path) -> None:
             assert va.tobytes() == vb.tobytes(), name
         else:
             assert np.array_equal(va, vb), name
-    for name in ("smoothed_distance", "object"):
+    for name in st.DERIVED_VARIABLES:
         if name in a:
             assert a[name].attrs == b[name].attrs, name
 
@@ -95,7 +108,8 @@ def check(store: Path) -> tuple[int, str]:
 
 
 def _step(name: str, w: dict, tmp: Path):
-    """(argv, the store it writes, the resuming argv, the uninterrupted store, its half-written variable)."""
+    """(argv, the store it writes, the resuming argv, the uninterrupted store, the variables it
+    may leave half-written)."""
     e = w["epochs"]
     if name == "create":
         store = tmp / "c.zarr"
@@ -110,12 +124,18 @@ def _step(name: str, w: dict, tmp: Path):
         store = tmp / "s.zarr"
         shutil.copytree(w["added"], store)
         argv = ["series", "smooth", store, "--window", "3"]
-        return argv, store, argv, w["smoothed"], "smoothed_distance"
+        return argv, store, argv, w["smoothed"], ("smoothed_distance",)
     if name == "objects":
         store = tmp / "o.zarr"
         shutil.copytree(w["smoothed"], store)
         argv = ["series", "objects", store, "-o", tmp / "objects.csv", *OBJECTS]
-        return argv, store, argv, w["objects"], "object"
+        return argv, store, argv, w["objects"], ("object",)
+    if name in ("kalman", "tam3c2"):  # all their variables published together
+        store = tmp / f"{name}.zarr"
+        shutil.copytree(w["timed"], store)
+        argv = ["series", name, store, *(TAM3C2 if name == "tam3c2" else [])]
+        resume = argv + (["--from-scratch"] if name == "kalman" else [])  # as series check says
+        return argv, store, resume, w[name], st.KALMAN_VARIABLES if name == "kalman" else st.TAM3C2_VARIABLES
     store = tmp / "i.zarr"
     argv = ["series", "import", ARCHIVE, "-o", store]
     return argv, store, argv, w["imported"], None
@@ -124,10 +144,10 @@ def _step(name: str, w: dict, tmp: Path):
 @pytest.mark.slow
 @pytest.mark.parametrize("signame", ["SIGKILL", "SIGTERM"])
 @pytest.mark.parametrize("phase", PHASES)
-@pytest.mark.parametrize("name", ["create", "add", "smooth", "objects", "import"])
+@pytest.mark.parametrize("name", ["create", "add", "smooth", "objects", "import", "kalman", "tam3c2"])
 def test_a_kill_at_every_write_phase_then_check_and_resume(world, tmp_path, monkeypatch, capsys, name, phase,
                                                            signame):
-    argv, store, resume, whole, variable = _step(name, world, tmp_path)
+    argv, store, resume, whole, variables = _step(name, world, tmp_path)
     if signame == "SIGKILL":
         proc = cli(*argv, env={fault_hook.ENV: f"{phase}:SIGKILL"})
         assert proc.returncode == -signal.SIGKILL, (proc.returncode, proc.stderr)
@@ -141,13 +161,17 @@ def test_a_kill_at_every_write_phase_then_check_and_resume(world, tmp_path, monk
         if name in ("create", "add") and store.exists():
             assert "committed" in err and "no output written" not in err, err
             assert ("m3c2 series add" in err) if name == "create" else ("rerun the same command" in err), err
-        if variable is not None:
-            assert variable in err and "no output written" not in err, err
+        if variables is not None:
+            in_words = {"kalman": "Kalman variables", "tam3c2": "TAM3C2 variables"}.get(name, variables[0])
+            assert any(v in err for v in variables) or in_words in err, err
+            assert "no output written" not in err, err
     if store.exists():
         code, report = check(store)
-        if code:  # only the variable the step was replacing may be marked, and named with its step
-            assert variable is not None and f"damaged: {variable}: half-written" in report, report
-            assert report.count("damaged:") == 1, report
+        if code:  # only the variables the step was replacing may be marked, and named with its step
+            damaged = [line for line in report.splitlines() if line.startswith("damaged:")]
+            assert variables is not None and damaged, report
+            assert {line.split(":")[1].strip() for line in damaged} <= set(variables), report
+            assert all("half-written" in line and f"m3c2 series {name}" in line for line in damaged), report
     elif name == "create":
         resume = argv  # nothing at -o: the same command again
     assert main([str(a) for a in resume]) == 0
