@@ -28,7 +28,9 @@ SETTINGS = dict(normal_radii=[0.5, 1.0], window_ratios=[0.2], min_points=10, cyl
 
 
 def series(n_epochs: int, n_core: int, seed: int = 1):
-    """Epochs of a 100 m x 100 m rough slope, 2 to 20 points per m^2, hourly with gaps."""
+    """Epochs of a 100 m x 100 m rough slope, 2 to 20 points per m^2, hourly with gaps, rising
+    0.3 m over the series whatever its length (inside the cylinder's half-length: a surface that
+    left the cylinder would make every side walk its whole window, a different benchmark)."""
     rng = np.random.default_rng(seed)
     hours = np.cumsum(rng.integers(1, 6, n_epochs)).astype(float)
     side = max(10.0, min(100.0, np.sqrt(n_core)))  # about one core point per m^2
@@ -36,7 +38,8 @@ def series(n_epochs: int, n_core: int, seed: int = 1):
     for h in hours:
         n = int(side * side * rng.choice([2, 5, 20]))
         x, y = rng.uniform(0, side, n), rng.uniform(0, side, n)
-        clouds.append(np.column_stack([x, y, 0.1 * x + 0.2 * np.sin(y / 3) + 0.001 * h + rng.normal(0, 0.01, n)]))
+        z = 0.1 * x + 0.2 * np.sin(y / 3) + 0.3 * h / hours[-1] + rng.normal(0, 0.01, n)
+        clouds.append(np.column_stack([x, y, z]))
     core = np.column_stack([rng.uniform(1, side - 1, n_core), rng.uniform(1, side - 1, n_core), np.zeros(n_core)])
     core[:, 2] = 0.1 * core[:, 0] + 0.2 * np.sin(core[:, 1] / 3)
     return hours, clouds, core

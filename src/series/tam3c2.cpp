@@ -18,6 +18,7 @@
 
 #include "index/cylinder.hpp"
 #include "index/kdtree.hpp"
+#include "index/spatial_order.hpp"
 #include "support/parallel_for.hpp"
 
 #include <Eigen/Eigenvalues>
@@ -73,9 +74,20 @@ struct Side {
   }
 };
 
+/// What a core point's cells share: its position, normal, window ratio and the reference's side
+/// walked without a cap (each target's window takes a prefix of it).
+struct CorePoint {
+  std::size_t index = 0;
+  Vec3 c, normal;
+  double ratio = 0.0;
+  Side reference;
+};
+
 struct Scratch {
   std::vector<std::uint32_t> found;
-  Side a, b, reference;
+  Side a, b;
+  std::vector<CorePoint> block;
+  std::vector<double> w1, w2, proj;
 };
 
 /// The pool's indices nearest in time to `centre` first; equal distances in pool order (time
@@ -257,66 +269,83 @@ Tam3c2Result tam3c2(const Tam3c2Params& p, const Tam3c2Pool& pool, std::size_t r
   for (auto* v : {&out.distance, &out.lod, &out.spread1, &out.spread2, &out.n1, &out.n2}) v->assign(nc * nt, kNaN);
   for (auto* v : {&out.epochs1, &out.epochs2, &out.points1, &out.points2}) v->assign(nc * nt, 0u);
 
+  // The points of a projection cylinder (the reference code's membership test, radial^2 = |v|^2 -
+  // along^2), the tree's boxes pruned by the cylinder's bounds (index/cylinder.hpp).
+  const auto cylinder_of = [&](const Vec3& c, const Vec3& normal) {
+    return [&p, r2, c, normal](const detail::KdTree& tree, std::vector<std::uint32_t>& found) {
+      const detail::Cylinder bounds{c, normal, p.cylinder_radius, -p.max_distance, p.max_distance};
+      tree.select([&](const auto& lo, const auto& hi) { return !detail::box_may_meet(lo, hi, bounds); },
+                  [&](const double* q) {
+                    const double dx = q[0] - c.x(), dy = q[1] - c.y(), dz = q[2] - c.z();
+                    const double along = dx * normal.x() + dy * normal.y() + dz * normal.z();
+                    return dx * dx + dy * dy + dz * dz - along * along <= r2 && std::abs(along) <= p.max_distance;
+                  },
+                  found);
+    };
+  };
+
+  // A core point's normal (the scale contest on the reference, 4.4: the most planar aggregated
+  // sphere), its ratio and its reference side.
+  const auto prepare = [&](std::size_t i, Scratch& s, CorePoint& cp) {
+    const Vec3 c = core[i], towards = orientation_of(i);
+    double best = -std::numeric_limits<double>::infinity();
+    Vec3 normal = towards;
+    std::int32_t chosen = -1;
+    for (std::size_t a = 0; a < p.normal_radii.size(); ++a)
+      for (std::size_t b = 0; b < ratios; ++b) {
+        const double r = p.normal_radii[a];
+        aggregate(pool, ref_order, t_ref, range * p.window_ratios[b], p.min_points, s, s.a,
+                  [&](const detail::KdTree& tree, std::vector<std::uint32_t>& found) { tree.ball(c, r, found); });
+        Vec3 nrm = towards;
+        const double pl = planarity(s.a, towards, nrm);
+        if (pl > best) best = pl, normal = nrm, chosen = std::int32_t(a * ratios + b);
+      }
+    for (int k = 0; k < 3; ++k) out.normal[3 * i + k] = normal[k];
+    out.scale[i] = chosen;
+    cp.index = i, cp.c = c, cp.normal = normal;
+    cp.ratio = p.window_ratios[chosen < 0 ? 0 : std::size_t(chosen) % ratios];
+    aggregate(pool, ref_order, t_ref, std::numeric_limits<double>::infinity(), p.min_points, s, cp.reference,
+              cylinder_of(c, normal));
+  };
+
+  // One cell: the core point's distance and LOD at target j.
+  const auto cell = [&](const CorePoint& cp, std::size_t j, Scratch& s) {
+    const double t_tgt = pool.times()[targets[j]];
+    double gap = std::abs(t_tgt - t_ref);
+    if (gap == 0.0) gap = range;  // the target at the reference's time: the whole range (4.7)
+    const double window = gap * cp.ratio;
+    s.a.prefix_of(cp.reference, window);
+    aggregate(pool, target_order[j], t_tgt, window, p.min_points, s, s.b, cylinder_of(cp.c, cp.normal));
+    const std::size_t o = cp.index * nt + j;
+    out.epochs1[o] = s.a.epochs, out.epochs2[o] = s.b.epochs;
+    out.points1[o] = std::uint32_t(s.a.count()), out.points2[o] = std::uint32_t(s.b.count());
+    if (s.a.count() < 2 || s.b.count() < 2) return;  // no spread on a side: no distance
+    weights(p, s.a, cp.c, cp.normal, window, s.w1);
+    weights(p, s.b, cp.c, cp.normal, window, s.w2);
+    const Moments m1 = side_moments(s.a, s.w1, cp.c, cp.normal, s.proj);
+    const Moments m2 = side_moments(s.b, s.w2, cp.c, cp.normal, s.proj);
+    out.distance[o] = m2.mean - m1.mean;
+    out.lod[o] = p.critical_value * std::sqrt(m1.spread * m1.spread / m1.n + m2.spread * m2.spread / m2.n) +
+                 p.registration_error;
+    out.spread1[o] = m1.spread, out.spread2[o] = m2.spread, out.n1[o] = m1.n, out.n2[o] = m2.n;
+  };
+
+  // Blocks of core points in Morton order (neighbours together), each block walked target by
+  // target: the trees' paths and leaves an epoch has around the block stay in cache while every
+  // core point of the block uses them (core point by core point, a thousand epochs' neighbourhoods
+  // do not fit in cache, and the walk waits for memory). Every cell's arithmetic is its own,
+  // written by index: the same bits in any order, block size or thread count.
+  const std::vector<std::uint32_t> visit = detail::morton_order(core);
+  constexpr std::size_t kBlock = 64;
   detail::parallel_blocks<Scratch>(
       nc, run,
       [&](std::size_t begin, std::size_t end, Scratch& s) {
-        std::vector<double> w1, w2, proj;
-        for (std::size_t i = begin; i < end; ++i) {
-          const Vec3 c = core[i], towards = orientation_of(i);
-          // The scale contest on the reference (4.4): the most planar aggregated sphere.
-          double best = -std::numeric_limits<double>::infinity();
-          Vec3 normal = towards;
-          std::int32_t chosen = -1;
-          for (std::size_t a = 0; a < p.normal_radii.size(); ++a)
-            for (std::size_t b = 0; b < ratios; ++b) {
-              const double r = p.normal_radii[a];
-              aggregate(pool, ref_order, t_ref, range * p.window_ratios[b], p.min_points, s, s.a,
-                        [&](const detail::KdTree& tree, std::vector<std::uint32_t>& found) { tree.ball(c, r, found); });
-              Vec3 nrm = towards;
-              const double pl = planarity(s.a, towards, nrm);
-              if (pl > best) best = pl, normal = nrm, chosen = std::int32_t(a * ratios + b);
-            }
-          for (int k = 0; k < 3; ++k) out.normal[3 * i + k] = normal[k];
-          out.scale[i] = chosen;
-          const double ratio = p.window_ratios[chosen < 0 ? 0 : std::size_t(chosen) % ratios];
-          // The reference code's membership test (radial^2 = |v|^2 - along^2), its boxes pruned
-          // by the cylinder's bounds (index/cylinder.hpp).
-          const detail::Cylinder bounds{c, normal, p.cylinder_radius, -p.max_distance, p.max_distance};
-          const auto in_cylinder = [&](const detail::KdTree& tree, std::vector<std::uint32_t>& found) {
-            tree.select([&](const auto& lo, const auto& hi) { return !detail::box_may_meet(lo, hi, bounds); },
-                        [&](const double* q) {
-                          const double dx = q[0] - c.x(), dy = q[1] - c.y(), dz = q[2] - c.z();
-                          const double along = dx * normal.x() + dy * normal.y() + dz * normal.z();
-                          return dx * dx + dy * dy + dz * dz - along * along <= r2 && std::abs(along) <= p.max_distance;
-                        },
-                        found);
-          };
-          // The reference's side, walked once without a cap; each target's window takes a prefix.
-          aggregate(pool, ref_order, t_ref, std::numeric_limits<double>::infinity(), p.min_points, s, s.reference,
-                    in_cylinder);
-          for (std::size_t j = 0; j < nt; ++j) {
-            const double t_tgt = pool.times()[targets[j]];
-            double gap = std::abs(t_tgt - t_ref);
-            if (gap == 0.0) gap = range;  // the target at the reference's time: the whole range (4.7)
-            const double window = gap * ratio;
-            s.a.prefix_of(s.reference, window);
-            aggregate(pool, target_order[j], t_tgt, window, p.min_points, s, s.b, in_cylinder);
-            const std::size_t o = i * nt + j;
-            out.epochs1[o] = s.a.epochs, out.epochs2[o] = s.b.epochs;
-            out.points1[o] = std::uint32_t(s.a.count()), out.points2[o] = std::uint32_t(s.b.count());
-            if (s.a.count() < 2 || s.b.count() < 2) continue;  // no spread on a side: no distance
-            weights(p, s.a, c, normal, window, w1);
-            weights(p, s.b, c, normal, window, w2);
-            const Moments m1 = side_moments(s.a, w1, c, normal, proj);
-            const Moments m2 = side_moments(s.b, w2, c, normal, proj);
-            out.distance[o] = m2.mean - m1.mean;
-            out.lod[o] = p.critical_value * std::sqrt(m1.spread * m1.spread / m1.n + m2.spread * m2.spread / m2.n) +
-                         p.registration_error;
-            out.spread1[o] = m1.spread, out.spread2[o] = m2.spread, out.n1[o] = m1.n, out.n2[o] = m2.n;
-          }
-        }
+        s.block.resize(end - begin);
+        for (std::size_t k = begin; k < end; ++k) prepare(visit[k], s, s.block[k - begin]);
+        for (std::size_t j = 0; j < nt; ++j)
+          for (const CorePoint& cp : s.block) cell(cp, j, s);
       },
-      16);
+      kBlock);
   return out;
 }
 
