@@ -2,9 +2,9 @@
 Huang, Letard, Lague, Hoefle, Tabernig, Leroy & Anders, ISPRS Annals 2026), the engine's
 (include/m3c2/tam3c2.hpp). The epochs are read again from the files the store recorded (the
 reference, attribute `reference`; each epoch's `source`), each checked against its recorded
-SHA-256, and, for each block of core points, read again and cropped to the block's reach: the pool
-is the reference at its time and every epoch at its own. For each core point and epoch, the distance between the reference's side and
-the epoch's side, each aggregated over the epochs nearest in time to it until `--required-points`
+SHA-256, read once and cropped to each block of core points' reach (series/epoch_crops.py): a
+block's pool is the reference at its time and every epoch at its own. For each core point and
+epoch, the distance between the reference's side and the epoch's side, each aggregated over the epochs nearest in time to it until `--required-points`
 points, within W = |t_epoch - t_reference| x ratio.
 
 The step writes tam3c2_distance, tam3c2_lod, tam3c2_significant, tam3c2_window (epochs
@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import json
 import math
+from contextlib import ExitStack
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -25,10 +26,12 @@ from ..base import fault_hook
 from ..base.errors import M3C2Error, UsageError
 from .. import engine as facade
 from ..io import read_cloud
+from ..io.private import private_folder
 from ..run.checks import threads_count
 from ..base.quantiles import z_critical
 from . import analysis
 from . import epoch_files
+from .epoch_crops import EpochCrops
 from . import integrity
 from . import parameters
 from . import step
@@ -118,20 +121,19 @@ def _files(store: Path, group, n: int) -> list[tuple[Path, tuple]]:
     return files
 
 
-def _pool(store: Path, files, core: np.ndarray, reach: float, times: np.ndarray):
-    """The engine's pool for a block of core points: every file read again and cropped to the
-    block's box widened by the reach (only those points can be in a sphere or cylinder), so
-    memory holds one block's neighbourhoods; a file written since its hash was checked is refused."""
-    lo, hi = core.min(axis=0) - reach, core.max(axis=0) + reach
-    clouds = []
+def _crops(store: Path, files, core: np.ndarray, blocks, reach: float, folder: Path) -> EpochCrops:
+    """Every recorded file read once, in pool order, its points cropped to each block's box widened
+    by the reach (only those can be in a sphere or cylinder of the block) and spilled
+    (series/epoch_crops.py); a file written since its hash was checked is refused."""
+    boxes = [(core[b:e].min(axis=0) - reach, core[b:e].max(axis=0) + reach) for b, e in blocks]
+    crops = EpochCrops(folder, boxes, len(files), store)
     for path, state in files:
         xyz = read_cloud(path).xyz
         if epoch_files.file_state(path) != state:
             raise M3C2Error(f"{store}: {path} changed while TAM3C2 read it; rerun when it is written whole")
-        keep = np.all((xyz >= lo) & (xyz <= hi), axis=1)
-        clouds.append(np.ascontiguousarray(xyz[keep], dtype=np.float64))
+        crops.add(xyz)
         del xyz
-    return facade.tam3c2_pool(clouds, times.tolist())
+    return crops
 
 
 def _settings(store: Path, group, o: Tam3c2Options) -> tuple[dict, float]:
@@ -165,7 +167,7 @@ def tam3c2(store: Path, options: Tam3c2Options = Tam3c2Options()) -> dict:
     store = Path(store)
     threads = threads_count(options.threads)
     kept = lambda folder: analysis.what_was_kept(store, folder, st.TAM3C2_VARIABLES, "TAM3C2 variables")  # noqa: E731
-    with step.writing(store, "tam3c2", kept) as folder:
+    with ExitStack() as held, step.writing(store, "tam3c2", kept) as folder:
         group = st.open_group(folder)
         n = group["distance"].shape[1]
         if n == 0:
@@ -193,8 +195,11 @@ def tam3c2(store: Path, options: Tam3c2Options = Tam3c2Options()) -> dict:
         out = _staged_all(folder, group, common)
         fault_hook.checkpoint("store-write")
         computed = 0
-        for begin, end in _block_rows(group, n):
-            pool = _pool(store, files, core[begin:end], reach, times[order])
+        blocks = _block_rows(group, n)
+        spill = held.enter_context(private_folder(store.resolve().parent, store))
+        crops = _crops(store, files, core, blocks, reach, Path(spill.path))
+        for k, (begin, end) in enumerate(blocks):
+            pool = facade.tam3c2_pool(crops.block(k), times[order].tolist())
             r = facade.tam3c2(pool, core[begin:end], int(position[0]), position[1:].tolist(), settings,
                               orientations=towards[begin:end], threads=threads)
             rows = slice(begin, end)

@@ -180,3 +180,36 @@ def test_an_epoch_file_changed_since_it_was_added_is_refused_naming_it(base, tmp
         assert "tam3c2_distance" not in st.open_group(store)
     finally:
         first.write_bytes(original)
+
+
+def test_each_file_is_read_once_whatever_the_blocks_and_no_spill_is_left(base, tmp_path, capsys, monkeypatch):
+    """The store's core chunks make several blocks; each recorded file is decoded once (its crops
+    spilled, series/epoch_crops.py), and the private spill folder is gone after the run."""
+    from m3c2kit.series import tam3c2 as tam
+    store = copy(base[0], tmp_path)
+    reads = []
+    real = tam.read_cloud
+    monkeypatch.setattr(tam, "read_cloud", lambda path, *a, **k: reads.append(Path(path)) or real(path, *a, **k))
+    blocks = tam._block_rows(st.open_group(store), 10)
+    assert len(blocks) > 1  # else the test would not test the spill
+    assert run(capsys, "series", "tam3c2", store, "--reference-time", REF_TIME)[0] == 0
+    assert len(reads) == 11 and len(set(reads)) == 11
+    assert not [p.name for p in store.parent.iterdir() if p.name.startswith(".m3c2-tmp-")]
+
+
+def test_a_full_disk_while_spilling_is_named_and_publishes_nothing(base, tmp_path, capsys, monkeypatch):
+    from m3c2kit.series import epoch_crops
+    store = copy(base[0], tmp_path)
+    real_open = open
+
+    def full(path, mode="r", *a, **k):
+        if "a" in mode and Path(path).name.startswith("block-"):
+            raise OSError(28, "No space left on device")
+        return real_open(path, mode, *a, **k)
+
+    monkeypatch.setattr(epoch_crops, "open", full, raising=False)
+    code, _, err = run(capsys, "series", "tam3c2", store, "--reference-time", REF_TIME)
+    assert code == 1 and "No space left on device" in err and str(store) in err, err
+    assert not any(name in st.open_group(store) for name in st.TAM3C2_VARIABLES)
+    assert run(capsys, "series", "check", store)[0] == 0
+    assert not [p.name for p in store.parent.iterdir() if p.name.startswith(".m3c2-tmp-")]
