@@ -26,6 +26,14 @@ namespace m3c2 {
 /// effective window W * space_time_ratio: linear (triangular) or Gaussian of width sigma_ratio.
 enum class Tam3c2Weights : std::uint8_t { kNone, kLinear, kGaussian };
 
+/// The LOD's statistic. kZ: the reference's z sqrt(s1^2 / n1 + s2^2 / n2) + reg (weighted sides
+/// with their weighted population spread). kT: Welch's t (Lague et al. 2013, eq. (2)) at the
+/// sides' (effective) n instead of z, the weighted spreads made unbiased (x n / (n - 1),
+/// reliability weights): a side of effective n <= 1 then bounds nothing (LOD +inf). kAuto: kT
+/// where n1 or n2 < 30, else kZ's critical value with kT's spreads (the paper's rule, as the
+/// engine's Lod::kAuto). Only kT and kAuto flag about 1 - confidence of unchanged cells at small n.
+enum class Tam3c2Lod : std::uint8_t { kZ, kT, kAuto };
+
 struct Tam3c2Params {
   std::vector<double> normal_radii;   ///< radii of the normal's sphere (> 0); several: chosen per core point
   std::vector<double> window_ratios;  ///< W / |t_target - t_reference|, each in (0, 1]
@@ -37,6 +45,8 @@ struct Tam3c2Params {
   double space_time_ratio = 1.0;  ///< r_st > 0: the temporal kernel's window is W r_st
   double registration_error = 0.0;
   double critical_value = 1.96;     ///< z of the LOD (1.96: the reference's 95 %)
+  Tam3c2Lod lod = Tam3c2Lod::kZ;    ///< the LOD's statistic (kZ: the reference's)
+  double confidence = 0.95;         ///< the level of kT's and kAuto's t quantile
   Vec3 orientation{0.0, 0.0, 1.0};  ///< normals point to this side (n . o >= 0), unless `orientations` says
 };
 

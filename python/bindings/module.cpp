@@ -794,7 +794,7 @@ NB_MODULE(_core, m) {
          std::vector<double> normal_radii, std::vector<double> window_ratios, std::uint32_t min_points,
          double cylinder_radius, double max_distance, const std::string& weights, double sigma_ratio,
          double space_time_ratio, double registration_error, double critical_value, std::array<double, 3> orientation,
-         std::optional<Points> orientations, int threads) {
+         const std::string& lod, double confidence, std::optional<Points> orientations, int threads) {
         if (targets.empty()) throw m3c2::InvalidArgument("TAM3C2 needs at least one target epoch");
         m3c2::Tam3c2Params p;
         p.normal_radii = std::move(normal_radii), p.window_ratios = std::move(window_ratios);
@@ -810,6 +810,15 @@ NB_MODULE(_core, m) {
         p.sigma_ratio = sigma_ratio, p.space_time_ratio = space_time_ratio;
         p.registration_error = registration_error, p.critical_value = critical_value;
         p.orientation = m3c2::Vec3(orientation[0], orientation[1], orientation[2]);
+        if (lod == "z")
+          p.lod = m3c2::Tam3c2Lod::kZ;
+        else if (lod == "t")
+          p.lod = m3c2::Tam3c2Lod::kT;
+        else if (lod == "auto")
+          p.lod = m3c2::Tam3c2Lod::kAuto;
+        else
+          throw m3c2::InvalidArgument("TAM3C2's LOD statistic must be z, t or auto");
+        p.confidence = confidence;
         auto r = run_engine(nb::none(), threads, [&](const m3c2::RunOptions& run) {
           return m3c2::tam3c2(p, *pool.pool, reference, targets, view(core),
                               orientations ? view(*orientations) : m3c2::PointsView(), run);
@@ -826,5 +835,6 @@ NB_MODULE(_core, m) {
       },
       "pool"_a, "core"_a, "reference"_a, "targets"_a, "normal_radii"_a, "window_ratios"_a, "min_points"_a,
       "cylinder_radius"_a, "max_distance"_a, "weights"_a, "sigma_ratio"_a, "space_time_ratio"_a, "registration_error"_a,
-      "critical_value"_a, "orientation"_a, "orientations"_a = nb::none(), "threads"_a = 0);
+      "critical_value"_a, "orientation"_a, "lod"_a = "z", "confidence"_a = 0.95, "orientations"_a = nb::none(),
+      "threads"_a = 0);
 }

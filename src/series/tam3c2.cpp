@@ -20,6 +20,7 @@
 #include "index/kdtree.hpp"
 #include "index/spatial_order.hpp"
 #include "support/parallel_for.hpp"
+#include "uncertainty/confidence.hpp"
 
 #include <Eigen/Eigenvalues>
 
@@ -27,6 +28,7 @@
 #include <cmath>
 #include <limits>
 #include <numeric>
+#include <stdexcept>
 #include <string>
 
 namespace m3c2 {
@@ -209,6 +211,28 @@ Moments side_moments(const Side& side, const std::vector<double>& w, const Vec3&
   return m;
 }
 
+/// The LOD of two sides (Tam3c2Lod). kZ keeps the reference's arithmetic; kT and kAuto first make
+/// a weighted side's spread unbiased (x n / (n - 1), Kish's n; +inf at n <= 1: one point's weight
+/// bounds nothing) and take Welch's t at the sides' (effective) n where the rule asks for it.
+double side_lod(const Tam3c2Params& p, Moments& m1, bool weighted1, Moments& m2, bool weighted2) {
+  const double inf = std::numeric_limits<double>::infinity();
+  if (p.lod != Tam3c2Lod::kZ)
+    for (auto [m, weighted] : {std::pair<Moments*, bool>{&m1, weighted1}, {&m2, weighted2}})
+      if (weighted) m->spread = m->n > 1.0 ? m->spread * std::sqrt(m->n / (m->n - 1.0)) : inf;
+  const double v1 = m1.spread * m1.spread / m1.n, v2 = m2.spread * m2.spread / m2.n;
+  double critical = p.critical_value;
+  if (p.lod == Tam3c2Lod::kT || (p.lod == Tam3c2Lod::kAuto && (m1.n < 30.0 || m2.n < 30.0))) {
+    if (v1 + v2 == 0.0) return p.registration_error;  // no spread: no quantile is needed
+    const double dof = detail::welch_dof(std::sqrt(v1), m1.n, std::sqrt(v2), m2.n);
+    critical = inf;  // no degrees of freedom, or so few that the quantile overflows: nothing is bounded
+    if (std::isfinite(dof) && dof > 0.0) try {
+        critical = detail::t_critical(p.confidence, dof);
+      } catch (const std::overflow_error&) {
+      }
+  }
+  return critical * std::sqrt(v1 + v2) + p.registration_error;
+}
+
 void check(const Tam3c2Params& p, const Tam3c2Pool& pool, std::size_t reference,
            const std::vector<std::size_t>& targets) {
   if (p.normal_radii.empty() || p.window_ratios.empty())
@@ -227,6 +251,7 @@ void check(const Tam3c2Params& p, const Tam3c2Pool& pool, std::size_t reference,
     throw InvalidArgument("TAM3C2: space_time_ratio must be finite and > 0, sigma_ratio finite");
   if (!(p.registration_error >= 0.0) || !(p.critical_value > 0.0))
     throw InvalidArgument("TAM3C2: the registration error must be >= 0 and the critical value > 0");
+  if (!(p.confidence > 0.0 && p.confidence < 1.0)) throw InvalidArgument("TAM3C2: the confidence must be in (0, 1)");
   if (reference >= pool.size()) throw InvalidArgument("TAM3C2: the reference is not an epoch of the pool");
   for (std::size_t t : targets)
     if (t >= pool.size()) throw InvalidArgument("TAM3C2: a target is not an epoch of the pool");
@@ -322,11 +347,10 @@ Tam3c2Result tam3c2(const Tam3c2Params& p, const Tam3c2Pool& pool, std::size_t r
     if (s.a.count() < 2 || s.b.count() < 2) return;  // no spread on a side: no distance
     weights(p, s.a, cp.c, cp.normal, window, s.w1);
     weights(p, s.b, cp.c, cp.normal, window, s.w2);
-    const Moments m1 = side_moments(s.a, s.w1, cp.c, cp.normal, s.proj);
-    const Moments m2 = side_moments(s.b, s.w2, cp.c, cp.normal, s.proj);
+    Moments m1 = side_moments(s.a, s.w1, cp.c, cp.normal, s.proj);
+    Moments m2 = side_moments(s.b, s.w2, cp.c, cp.normal, s.proj);
     out.distance[o] = m2.mean - m1.mean;
-    out.lod[o] = p.critical_value * std::sqrt(m1.spread * m1.spread / m1.n + m2.spread * m2.spread / m2.n) +
-                 p.registration_error;
+    out.lod[o] = side_lod(p, m1, !s.w1.empty(), m2, !s.w2.empty());
     out.spread1[o] = m1.spread, out.spread2[o] = m2.spread, out.n1[o] = m1.n, out.n2[o] = m2.n;
   };
 

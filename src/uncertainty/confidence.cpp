@@ -18,9 +18,9 @@ double t_critical(double confidence, double dof) {
   return boost::math::quantile(boost::math::complement(student, 0.5 * (1.0 - confidence)));
 }
 
-double welch_dof(double se1, std::uint32_t n1, double se2, std::uint32_t n2, double known_variance) {
+double welch_dof(double se1, double n1, double se2, double n2, double known_variance) {
   const double a = se1 * se1, b = se2 * se2, total = a + b + known_variance;
-  return total * total / (a * a / (double(n1) - 1.0) + b * b / (double(n2) - 1.0));
+  return total * total / (a * a / (n1 - 1.0) + b * b / (n2 - 1.0));
 }
 
 TestLaw critical_law(const Params& params, double se1, std::uint32_t n1, double se2, std::uint32_t n2) {

@@ -19,7 +19,8 @@ double t_critical(double confidence, double dof);
 /// the two centres (sigma_k / sqrt(n_k) for the mean). A `known_variance` (the error model's
 /// sigma_c^2) joins the numerator's sum as a component with infinite degrees of freedom, which
 /// add nothing to the denominator (Satterthwaite 1946; docs/algorithm.md, "Spatially correlated errors").
-double welch_dof(double se1, std::uint32_t n1, double se2, std::uint32_t n2, double known_variance = 0.0);
+/// The n may be effective (Kish's, TAM3C2's weighted sides): real, > 1.
+double welch_dof(double se1, double n1, double se2, double n2, double known_variance = 0.0);
 
 /// The critical value eq. (1) multiplies, as params.lod says: z (kZ, kBootstrap), Welch's t
 /// (kT), or the paper's rule (kAuto): t when n1 or n2 < 30, else z; the median with the

@@ -51,6 +51,9 @@ TEST(Tam3c2, FlatPlanesGiveTheirOffsets) {
     EXPECT_EQ(r.epochs1[j], 1u);
     EXPECT_EQ(r.epochs2[j], 1u);
   }
+  p.lod = m3c2::Tam3c2Lod::kT;  // (almost) no spread: the registration error, whatever the quantile
+  const auto t = m3c2::tam3c2(p, pool, 0, {1, 2, 3}, {core.data(), 1});
+  for (int j = 0; j < 3; ++j) EXPECT_NEAR(t.lod[j], 0.01, 1e-12);
 }
 
 TEST(Tam3c2, NormalsPointToEachCorePointsOrientation) {

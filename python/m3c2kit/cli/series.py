@@ -152,6 +152,7 @@ def tam3c2_parser():
     p.add_argument("--reference-time", default=None, metavar="TIME",
                    help="the reference's time (ISO 8601) when the store has none recorded")
     add_table_option(p, "confidence")  # of tam3c2_lod; default: the store's
+    add_table_option(p, "lod")  # its statistic: z, t or auto; default: the store's (docs/series.md, "TAM3C2")
     add_table_option(p, "threads", filled=True)
     add(p, "quiet")
     return p
@@ -398,12 +399,12 @@ def _run_tam3c2(args) -> int:
     options = Tam3c2Options(normal_radii=None if args.normal_radius is None else tuple(args.normal_radius),
                             window_ratios=tuple(args.window_ratio), min_points=args.required_points, weights=args.weights,
                             sigma_ratio=args.sigma_ratio, space_time_ratio=args.space_time_ratio,
-                            reference_time=args.reference_time, confidence=args.confidence,
+                            reference_time=args.reference_time, confidence=args.confidence, lod=args.lod,
                             threads=args.threads or 0)
     out = tam3c2(args.store, options)
     if not args.quiet:
         print(f"{args.store}: TAM3C2 over {out['epochs']} epochs, {out['computed']} of {out['cells']} distances "
-              f"computed; LOD at {out['confidence']:g}")
+              f"computed; LOD ({out['lod']}) at {out['confidence']:g}")
     return 0
 
 def objects_params(args):

@@ -40,10 +40,15 @@ class Tam3c2Run:
     space_time_ratio: float
     confidence: float
     epochs: int  # the epochs the run covered; later ones were added since (NaN, -1)
+    lod: str = "z"  # the LOD's statistic (z, t, auto); runs before it was recorded used z
 
     @property
     def z(self) -> float:
         return z_critical(self.confidence)
+
+
+#: How the paragraph names the LOD's statistic (tam3c2.hpp, Tam3c2Lod).
+LOD_WORDS = {"z": "with z", "t": "with Welch's t", "auto": "with Welch's t where a side has under 30 points, else z"}
 
 
 def _rerun(group, store: Path) -> str:
@@ -66,7 +71,7 @@ def tam3c2_run(store: Path, group, n: int) -> Tam3c2Run | None:
         run = Tam3c2Run(int(attrs["min_points"]), tuple(float(r) for r in attrs["window_ratios"]),
                         tuple(float(r) for r in attrs["normal_radii"]), str(attrs["weights"]),
                         float(attrs["sigma_ratio"]), float(attrs["space_time_ratio"]), float(attrs["confidence"]),
-                        int(attrs["epochs"]))
+                        int(attrs["epochs"]), str(attrs.get("lod", "z")))
     except (KeyError, TypeError, ValueError) as e:
         raise M3C2Error(f"{store}: the TAM3C2 variables lack their run's record ({e}); "
                         f"rerun {_rerun(group, store)}") from None
@@ -113,7 +118,8 @@ def summary(store: Path, group, run: Tam3c2Run, n: int) -> list[str]:
     c = counts(store, group, run)
     text = (f"Time-adaptive M3C2 by <code>m3c2 series tam3c2</code> (docs/series.md, \"TAM3C2\"): required points "
             f"{run.min_points}, window ratios {_list(run.window_ratios)}, normal radii {_list(run.normal_radii)}, "
-            f"weights {weights}, LOD at the {100 * run.confidence:g} % level (z = {run.z:.4f}). "
+            f"weights {weights}, LOD {LOD_WORDS.get(run.lod, html.escape(run.lod))} at the "
+            f"{100 * run.confidence:g} % level (z = {run.z:.4f}). "
             f"Completeness over the {run.epochs} epochs it covered: TAM3C2 gives a distance in {c.tam3c2} of the "
             f"{c.cells} (core point, epoch) cells{_share(c.tam3c2, c.cells)}, per-epoch M3C2 in "
             f"{c.m3c2}{_share(c.m3c2, c.cells)}; {c.significant} of the {c.tam3c2} TAM3C2 distances"

@@ -39,6 +39,7 @@ from . import store as st
 
 DISTANCE, LOD, SIGNIFICANT, WINDOW, N1, N2 = st.TAM3C2_VARIABLES
 WEIGHTS = ("none", "linear", "gaussian")
+LODS = ("z", "t", "auto")
 MICROSECONDS_PER_DAY = 86_400_000_000
 #: Bytes of a block's per-(core, epoch) results (12 arrays of 8 bytes): memory is bounded by one
 #: block of core points: its results and its pool (the epochs' points within the block's reach).
@@ -55,6 +56,7 @@ class Tam3c2Options:
     space_time_ratio: float = 1.0
     reference_time: str | None = None  # the store's when None
     confidence: float | None = None  # the store's when None
+    lod: str | None = None  # the LOD's statistic, z, t or auto (tam3c2.hpp, Tam3c2Lod); the store's when None
     threads: int = 0
 
 
@@ -73,6 +75,8 @@ def _check(o: Tam3c2Options) -> None:
         raise UsageError(f"--sigma-ratio must be finite and > 0, got {o.sigma_ratio!r}")
     if o.confidence is not None and not 0.0 < o.confidence < 1.0:
         raise UsageError(f"--confidence must be in (0, 1), got {o.confidence!r}")
+    if o.lod is not None and o.lod not in LODS:
+        raise UsageError(f"--lod: TAM3C2's LOD is {', '.join(LODS)} (it cannot resample a bootstrap), got {o.lod!r}")
 
 
 def _microseconds(text: str, what: str) -> int:
@@ -138,18 +142,23 @@ def _crops(store: Path, files, core: np.ndarray, blocks, reach: float, folder: P
 
 def _settings(store: Path, group, o: Tam3c2Options) -> tuple[dict, float]:
     """The engine's settings from the store's parameters (cylinder, normal scales, registration
-    error, confidence) and the options; and the confidence."""
+    error, confidence, the LOD's statistic) and the options; and the confidence."""
     if "imported_from" in group.attrs:
         raise UsageError(f"{store} was imported: its M3C2 parameters are unknown; TAM3C2 needs its cylinder")
     core = np.column_stack([st.read(store, group, a) for a in "xyz"])
     params = parameters.engine_params(json.loads(group.attrs["parameters"]), core)
     confidence = params.confidence if o.confidence is None else o.confidence
+    lod = o.lod or params.lod.name
+    if lod not in LODS:
+        raise UsageError(f"{store}: its LOD is the {lod}, which TAM3C2 cannot resample; give --lod "
+                         f"{'|'.join(LODS)}")
     radii = o.normal_radii or tuple(d / 2.0 for d in params.normal_diameters)
     settings = dict(normal_radii=[float(r) for r in radii], window_ratios=[float(r) for r in o.window_ratios],
                     min_points=int(o.min_points), cylinder_radius=params.projection_diameter / 2.0,
                     max_distance=params.max_depth, weights=o.weights, sigma_ratio=float(o.sigma_ratio),
                     space_time_ratio=float(o.space_time_ratio), registration_error=params.registration_error,
-                    critical_value=z_critical(confidence), orientation=[0.0, 0.0, 1.0])
+                    critical_value=z_critical(confidence), lod=lod, confidence=float(confidence),
+                    orientation=[0.0, 0.0, 1.0])
     return settings, confidence
 
 
@@ -190,7 +199,7 @@ def tam3c2(store: Path, options: Tam3c2Options = Tam3c2Options()) -> dict:
         common = {"epochs": int(n), "min_points": settings["min_points"], "weights": options.weights,
                   "window_ratios": settings["window_ratios"], "normal_radii": settings["normal_radii"],
                   "space_time_ratio": settings["space_time_ratio"], "sigma_ratio": settings["sigma_ratio"],
-                  "confidence": confidence, "time_unit": "days since the reference"}
+                  "confidence": confidence, "lod": settings["lod"], "time_unit": "days since the reference"}
         integrity.make_staging(folder)
         out = _staged_all(folder, group, common)
         fault_hook.checkpoint("store-write")
@@ -213,14 +222,15 @@ def tam3c2(store: Path, options: Tam3c2Options = Tam3c2Options()) -> dict:
             out[N1][rows, :n] = r["n1"]
             out[N2][rows, :n] = r["n2"]
         analysis.publish_many(folder, list(st.TAM3C2_VARIABLES))
-    return {"epochs": n, "variables": list(st.TAM3C2_VARIABLES), "confidence": confidence, "computed": computed,
+    return {"epochs": n, "variables": list(st.TAM3C2_VARIABLES), "confidence": confidence, "lod": settings["lod"],
+            "computed": computed,
             "cells": n * len(core)}
 
 
 def _staged_all(folder: Path, group, common: dict) -> dict:
     _, zarr = st.require_extra()
     spec = [(DISTANCE, np.float64, np.nan, "TAM3C2 distance (reference side to the epoch's side)"),
-            (LOD, np.float64, np.nan, "TAM3C2 level of detection: z sqrt(s1^2/n1 + s2^2/n2) + registration error"),
+            (LOD, np.float64, np.nan, "TAM3C2 level of detection: z or Welch's t (attribute lod) x sqrt(s1^2/n1 + s2^2/n2) + registration error"),
             (SIGNIFICANT, np.int8, -1, "|tam3c2_distance| > tam3c2_lod (1 yes, 0 no, -1 no distance)"),
             (WINDOW, np.int32, -1, "epochs aggregated, the reference's side and the epoch's side together"),
             (N1, np.float64, np.nan, "points of the reference's side (Kish's effective n when weighted)"),

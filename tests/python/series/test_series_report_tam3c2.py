@@ -120,7 +120,7 @@ def test_the_paragraph_states_the_options_and_counts_completeness_and_significan
             f"per-epoch M3C2 in {m3c2} ({100 * m3c2 / cells:.1f} %); {flagged} of the {tam} TAM3C2 distances "
             f"({100 * flagged / tam:.1f} %) are tam3c2_significant") in page
     assert ("required points 5, window ratios 0.5, 1, normal radii 0.5, weights gaussian (sigma ratio 0.5, "
-            "space-time ratio 1), LOD at the 90 % level (z = 1.6449)") in page
+            "space-time ratio 1), LOD with z at the 90 % level (z = 1.6449)") in page
     assert "computed over the first" not in page
 
 

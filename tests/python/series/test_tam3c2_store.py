@@ -62,7 +62,7 @@ def test_the_variables_are_the_engines_tam3c2_on_the_recorded_files(base, tmp_pa
     pool = facade.tam3c2_pool(clouds, [0.0] + [h / 24.0 for h in hours])
     s = dict(normal_radii=[0.5], window_ratios=[0.5, 1.0], min_points=6, cylinder_radius=0.3, max_distance=1.0,
              weights="gaussian", sigma_ratio=1.0, space_time_ratio=1.0, registration_error=0.0,
-             critical_value=NormalDist().inv_cdf(0.975), orientation=[0.0, 0.0, 1.0])
+             critical_value=NormalDist().inv_cdf(0.975), orientation=[0.0, 0.0, 1.0], lod="z", confidence=0.95)
     towards = np.column_stack([ds["nx"].values, ds["ny"].values, ds["nz"].values])
     want = facade.tam3c2(pool, core, 0, range(1, 11), s, orientations=towards)
     np.testing.assert_array_equal(ds["tam3c2_distance"].values, want["distance"])
@@ -75,6 +75,7 @@ def test_the_variables_are_the_engines_tam3c2_on_the_recorded_files(base, tmp_pa
     ok = ~np.isnan(sig)
     assert np.array_equal(sig[ok] == 1, np.abs(want["distance"][ok]) > want["lod"][ok]) and (sig == 1).any()
     assert ds["tam3c2_distance"].attrs["weights"] == "gaussian"
+    assert ds["tam3c2_distance"].attrs["lod"] == "z"  # the store's (PARAMS: --lod z)
     assert run(capsys, "series", "check", store)[0] == 0
 
 
@@ -213,3 +214,21 @@ def test_a_full_disk_while_spilling_is_named_and_publishes_nothing(base, tmp_pat
     assert not any(name in st.open_group(store) for name in st.TAM3C2_VARIABLES)
     assert run(capsys, "series", "check", store)[0] == 0
     assert not [p.name for p in store.parent.iterdir() if p.name.startswith(".m3c2-tmp-")]
+
+
+def test_the_lod_follows_the_stores_statistic_unless_given(base, tmp_path, capsys):
+    """The store says --lod z: TAM3C2's LOD is z; --lod t gives Welch's t (wider at these few
+    points); a bootstrap is refused naming --lod."""
+    store = copy(base[0], tmp_path)
+    options = ["--reference-time", REF_TIME, "--required-points", "6"]
+    assert run(capsys, "series", "tam3c2", store, *options)[0] == 0
+    z = xr.open_zarr(store)["tam3c2_lod"].values
+    code, out, _ = run(capsys, "series", "tam3c2", store, *options, "--lod", "t")
+    assert code == 0 and "LOD (t)" in out
+    ds = xr.open_zarr(store)
+    t = ds["tam3c2_lod"].values
+    assert ds["tam3c2_lod"].attrs["lod"] == "t"
+    ok = np.isfinite(z)
+    assert np.array_equal(ok, np.isfinite(t)) and (t[ok] > z[ok]).all()
+    code, _, err = run(capsys, "series", "tam3c2", store, *options, "--lod", "bootstrap")
+    assert code == 2 and "--lod" in err and "bootstrap" in err, err
