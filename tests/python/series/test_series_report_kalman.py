@@ -61,9 +61,9 @@ def copy(store: Path, tmp_path: Path) -> Path:
     return out
 
 
-def embedded(page: str) -> dict[int, dict]:
-    """The JSON blocks of the page, by core point."""
-    blocks = re.findall(r'<script type="application/json" class="m3c2-kalman" data-core="(\d+)">(.*?)</script>',
+def embedded(page: str, kind: str = "kalman") -> dict[int, dict]:
+    """The JSON blocks of the page of class m3c2-KIND (kalman, tam3c2), by core point."""
+    blocks = re.findall(rf'<script type="application/json" class="m3c2-{kind}" data-core="(\d+)">(.*?)</script>',
                         page)
     return {int(c): json.loads(text) for c, text in blocks}
 

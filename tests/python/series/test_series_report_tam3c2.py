@@ -6,9 +6,6 @@ refused naming the rerun, and a store without TAM3C2 (plain, or after Kalman) ge
 always got, byte for byte (against digests of the report before the TAM3C2 part)."""
 from __future__ import annotations
 
-import json
-import re
-
 import numpy as np
 import pytest
 
@@ -20,7 +17,7 @@ from m3c2kit.base import fault_hook  # noqa: E402
 from m3c2kit.cli.main import main  # noqa: E402
 from m3c2kit.series import report  # noqa: E402
 from m3c2kit.series import store as st  # noqa: E402
-from test_series_report_kalman import describe, digest  # noqa: E402  (the Kalman report tests' helpers)
+from test_series_report_kalman import describe, digest, embedded, floats  # noqa: E402  (the Kalman report tests' helpers)
 from test_series_trust import copy  # noqa: E402  (the store tests' helper)
 from test_tam3c2_store import REF_TIME, base, surface  # noqa: E402, F401  (the TAM3C2 store's fixture)
 
@@ -49,17 +46,6 @@ def run_quiet(*argv) -> int:
     return main([str(a) for a in argv])
 
 
-def embedded(page: str) -> dict[int, dict]:
-    """The TAM3C2 JSON blocks of the page, by core point."""
-    blocks = re.findall(r'<script type="application/json" class="m3c2-tam3c2" data-core="(\d+)">(.*?)</script>',
-                        page)
-    return {int(c): json.loads(text) for c, text in blocks}
-
-
-def floats(values) -> np.ndarray:
-    return np.array([np.nan if v is None else v for v in values], dtype=np.float64)
-
-
 def raw(store, name: str) -> np.ndarray:
     """The stored values as written (xarray would decode the integer fill -1 to NaN)."""
     return np.asarray(st.open_group(store)[name][...])
@@ -78,7 +64,7 @@ def test_the_report_embeds_each_core_points_tam3c2_series_and_draws_a_row_for_it
     monkeypatch.setattr(report, "png", lambda fig: figures.append(fig) or b"")
     page = page_of(store, tmp_path)
     ds = xr.open_zarr(store).load()
-    blocks = embedded(page)
+    blocks = embedded(page, "tam3c2")
     assert sorted(blocks) == [0, 33, 69] and page.count("<img") == 3
     significant, window = raw(store, "tam3c2_significant"), raw(store, "tam3c2_window")
     borrowed = 0
@@ -134,7 +120,7 @@ def test_a_run_older_than_the_last_epochs_is_shown_over_its_epochs_and_said(comp
     assert run_quiet("series", "add", store, tmp_path / "late.txt", "--quiet") == 0
     page = page_of(store, tmp_path, "--core", "33")
     assert f"computed over the first 10 of 11 epochs; rerun <code>m3c2 series tam3c2 {store}</code>" in page
-    data = embedded(page)[33]
+    data = embedded(page, "tam3c2")[33]
     ds = xr.open_zarr(store).load()
     assert data["epochs"] == 11 and data["epochs_covered"] == 10
     assert len(data["time"]) == len(data["distance"]) == 11
@@ -183,7 +169,7 @@ def test_a_store_without_tam3c2_gets_the_report_it_always_got(base, computed, tm
     assert digest(computed, page) != BEFORE
     assert run_quiet("series", "tam3c2", filtered, *OPTIONS) == 0
     assert run_quiet("series", "report", filtered, "-o", page, *CORES) == 0
-    assert digest(filtered, page) != BEFORE_KALMAN and len(embedded(page.read_text())) == 3
+    assert digest(filtered, page) != BEFORE_KALMAN and len(embedded(page.read_text(), "tam3c2")) == 3
 
 
 def test_tam3c2_variables_without_their_runs_record_are_refused_naming_the_rerun(computed, tmp_path, capsys):
