@@ -7,9 +7,9 @@
 // a cylinder on that normal aggregated around the reference's time and, independently, around
 // the target's, epochs taken nearest in time first until `min_points` points, never further than
 // W = |t_target - t_reference| * ratio; the distance is the difference of the (weighted) means
-// of the two sides' projections, the LOD z sqrt(s1^2 / n1 + s2^2 / n2) + reg with Kish's
-// effective n for weighted sides. Every core point is independent: the same bits for any thread
-// count and any split of the core points into blocks.
+// of the two sides' projections, the LOD c sqrt(s1^2 / n1 + s2^2 / n2) + reg with Kish's
+// effective n for weighted sides, c the reference's z or Welch's t (Tam3c2Lod). Every core point
+// is independent: the same bits for any thread count and any split of the core points into blocks.
 
 #include <m3c2/points_view.hpp>
 #include <m3c2/run_options.hpp>
