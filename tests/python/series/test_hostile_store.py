@@ -249,6 +249,34 @@ def test_a_second_writer_is_refused_and_the_counts_are_exact(world, tmp_path, fi
 
 
 @pytest.mark.slow
+@pytest.mark.parametrize("first,second", [("kalman", "tam3c2"), ("tam3c2", "kalman")])
+def test_a_second_kalman_or_tam3c2_writer_is_refused_and_the_first_ends_whole(world, tmp_path, first, second):
+    """While one of the two steps holds the store (stopped at store-write), the other is refused
+    naming it; once the first has finished, the refused one runs, and the store is what the two
+    uninterrupted runs make."""
+    store = tmp_path / "s.zarr"
+    shutil.copytree(world["timed"], store)
+    argvs = {"kalman": ["series", "kalman", store], "tam3c2": ["series", "tam3c2", store, *TAM3C2]}
+    child = _stopped(argvs[first])
+    try:
+        proc = cli(*argvs[second])
+        assert proc.returncode == 1 and f"pid {child.pid}" in proc.stderr and f"step {first}" in proc.stderr
+        assert "another m3c2 is writing" in proc.stderr, proc.stderr
+    finally:
+        child.send_signal(signal.SIGCONT)
+        out, err = child.communicate(timeout=300)
+    assert child.returncode == 0, err
+    assert cli(*argvs[second]).returncode == 0
+    assert check(store)[0] == 0
+    ds = xr.open_zarr(store)
+    for name in ("kalman", "tam3c2"):  # each equal to its uninterrupted run's
+        want = xr.open_zarr(world[name])
+        for var in st.KALMAN_VARIABLES if name == "kalman" else st.TAM3C2_VARIABLES:
+            if var in want:
+                assert ds[var].values.tobytes() == want[var].values.tobytes(), var
+
+
+@pytest.mark.slow
 def test_two_adds_started_together_end_with_every_epoch_once(world, tmp_path):
     e = world["epochs"]
     store = tmp_path / "s.zarr"
