@@ -35,7 +35,8 @@ def _read(path: Path, args):
 
 
 def _run_options(p, *, quiet: bool = True) -> None:
-    """How an analysis command runs: --threads, -q (for those that print progress), --drop-nonfinite."""
+    """How an analysis command runs: --threads, -q (but suggest, whose printed text is its result),
+    --drop-nonfinite."""
     add_table_option(p, "threads", filled=True)
     if quiet:
         add(p, "quiet")
@@ -110,7 +111,7 @@ def analysis_parsers(sub) -> None:
     add(p, "fixed_orient", default="+z")
     p.add_argument("-o", "--output", type=Path, required=True, help="CSV table")
     add(p, "plot")
-    _run_options(p, quiet=False)
+    _run_options(p)
     p.set_defaults(run=run_calibrate)
 
     p = sub.add_parser("c2c", help="closest-point baselines C2C and C2C_HF (section 3.4)",
@@ -197,8 +198,9 @@ def run_calibrate(args) -> int:
     write_csv(args.output, res["table"])
     if args.plot is not None:
         calibrate_mod.plot(args.plot, res, title=f"{args.cloud.name}: LOD95 calibration")
-    for line in calibrate_mod.report_lines(res):
-        print(line)
+    if not args.quiet:
+        for line in calibrate_mod.report_lines(res):
+            print(line)
     return 0
 
 

@@ -37,6 +37,7 @@ def subsample_parser(sub) -> None:
                    help="the kept points with their attributes: .csv .txt .ply .las .laz")
     p.add_argument("--spacing", type=float, required=True, help="minimum distance between kept points")
     add_drop_nonfinite_option(p)
+    add(p, "quiet")
     p.set_defaults(run=run_subsample)
 
 
@@ -55,6 +56,7 @@ def convert_parser(sub) -> None:
     p.add_argument("-o", "--output", type=Path, required=True,
                    help="the copy, format by extension: .csv .txt .ply .las .laz (the CRS kept where the format holds one)")
     add_drop_nonfinite_option(p)
+    add(p, "quiet")
     p.set_defaults(run=run_convert)
 
 
@@ -98,7 +100,8 @@ def run_subsample(args) -> int:
     kept = in_memory.subsample(cloud.xyz, args.spacing)
     fields = {name: np.asarray(values)[kept] for name, values in cloud.fields.items()}
     write_cloud_table(args.output, cloud.xyz[kept], fields, like=cloud)
-    print(f"{args.output}: kept {len(kept)} of {len(cloud.xyz)} points (min spacing {args.spacing})")
+    if not args.quiet:
+        print(f"{args.output}: kept {len(kept)} of {len(cloud.xyz)} points (min spacing {args.spacing})")
     return 0
 
 
@@ -106,7 +109,8 @@ def run_convert(args) -> int:
     check_outputs({"-o": args.output}, input_files(args))
     cloud = read_input(args.input, args)
     write_cloud_table(args.output, cloud.xyz, dict(cloud.fields), like=cloud)
-    print(f"wrote {args.output}: {len(cloud.xyz):,} points, columns x, y, z{''.join(', ' + n for n in cloud.fields)}")
+    if not args.quiet:
+        print(f"wrote {args.output}: {len(cloud.xyz):,} points, columns x, y, z{''.join(', ' + n for n in cloud.fields)}")
     return 0
 
 

@@ -97,6 +97,7 @@ def smooth_parser():
     p.add_argument("--window", type=integer(1, COUNT_MAX), default=24,
                    help="epochs in the median window, centred (default 24)")
     add_table_option(p, "threads", filled=True)
+    add(p, "quiet")
     return p
 
 
@@ -239,6 +240,7 @@ def changepoints_parser():
     _core_index_option(p, required=True)
     _objects_options(p)
     _use_option(p)
+    add(p, "quiet")  # accepted as by every form; the change points are the output and still printed
     return p
 
 
@@ -250,6 +252,7 @@ def report_parser():
     p.add_argument("-o", "--output", type=Path, required=True, help="the report (HTML)")
     _core_index_option(p, default_text="a few")  # the core points plotted
     p.add_argument("--objects", type=Path, help="objects table of m3c2 series objects (default: none)")
+    add(p, "quiet")
     return p
 
 
@@ -257,6 +260,7 @@ def import_parser():
     p = _parser("m3c2 series import", "Convert a py4dgeo SpatiotemporalAnalysis archive (.zip) into a store.")
     p.add_argument("archive", type=Path, help="a py4dgeo SpatiotemporalAnalysis archive (.zip)")
     p.add_argument("-o", "--output", type=Path, required=True, help="the store to write (a Zarr directory)")
+    add(p, "quiet")
     return p
 
 
@@ -265,6 +269,7 @@ def check_parser():
                                      "commit, every chunk present and decoding (its checksum), no half-written "
                                      "variable. Exit 0 when sound, 1 naming each damage; reads only.")
     p.add_argument("store", type=Path, help=STORE_HELP)
+    add(p, "quiet")  # only the damages are printed
     return p
 
 
@@ -375,7 +380,7 @@ def _run_add(args) -> int:
 def _run_smooth(args) -> int:
     from ..series.analysis import smooth
     n = smooth(args.store, args.window, args.threads or 0)
-    print(f"{args.store}: smoothed_distance over {n} epochs (window {args.window})")
+    _log(args)(f"{args.store}: smoothed_distance over {n} epochs (window {args.window})")
     return 0
 
 
@@ -438,12 +443,12 @@ def _run_check(args) -> int:
     from ..series.store import StoreError
     found, damages = check(args.store)
     for line in found:
-        print(printable(f"{args.store}: {line}"))
+        _log(args)(printable(f"{args.store}: {line}"))
     for line in damages:
         print(printable(f"{args.store}: damaged: {line}"))
     if damages:
         raise StoreError(f"{args.store}: {len(damages)} damage(s) found, the first: {damages[0]}")
-    print(printable(f"{args.store}: sound"))
+    _log(args)(printable(f"{args.store}: sound"))
     return 0
 
 
@@ -472,7 +477,7 @@ def _run_report(args) -> int:
     from ..series.integrity import require_present
     require_present(args.store)  # a damaged store is refused, not drawn from fill values
     write_report(args.store, args.output, cores=args.core, objects_table=args.objects)
-    print(f"wrote {args.output}")
+    _log(args)(f"wrote {args.output}")
     return 0
 
 
@@ -480,5 +485,5 @@ def _run_import(args) -> int:
     _check_outputs({"-o": args.output}, {"archive": args.archive}, store=True)
     from ..series.py4dgeo_archive import import_archive
     n = import_archive(args.archive, args.output)
-    print(f"{args.output}: {n} epoch(s) imported from {args.archive}")
+    _log(args)(f"{args.output}: {n} epoch(s) imported from {args.archive}")
     return 0

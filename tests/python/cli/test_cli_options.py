@@ -228,3 +228,13 @@ def test_objects_options_are_checked_where_they_are_read(argv, message, tmp_path
     assert main(["series", "objects", str(tmp_path / "missing.zarr"), "-o", str(out), *argv]) == 2
     assert message in capsys.readouterr().err
     assert not out.exists()
+
+
+def test_every_command_that_writes_or_runs_takes_quiet():
+    """Issue 42: `m3c2 series smooth -q` was refused. Every command takes -q and --quiet but the
+    group parsers and the two whose printed text is their whole result (info, suggest)."""
+    runnable = [where for where, parser in PARSERS.items()
+                if where not in ("m3c2", "m3c2 series", "m3c2 classify", "m3c2 info", "m3c2 suggest")]
+    missing = [where for where in runnable
+               if not {"-q", "--quiet"} <= set(PARSERS[where]._option_string_actions)]
+    assert not missing, missing

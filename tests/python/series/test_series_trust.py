@@ -171,6 +171,53 @@ def test_a_second_writer_is_refused_naming_the_holder(base, epochs, tmp_path, ca
     assert st.committed_epochs(store) == 8
 
 
+@pytest.mark.slow
+@pytest.mark.parametrize("damage", ["removed", "replaced", "renamed"])
+def test_the_lock_holds_whatever_happens_to_the_lock_file(damage, base, tmp_path, capsys):
+    """Issue 42: `rm STORE/.m3c2-lock` while a writer ran let `series smooth` run beside it (the
+    second writer made a new file and locked it). The store folder itself is locked too."""
+    store = copy(base, tmp_path)
+    child = _hold(store)
+    try:
+        lock_file = store / LOCK_NAME
+        if damage == "removed":
+            lock_file.unlink()
+        elif damage == "replaced":
+            lock_file.unlink()
+            lock_file.write_text("")
+        else:
+            lock_file.rename(store / "elsewhere")
+        for argv in (["smooth", store, "--window", "3"], ["kalman", store, "--process-noise", "1e-6"]):
+            code, _, err = run(capsys, "series", *argv)
+            assert code == 1 and "another m3c2 is writing this store" in err, err
+        assert "smoothed_distance" not in xr.open_zarr(store)
+    finally:
+        child.kill()
+        child.wait()
+    assert run(capsys, "series", "smooth", store, "--window", "3", "--quiet")[0] == 0  # released with its holder
+
+
+def test_the_lock_falls_back_to_the_file_where_a_folder_cannot_be_locked(base, tmp_path, monkeypatch):
+    """NFS may refuse flock on a folder (ENOLCK): the file's lockf holds alone, as documented."""
+    import errno
+    import fcntl
+    from m3c2kit.series import lock
+    store = copy(base, tmp_path)
+
+    def no_folder_lock(fd, how):
+        raise OSError(errno.ENOLCK, "No locks available")
+
+    monkeypatch.setattr(fcntl, "flock", no_folder_lock)
+    held = lock.acquire(store, "first")
+    try:
+        assert held.folder_fd == -1
+        with pytest.raises(st.StoreError, match="another writing step of this process"):
+            lock.acquire(store, "second")
+    finally:
+        held.release()
+    lock.acquire(store, "third").release()
+
+
 def test_zarr_and_xarray_ignore_the_lock_file(base, tmp_path, capsys):
     store = copy(base, tmp_path)
     assert run(capsys, "series", "smooth", store, "--window", "3")[0] == 0
