@@ -85,24 +85,68 @@ def own_shape(folder: Path, name: str) -> tuple | None:
     """The shape array `name`'s own zarr.json says (past the commit after an interrupted run),
     None when the file is missing or unreadable (damage)."""
     try:
-        return tuple(json.loads((Path(folder) / name / "zarr.json").read_text())["shape"])
+        return tuple(json.loads(regular_bytes(Path(folder) / name / "zarr.json"))["shape"])
     except (OSError, ValueError, KeyError, TypeError):
         return None
+
+
+def regular_bytes(path: Path) -> bytes:
+    """The bytes of `path` when it is a regular file (no link followed), else an OSError: a FIFO
+    or a device planted in the store hung the reader that opened it (issue 42)."""
+    fd = os.open(path, os.O_RDONLY | os.O_NOFOLLOW | os.O_NONBLOCK | os.O_CLOEXEC)
+    try:
+        if not stat.S_ISREG(os.fstat(fd).st_mode):
+            raise OSError(f"{path} is not a regular file")
+        with os.fdopen(os.dup(fd), "rb") as f:
+            return f.read()
+    finally:
+        os.close(fd)
 
 
 def _checksummed(group) -> bool:
     return int(group.attrs.get("format_version", 1)) >= st.CHECKSUMMED_FROM
 
 
+def _chunk_entries(folder: Path, name: str) -> tuple[set[str], list[str]]:
+    """(the chunk files of array `name`, its entries that are no regular file nor folder): a FIFO,
+    a device, a socket or a link among the chunks would hang or redirect the reader that opens it,
+    so it is damage, named before any chunk is read (no link is followed)."""
+    present: set[str] = set()
+    special: list[str] = []
+
+    def walk(path: str, rel: str) -> None:
+        with os.scandir(path) as entries:
+            for entry in entries:
+                key = f"{rel}/{entry.name}"
+                if entry.is_dir(follow_symlinks=False):
+                    walk(entry.path, key)
+                elif entry.is_file(follow_symlinks=False):
+                    if not entry.name.endswith(".partial"):
+                        present.add(key)
+                else:
+                    special.append(key)
+
+    top = Path(folder) / name / "c"
+    try:
+        kind = os.lstat(top).st_mode
+    except FileNotFoundError:
+        return present, special
+    if stat.S_ISDIR(kind):
+        walk(os.fspath(top), "c")
+    elif stat.S_ISREG(kind):
+        present.add("c")
+    else:
+        special.append("c")
+    return present, sorted(special)
+
+
 def _chunk_files(folder: Path, name: str) -> set[str]:
-    root = Path(folder) / name
-    found = set()
-    for where, _, files in os.walk(root / "c"):
-        rel = Path(where).relative_to(root).as_posix()
-        found.update(f"{rel}/{f}" for f in files if not f.endswith(".partial"))
-    if (root / "c").is_file():
-        found.add("c")
-    return found
+    return _chunk_entries(folder, name)[0]
+
+
+def special_entries(folder: Path, name: str) -> list[str]:
+    """The entries of array `name`'s chunks that are no regular file (_chunk_entries)."""
+    return _chunk_entries(folder, name)[1]
 
 
 def missing_chunks(folder: Path, group, name: str) -> list[str]:
@@ -124,6 +168,10 @@ def require_present(folder: Path, shown: Path | None = None) -> None:
         if own_shape(folder, name) is None:
             raise StoreError(f"{shown}: damaged: array {name} has no readable zarr.json (a partial copy?); "
                              f"m3c2 series check {shown} lists every damage")
+        special = special_entries(folder, name)
+        if special:
+            raise StoreError(f"{shown}: damaged: array {name} chunk {special[0]} is not a regular file (a FIFO, "
+                             f"device or link is never read); m3c2 series check {shown} lists every damage")
         missing = missing_chunks(folder, group, name) if checksummed else []
         if missing:
             raise StoreError(f"{shown}: damaged: array {name} lacks chunk {missing[0]} ({len(missing)} chunk(s) "
@@ -202,9 +250,12 @@ def check(path: Path) -> tuple[list[str], list[str]]:
         elif shape != tuple(array.shape):
             found.append(f"array {name}: columns past the commit {tuple(array.shape)} from an interrupted run "
                          f"(not part of the store; the next writing step removes them)")
-        present = _chunk_files(path, name)
+        present, special = _chunk_entries(path, name)
+        damages.extend(f"array {name} chunk {key}: not a regular file (never read)" for key in special)
         for key, selection in st.chunk_grid(array.shape, array.chunks):
             chunks += 1
+            if key in special:
+                continue
             if version >= st.CHECKSUMMED_FROM and key not in present:
                 damages.append(f"array {name} chunk {key}: missing")
                 continue

@@ -192,6 +192,8 @@ def committed_problems(group) -> list[str]:
     committed = group.metadata.consolidated_metadata.metadata
     arrays = {name: meta for name, meta in committed.items() if getattr(meta, "node_type", "") == "array"}
     problems = []
+    if isinstance(version, int) and version < CHECKSUMMED_FROM:
+        problems.extend(_newer_content(arrays, version))
     for name, dims in REQUIRED_DIMS.items():
         if name == "source_sha256" and version < CHECKSUMMED_FROM:
             continue
@@ -223,6 +225,24 @@ def committed_problems(group) -> list[str]:
     if marked is not None and not (isinstance(marked, list) and all(isinstance(m, str) for m in marked)):
         problems.append(f"root attribute {REWRITING}: not a list of variable names ({marked!r})")
     return problems
+
+
+def _newer_content(arrays: dict, version: int) -> list[str]:
+    """A store is checked by what it holds, never by what its version says: format 2 content
+    (the epochs' hashes, checksummed chunks) under a lower format_version is altered metadata, which
+    would switch the missing-chunk and checksum checks off (issue 42: `series check` said sound and
+    `objects` ran on all-NaN distances after format_version was set to 1)."""
+    found = []
+    if "source_sha256" in arrays:
+        found.append("array source_sha256")
+    checksummed = sorted(name for name, meta in arrays.items()
+                         if any(type(c).__name__ == "Crc32cCodec" for c in getattr(meta, "codecs", ())))
+    if checksummed:
+        found.append(f"checksummed chunks (array {checksummed[0]}{' and more' if len(checksummed) > 1 else ''})")
+    if not found:
+        return []
+    return [f"root attribute format_version: {version}, but the store holds format {CHECKSUMMED_FROM} content "
+            f"({', '.join(found)}): its metadata was altered; nothing in it is trusted"]
 
 
 def committed_epochs(path: Path) -> int:

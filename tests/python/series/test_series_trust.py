@@ -309,12 +309,59 @@ def test_a_changed_file_at_a_stored_path_is_refused(base, epochs, tmp_path, caps
     assert tree(store) == before  # refused before any work, epochs[9] not added either
 
 
+@pytest.mark.slow
+@pytest.mark.parametrize("where", ["distance/c/0/0", "lod/zarr.json"])
+def test_a_fifo_in_the_store_is_named_and_never_opened(where, base, tmp_path, capsys):
+    """Issue 42: a FIFO in place of a chunk hung `series check` and `series objects` (each opened it
+    and waited for a writer). Every reader and writer names it as damage without opening it."""
+    store = copy(base, tmp_path)
+    (store / where).unlink()
+    os.mkfifo(store / where)
+    named = "not a regular file" if where.startswith("distance") else "zarr.json"
+    for argv in (["check", store], ["smooth", store, "--window", "3"], ["changepoints", store, "--core", "0"],
+                 ["objects", store, "-o", tmp_path / "o.csv", *OBJECTS], ["report", store, "-o", tmp_path / "r.html"]):
+        done = subprocess.run([sys.executable, "-m", "m3c2kit", "series", *map(str, argv)], capture_output=True,
+                              text=True, timeout=120)
+        assert done.returncode == 1 and named in done.stdout + done.stderr, (argv, done.stdout, done.stderr)
+        assert "Traceback" not in done.stderr
+    assert not (tmp_path / "o.csv").exists() and not (tmp_path / "r.html").exists()
+
+
 def _as_format_1(store: Path):
-    """The store as the previous format wrote it: no hash column, format_version 1."""
+    """The store as the previous format wrote it: no hash column, no checksum codec, format_version 1."""
     shutil.rmtree(store / "source_sha256")
+    g = zarr.open_group(str(store), mode="r+", use_consolidated=False)
+    for name in sorted(g.array_keys()):
+        old = g[name]
+        data, meta, attrs = old[...], old.metadata, dict(old.attrs)
+        del g[name]
+        new = g.create_array(name, shape=old.shape, chunks=old.chunks, dtype=old.dtype, fill_value=meta.fill_value,
+                             dimension_names=meta.dimension_names, compressors=st.codecs()[:1], attributes=attrs)
+        new[...] = data
+    g.attrs["format_version"] = 1
+    zarr.consolidate_metadata(str(store))
+
+
+@pytest.mark.parametrize("keep", ["hashes and checksums", "checksums"])
+def test_a_lowered_format_version_switches_no_check_off(keep, base, tmp_path, capsys):
+    """Issue 42: format_version set to 1 in a format 2 store's metadata switched the missing-chunk
+    check off (`check` said sound with a chunk removed; `objects` ran on all-NaN distances). The store
+    is checked by what it holds: format 2 content under version 1 is refused by every step."""
+    store = copy(base, tmp_path)
+    if keep == "checksums":
+        shutil.rmtree(store / "source_sha256")
     g = zarr.open_group(str(store), mode="r+", use_consolidated=False)
     g.attrs["format_version"] = 1
     zarr.consolidate_metadata(str(store))
+    shutil.rmtree(store / "distance" / "c")  # the damage the lowered version would hide
+    before = tree(store)
+    code, out, err = run(capsys, "series", "check", store)
+    assert code == 1 and "format_version: 1, but the store holds format 2 content" in out + err
+    for argv in (["smooth", store, "--window", "3"], ["objects", store, "-o", tmp_path / "o.csv", *OBJECTS],
+                 ["kalman", store]):
+        code, _, err = run(capsys, "series", *argv)
+        assert code == 1 and "format_version: 1, but the store holds format 2 content" in err, (argv, err)
+    assert tree(store) == before and not (tmp_path / "o.csv").exists()
 
 
 def test_a_format_1_store_keeps_working(base, epochs, tmp_path, capsys):
