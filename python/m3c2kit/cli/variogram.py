@@ -15,7 +15,7 @@ from ..analysis.error_model import LAG_DISTANCES, model_bytes
 from ..base.errors import M3C2Warning, UsageError
 from ..io import read_cloud
 from ..io.atomic import staged_outputs
-from ..io.collisions import check_outputs
+from ..io.collisions import check_outputs, require_suffix
 from ..settings.parsers import positive
 from .integers import COUNT_MAX, integer
 from .options import add, add_table_option
@@ -27,7 +27,7 @@ def variogram_parser(sub) -> None:
                        description="The empirical variogram of the M3C2 distance over the stable core points of a "
                                    "compare output (sampled pairs, seeded), fitted by nugget + spherical + exponential "
                                    "(Rolstad et al. 2009; Hugonnet et al. 2022). Writes MODEL.json for "
-                                   "'m3c2 compare --error-model' and a plot.")
+                                   "'m3c2 compare --error-model' and, with --plot, the figure.")
     p.add_argument("result", type=Path, help="a compare output (any format m3c2 writes: x, y, z, distance, ...)")
     stable = p.add_mutually_exclusive_group()
     stable.add_argument("--stable", type=Path, metavar="POLYGONS",
@@ -52,9 +52,11 @@ def variogram_parser(sub) -> None:
 
 
 def run_variogram(args) -> int:
-    plot = args.plot if args.plot is not None else args.output.with_suffix(".png")
+    plot = args.plot  # a figure only with its own option: it replaced m.png beside -o m.json
     check_outputs({"-o": args.output, "--plot": plot}, {"result": args.result, "--stable": args.stable})
-    figure_format(plot)
+    require_suffix("-o", args.output, (".json",), "the error model")
+    if plot is not None:
+        figure_format(plot)
     if args.max_lag is not None:
         positive("--max-lag", args.max_lag)
     cloud = read_cloud(args.result)
@@ -74,10 +76,12 @@ def run_variogram(args) -> int:
                     notes=f"{fitted.kept}; {fitted.used} stable core points of {args.result.name}, seed {args.seed}")
     for message in fitted.warnings:
         warnings.warn(f"{args.result}: {message}", M3C2Warning, stacklevel=2)
-    fig = vg.plot_variogram(fitted.empirical, model, title=f"{args.result.name}: variogram of the distance")
-    with staged_outputs([args.output, plot]) as staged:
+    fig = None if plot is None else vg.plot_variogram(fitted.empirical, model,
+                                                      title=f"{args.result.name}: variogram of the distance")
+    with staged_outputs([p for p in (args.output, plot) if p is not None]) as staged:
         staged[args.output].write_bytes(model_bytes(model))
-        fig.savefig(staged[plot], dpi=120, format=figure_format(plot))
+        if fig is not None:
+            fig.savefig(staged[plot], dpi=120, format=figure_format(plot))
     if not args.quiet:
         emp = fitted.empirical
         print(f"{args.result}: {fitted.used} stable core points with a distance and a LOD, {int(emp.pairs.sum())} "
@@ -90,5 +94,5 @@ def run_variogram(args) -> int:
         print(f"total sill {model.total_variance():.6g} - mean s1^2/n1 + s2^2/n2 {model.mean_u2:.6g} = "
               f"correlated variance sigma_c^2 {model.excess_variance():.6g} (sigma_c "
               f"{np.sqrt(model.excess_variance()):.6g}){at}: compare --error-model's LOD term")
-        print(f"wrote {args.output} and {plot}")
+        print(f"wrote {args.output}" + (f" and {plot}" if plot is not None else ""))
     return 0

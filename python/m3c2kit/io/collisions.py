@@ -11,7 +11,7 @@ from typing import Mapping
 from ..base.errors import CloudWriteError, UsageError
 from .input_file import os_problem
 
-__all__ = ["check_outputs", "refuse_special"]
+__all__ = ["check_outputs", "refuse_special", "require_suffix"]
 
 
 def _identity(path) -> tuple[int, int] | None:
@@ -39,6 +39,7 @@ def check_outputs(outputs: Mapping[str, object], inputs: Mapping[str, object]) -
     for label, path in outputs.items():
         if path is None:
             continue
+        _refuse_no_file_name(label, path)
         _refuse_name_too_long(path)
         for key in (_identity(path), os.path.realpath(path)):
             if key is not None and key in known:
@@ -50,6 +51,20 @@ def check_outputs(outputs: Mapping[str, object], inputs: Mapping[str, object]) -
             raise CloudWriteError(f"{os.fspath(path)}: is a directory")
         refuse_special(path)
         _refuse_read_only(label, path)
+
+
+def _refuse_no_file_name(label: str, path) -> None:
+    # `-o ''` and `-o .` name no file: derived names then failed with "PosixPath('.') has an empty name".
+    if os.path.basename(os.path.normpath(os.fspath(path))) in ("", ".", "..", "/"):
+        raise UsageError(f"{label} {os.fspath(path)!r}: names no file; give a file name")
+
+
+def require_suffix(label: str, path, suffixes: tuple[str, ...], what: str) -> None:
+    """An output's content matches its extension (issue 42: `variogram -o m.png` wrote the model's
+    JSON under a figure's name): a UsageError unless `path` ends with one of `suffixes`."""
+    if path is not None and os.path.splitext(os.fspath(path))[1].lower() not in suffixes:
+        raise UsageError(f"{label} {os.fspath(path)}: {what} is written as {' or '.join(suffixes)}; give a name "
+                         f"ending so")
 
 
 def refuse_special(path) -> None:

@@ -14,6 +14,8 @@ from . import store as st
 
 def members_path(table: Path) -> Path:
     """The members table `m3c2 series objects -o TABLE` writes beside TABLE."""
+    if Path(table).name in ("", ".", ".."):
+        raise UsageError(f"{os.fspath(table)!r}: names no file (an objects table is a file, OBJECTS.csv)")
     return Path(table).with_name(Path(table).stem + "_members.csv")
 
 

@@ -103,9 +103,20 @@ def test_command_and_error_model_end_to_end(tmp_path):
               "--normal-source", "vertical", "--lod", "z", "-q"]
     r = _m3c2("compare", *clouds, "-o", tmp_path / "plain.csv", *common)
     assert r.returncode == 0, r.stderr
+    (tmp_path / "model.png").write_bytes(b"the user's own figure")
     r = _m3c2("variogram", tmp_path / "plain.csv", "--projection-scale", "1", "-o", tmp_path / "model.json")
     assert r.returncode == 0, r.stderr
-    assert "correlated variance" in r.stdout and (tmp_path / "model.png").stat().st_size > 0
+    # issue 42: a figure only with --plot; model.png beside it was replaced
+    assert "correlated variance" in r.stdout and (tmp_path / "model.png").read_bytes() == b"the user's own figure"
+    plotted = _m3c2("variogram", tmp_path / "plain.csv", "--projection-scale", "1", "-o", tmp_path / "other.json",
+                    "--plot", tmp_path / "figure.svg", "-q")
+    assert plotted.returncode == 0, plotted.stderr
+    assert (tmp_path / "figure.svg").read_bytes().lstrip().startswith(b"<?xml")
+    assert load(tmp_path / "other.json") == load(tmp_path / "model.json")
+    for bad, words in ((tmp_path / "m.png", "the error model is written as .json"), ("", "names no file")):
+        refused = _m3c2("variogram", tmp_path / "plain.csv", "--projection-scale", "1", "-o", bad)
+        assert refused.returncode == 2 and words in refused.stderr and "Traceback" not in refused.stderr, refused.stderr
+    assert not (tmp_path / "m.png").exists()
     model = load(tmp_path / "model.json")
     plain = np.genfromtxt(tmp_path / "plain.csv", delimiter=",", names=True)
     # mean_u2: eq. (1)'s s1^2/n1 + s2^2/n2 over the core points fitted (every one with a LOD here);
