@@ -12,6 +12,7 @@ from pathlib import Path
 
 from ..base.errors import UsageError
 from ..io.atomic import atomic_output
+from ..io.text_cells import spreadsheet_safe
 from .aggregate import COLUMNS, AggregateTable
 
 __all__ = ["FORMATS", "table_format", "write_table", "FORMAT", "VERSION"]
@@ -42,6 +43,14 @@ def _json_value(v):
     return None if isinstance(v, float) and not math.isfinite(v) else v
 
 
+def _csv_cell(v) -> str:
+    if v is None:
+        return ""
+    if isinstance(v, float):
+        return repr(float(v))
+    return spreadsheet_safe(v) if isinstance(v, str) else v
+
+
 def write_table(path: Path, table: AggregateTable, *, meta: dict | None = None) -> None:
     ext = table_format(path)
     cols = _columns(table)
@@ -50,11 +59,10 @@ def write_table(path: Path, table: AggregateTable, *, meta: dict | None = None) 
             with open(tmp, "w", newline="", encoding="utf-8") as f:
                 w = csv.writer(f)
                 w.writerow([*cols, "intervals", "notes"])
-                notes = "; ".join(table.notes)
+                notes = spreadsheet_safe("; ".join(table.notes))
                 for row in table.rows:
                     values = [getattr(row, c) for c in cols]
-                    w.writerow([*("" if v is None else repr(float(v)) if isinstance(v, float) else v for v in values),
-                                _intervals(table), notes])
+                    w.writerow([*(_csv_cell(v) for v in values), _intervals(table), notes])
         else:
             doc = {"format": FORMAT, "version": VERSION, **(meta or {}), "confidence": table.confidence,
                    "cell_size": table.cell_size, "intervals": _intervals(table), "simulations": table.simulations,

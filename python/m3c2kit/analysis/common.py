@@ -9,6 +9,7 @@ import numpy as np
 from .. import engine
 from ..base.errors import UsageError
 from ..io.atomic import atomic_output
+from ..io.text_cells import spreadsheet_safe
 from ..base.optional import require
 from ..settings.parsers import normal_scales, positive
 
@@ -79,6 +80,8 @@ def _cell(v) -> str:
         return "nan" if not np.isfinite(v) else repr(float(v))
     if isinstance(v, (bool, np.bool_)):
         return str(int(v))
+    if isinstance(v, (str, np.str_)):
+        return spreadsheet_safe(str(v))
     return str(v)
 
 

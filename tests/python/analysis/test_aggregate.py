@@ -214,3 +214,20 @@ def test_missing_fields_named(tmp_path, capsys):
                  str(tmp_path / "t.csv")]) == 2
     err = capsys.readouterr().err
     assert "no 'lod', 'sigma1', 'sigma2', 'n1', 'n2' field" in err and "--all-fields" in err
+
+
+@pytest.mark.parametrize("name", ["=HYPERLINK(\"http://x\",\"y\")", "+1+1", "-2+3", "@SUM(A1)", "\tcmd", "\rcmd"])
+def test_a_region_name_is_never_a_live_formula_in_the_csv(name, tmp_path, capsys):
+    """Issue 42: a region named =HYPERLINK(...) landed in the CSV as a live spreadsheet formula.
+    Text that a spreadsheet evaluates gets a leading apostrophe; the JSON keeps the name as it is."""
+    xy = lattice(4, 4, 0.5, 0.0, 0.0)
+    _write_result(tmp_path / "r.csv", xy, np.full(16, 0.1), np.full(16, 0.05), 0.01, 10)
+    ring = [[0, 0], [3, 0], [3, 3], [0, 3], [0, 0]]
+    (tmp_path / "g.geojson").write_text(json.dumps({"type": "FeatureCollection", "features": [
+        {"type": "Feature", "properties": {"name": name}, "geometry": {"type": "Polygon", "coordinates": [ring]}}]}))
+    for out in ("t.csv", "t.json"):
+        assert main(["aggregate", str(tmp_path / "r.csv"), "--regions", str(tmp_path / "g.geojson"), "-o",
+                     str(tmp_path / out), "-q"]) == 0
+    rows = list(csv.DictReader(open(tmp_path / "t.csv", newline="")))
+    assert rows[0]["region"] == "'" + name
+    assert json.loads((tmp_path / "t.json").read_text())["regions"][0]["region"] == name
