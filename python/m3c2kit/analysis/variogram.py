@@ -239,8 +239,13 @@ def stable_mask(cloud, *, polygons=None, field: str | None = None) -> np.ndarray
     """Which core points of the result `cloud` are stable: inside `polygons` (a file,
     m3c2kit.io.polygons), where `field` ("NAME=VALUE") equals VALUE, or every point."""
     if polygons is not None:
-        from ..io.polygons import read_polygons, region_index
-        return region_index(np.ascontiguousarray(cloud.xyz[:, :2]), read_polygons(polygons)) >= 0
+        from ..io.polygons import read_regions_for, region_index, require_points_inside
+        regions = read_regions_for(polygons, cloud, "--stable")
+        xy = np.ascontiguousarray(cloud.xyz[:, :2])
+        index = region_index(xy, regions)
+        require_points_inside(np.bincount(index[index >= 0], minlength=len(regions)), xy, regions, polygons,
+                              cloud.path or "the result")
+        return index >= 0
     if field is None:
         return np.ones(len(cloud), dtype=bool)
     name, sep, value = field.partition("=")

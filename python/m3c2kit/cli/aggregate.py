@@ -4,14 +4,16 @@ change, the volume (grid runs) and the area of significant change with their int
 from __future__ import annotations
 
 import math
+import warnings
 from pathlib import Path
 
 from ..analysis.aggregate import aggregate, survey_from_fields
 from ..analysis.aggregate_table import table_format, write_table
 from ..analysis.error_model import load as load_error_model
+from ..base.errors import M3C2Warning, printable
 from ..io import read_cloud
 from ..io.collisions import check_outputs
-from ..io.polygons import read_polygons
+from ..io.polygons import read_regions_for, require_points_inside
 from ..settings.table import by_name
 from .integers import integer, positive_real
 from .options import add, add_table_option, table_type
@@ -56,12 +58,16 @@ def run_aggregate(args) -> int:
     check_outputs({"-o": args.output}, {"result": args.result, "--regions": args.regions,
                                         "--error-model": args.error_model})
     table_format(args.output)
-    polygons = read_polygons(args.regions)
     model = load_error_model(args.error_model) if args.error_model is not None else None
     cloud = read_cloud(args.result)
+    polygons = read_regions_for(args.regions, cloud)
     survey = survey_from_fields(cloud.xyz, cloud.fields, args.result)
     table = aggregate(survey, polygons, model=model, confidence=float(args.confidence), cell=args.cell_size,
                       simulations=args.simulations, seed=args.seed, threads=args.threads, source=args.result)
+    counts = [row.core_points for row in table.rows[:len(polygons)]]
+    for name in require_points_inside(counts, cloud.xyz[:, :2], polygons, args.regions, args.result):
+        warnings.warn(f"--regions {args.regions}: region {printable(name)!r} holds no core point of {args.result}: "
+                      f"its row has no mean", M3C2Warning, stacklevel=2)
     meta = {"result": str(args.result), "regions_file": str(args.regions),
             "error_model": None if args.error_model is None else str(args.error_model)}
     write_table(args.output, table, meta=meta)

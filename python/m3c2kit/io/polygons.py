@@ -19,8 +19,9 @@ crossing rule (inside on left/bottom edges, outside on right/top ones), so a poi
 shared by two adjacent polygons lies in exactly one of them.
 
 Anything else (another geometry type, malformed coordinates, a ring of fewer than 3 distinct
-vertices, non-finite coordinates, a file that is neither format) is a :class:`UsageError`
-naming the file and what was found.
+vertices, non-finite coordinates, a region of zero area or with crossing edges, a file that is
+neither format) is a :class:`UsageError` naming the file and what was found. A GeoJSON `crs`
+member is read (read_polygons_and_crs) so that a command can check it against its data's CRS.
 """
 from __future__ import annotations
 
@@ -32,8 +33,9 @@ import numpy as np
 
 from ..base.errors import UsageError, printable
 from .input_file import parse_json, read_small_text
+from .polygon_checks import check_region
 
-__all__ = ["Polygon", "read_polygons", "region_index", "contains"]
+__all__ = ["Polygon", "read_polygons", "read_polygons_and_crs", "region_index", "contains"]
 
 _KIND = "polygon file"
 
@@ -194,17 +196,51 @@ def _from_wkt(text: str, path: Path) -> list[Polygon]:
 
 
 def read_polygons(path) -> list[Polygon]:
-    """The polygons of a GeoJSON or WKT file (module docstring), in file order."""
+    """The polygons of a GeoJSON or WKT file (module docstring), in file order; each checked to
+    have an area and no crossing edges (io/polygon_checks.py)."""
+    polygons, _ = read_polygons_and_crs(path)
+    return polygons
+
+
+def read_polygons_and_crs(path) -> tuple[list[Polygon], str | None]:
+    """read_polygons() and the CRS the file names (a GeoJSON `crs` member, as GeoJSON 2008 and
+    GDAL write it; RFC 7946 files name none), None when it names none."""
     path = Path(path)
     text = read_small_text(path, _KIND, encoding="utf-8-sig")
     head = text.lstrip()[:1]
     if head in ("{", "["):
-        return _from_geojson(parse_json(text, _KIND, label=str(path)), path)
+        doc = parse_json(text, _KIND, label=str(path))
+        return _checked(_from_geojson(doc, path), path), _geojson_crs(doc, path)
     if _WKT_HEAD.match(text.lstrip().split("\n", 1)[0]) or head == "#":
-        return _from_wkt(text, path)
+        return _checked(_from_wkt(text, path), path), None
     found = printable(text.strip()[:40]) if text.strip() else "an empty file"
     raise UsageError(f"{path}: not a polygon file: found {found!r}; expected GeoJSON or WKT POLYGON/MULTIPOLYGON "
                      "lines")
+
+
+def _checked(polygons: list[Polygon], path: Path) -> list[Polygon]:
+    for polygon in polygons:
+        check_region(polygon.rings, polygon.area(), path, f"region {printable(polygon.name)!r}")
+    return polygons
+
+
+def _geojson_crs(doc, path: Path) -> str | None:
+    """The CRS a GeoJSON document names in its `crs` member ({"type": "name", "properties":
+    {"name": "EPSG:32633" or "urn:ogc:def:crs:EPSG::32633"}}), None without one."""
+    crs = doc.get("crs") if isinstance(doc, dict) else None
+    if crs is None:
+        return None
+    name = crs.get("properties", {}).get("name") if isinstance(crs, dict) and isinstance(crs.get("properties"), dict) \
+        else None
+    if not isinstance(name, str) or not name.strip():
+        raise UsageError(f"{path}: its crs member names no CRS (expected {{\"type\": \"name\", \"properties\": "
+                         f"{{\"name\": \"EPSG:...\"}}}})")
+    m = re.fullmatch(r"urn:ogc:def:crs:EPSG:[0-9.]*:(\d+)", name.strip())
+    if m:
+        return f"EPSG:{m.group(1)}"
+    if name.strip() == "urn:ogc:def:crs:OGC:1.3:CRS84":
+        return "OGC:CRS84"
+    return name.strip()
 
 
 def contains(xy: np.ndarray, rings) -> np.ndarray:
@@ -254,3 +290,38 @@ def region_index(xy: np.ndarray, polygons) -> np.ndarray:
         if len(box):
             out[box[contains(xy[box], rings)]] = k
     return out
+
+
+def read_regions_for(path, cloud, option: str = "--regions") -> list[Polygon]:
+    """The polygons of `path` for the points of `cloud` (a read point cloud): the CRS the file names,
+    if any, must be the cloud's (issue 42: EPSG:4326 regions over a UTM result summed 0 points and
+    wrote NaN with exit 0). A file naming none is taken to be in the cloud's coordinates."""
+    import warnings
+
+    from ..base.errors import M3C2Warning
+    from .crs import crs_label, same_crs
+    polygons, crs = read_polygons_and_crs(path)
+    if crs is None:
+        return polygons
+    if not cloud.crs:
+        warnings.warn(f"{option} {path}: the regions are in {crs_label(crs)}, {cloud.path or 'the data'} names no CRS: "
+                      f"the regions are taken to be in its coordinates", M3C2Warning, stacklevel=2)
+        return polygons
+    if same_crs(crs, cloud.crs) is False:
+        raise UsageError(f"{option} {path}: the regions are in {crs_label(crs)}, {cloud.path or 'the data'} in "
+                         f"{crs_label(cloud.crs)}: reproject the regions into the data's CRS")
+    return polygons
+
+
+def require_points_inside(inside: np.ndarray, xy: np.ndarray, polygons: list[Polygon], path, data) -> list[str]:
+    """`inside`: each polygon's count of points of `data` (its xy, (n, 2)). A UsageError when no
+    polygon holds any, with both extents (another CRS, another site); else the names of those
+    that hold none, for a warning each (a NaN row that nobody explains)."""
+    if len(polygons) and not np.any(inside):
+        rings = np.concatenate([r for p in polygons for r in p.rings])
+        lo, hi = rings.min(axis=0), rings.max(axis=0)
+        have = (f"x {xy[:, 0].min():.6g}..{xy[:, 0].max():.6g}, y {xy[:, 1].min():.6g}..{xy[:, 1].max():.6g}"
+                if len(xy) else "no points")
+        raise UsageError(f"{path}: no region holds a point of {data} (regions x {lo[0]:.6g}..{hi[0]:.6g}, "
+                         f"y {lo[1]:.6g}..{hi[1]:.6g}; {data}: {have}): another CRS, or another site?")
+    return [p.name for p, count in zip(polygons, inside) if count == 0]

@@ -231,3 +231,77 @@ def test_a_region_name_is_never_a_live_formula_in_the_csv(name, tmp_path, capsys
     rows = list(csv.DictReader(open(tmp_path / "t.csv", newline="")))
     assert rows[0]["region"] == "'" + name
     assert json.loads((tmp_path / "t.json").read_text())["regions"][0]["region"] == name
+
+
+def _regions_case(tmp_path, geojson: dict, crs: str | None = None):
+    xy = lattice(4, 4, 0.5, 0.0, 0.0)
+    _write_result(tmp_path / "r.csv", xy, np.full(16, 0.1), np.full(16, 0.05), 0.01, 10)
+    if crs is not None:  # the result as a LAS file in that CRS
+        pyproj = pytest.importorskip("pyproj")
+        from m3c2kit.io import read_cloud, write_cloud_table
+        from m3c2kit.io.cloud import Cloud
+        cloud = read_cloud(tmp_path / "r.csv")
+        xyz = cloud.xyz + [500000.0, 4000000.0, 0.0]
+        write_cloud_table(tmp_path / "r.las", xyz, cloud.fields, like=Cloud(xyz, crs=pyproj.CRS(crs).to_wkt()))
+    (tmp_path / "g.geojson").write_text(json.dumps(geojson))
+
+
+def _collection(*rings, crs=None):
+    doc = {"type": "FeatureCollection", "features": [
+        {"type": "Feature", "properties": {"name": f"r{k}"}, "geometry": {"type": "Polygon", "coordinates": [ring]}}
+        for k, ring in enumerate(rings)]}
+    if crs:
+        doc["crs"] = {"type": "name", "properties": {"name": crs}}
+    return doc
+
+
+SQUARE = [[0, 0], [3, 0], [3, 3], [0, 3], [0, 0]]
+
+
+@pytest.mark.parametrize("ring, words", [
+    ([[0, 0], [2, 2], [2, 0], [0, 2], [0, 0]], "region 'r0': self-intersecting"),  # a bow tie
+    ([[0, 0], [3, 3], [3, 0], [0, 1], [0, 0]], "region 'r0': self-intersecting"),  # unequal lobes
+    ([[0, 0], [1, 1], [2, 2], [0, 0]], "region 'r0': a region of zero area"),
+])
+def test_a_region_without_a_well_defined_inside_is_refused(ring, words, tmp_path, capsys):
+    """Issue 42: self-intersecting and zero-area regions were accepted and summed."""
+    _regions_case(tmp_path, _collection(ring))
+    assert main(["aggregate", str(tmp_path / "r.csv"), "--regions", str(tmp_path / "g.geojson"), "-o",
+                 str(tmp_path / "t.csv")]) == 2
+    err = capsys.readouterr().err
+    assert str(tmp_path / "g.geojson") in err and words in err
+    assert not (tmp_path / "t.csv").exists()
+
+
+def test_a_hole_touching_its_exterior_at_a_point_is_a_valid_region(tmp_path, capsys):
+    _regions_case(tmp_path, {"type": "Polygon", "coordinates": [SQUARE, [[0, 0], [2, 1], [1, 2], [0, 0]]]})
+    assert main(["aggregate", str(tmp_path / "r.csv"), "--regions", str(tmp_path / "g.geojson"), "-o",
+                 str(tmp_path / "t.csv"), "-q"]) == 0
+
+
+def test_regions_in_another_crs_are_refused(tmp_path, capsys):
+    """Issue 42: EPSG:4326 regions over a UTM result summed 0 core points, NaN, exit 0."""
+    _regions_case(tmp_path, _collection([[10, 45], [11, 45], [11, 46], [10, 46], [10, 45]],
+                                        crs="urn:ogc:def:crs:EPSG::4326"), crs="EPSG:32633")
+    assert main(["aggregate", str(tmp_path / "r.las"), "--regions", str(tmp_path / "g.geojson"), "-o",
+                 str(tmp_path / "t.csv")]) == 2
+    err = capsys.readouterr().err
+    assert "the regions are in" in err and "reproject the regions" in err and not (tmp_path / "t.csv").exists()
+    # the same CRS, named either way, passes
+    ring = [[500000, 4000000], [500003, 4000000], [500003, 4000003], [500000, 4000003], [500000, 4000000]]
+    _regions_case(tmp_path, _collection(ring, crs="EPSG:32633"), crs="EPSG:32633")
+    assert main(["aggregate", str(tmp_path / "r.las"), "--regions", str(tmp_path / "g.geojson"), "-o",
+                 str(tmp_path / "t.csv"), "-q"]) == 0
+
+
+def test_regions_that_hold_no_core_point_are_said(tmp_path, capsys):
+    far = [[100, 100], [101, 100], [101, 101], [100, 101], [100, 100]]
+    _regions_case(tmp_path, _collection(far))  # no CRS named: only the extents tell
+    assert main(["aggregate", str(tmp_path / "r.csv"), "--regions", str(tmp_path / "g.geojson"), "-o",
+                 str(tmp_path / "t.csv")]) == 2
+    err = capsys.readouterr().err
+    assert "no region holds a point of" in err and "another CRS" in err and not (tmp_path / "t.csv").exists()
+    _regions_case(tmp_path, _collection(SQUARE, far))
+    assert main(["aggregate", str(tmp_path / "r.csv"), "--regions", str(tmp_path / "g.geojson"), "-o",
+                 str(tmp_path / "t.csv"), "-q"]) == 0
+    assert "warning:" in (err := capsys.readouterr().err) and "region 'r1' holds no core point" in err
