@@ -8,5 +8,10 @@ from statistics import NormalDist
 
 
 def z_critical(confidence: float) -> float:
-    """z with P(|Z| <= z) = confidence: 1.959963984540054 at 0.95."""
-    return NormalDist().inv_cdf(0.5 + 0.5 * float(confidence))
+    """z with P(|Z| <= z) = confidence: 1.959963984540054 at 0.95. Where 0.5 + confidence / 2
+    rounds to 1 (confidence 0.9999999999999999: a StatisticsError reached the user), from the lower
+    tail, (1 - confidence) / 2, which keeps its digits; the upper tail elsewhere (the same bits as before)."""
+    upper = 0.5 + 0.5 * float(confidence)
+    if upper < 1.0:
+        return NormalDist().inv_cdf(upper)
+    return -NormalDist().inv_cdf(0.5 * (1.0 - float(confidence)))

@@ -223,7 +223,13 @@ def normal_failure_message(result, normal_scale) -> str | None:
     scales = np.atleast_1d(np.asarray(normal_scale, dtype=float))
     d = float(scales.max()) if scales.size else float("nan")
     few = int(np.count_nonzero(status_in(status, NO_NORMAL[:1])))
-    why = ("too few neighbours within D/2" if few >= failed - few else "collinear or coincident neighbours")
-    return (f"{share_text(failed, n, 'core points')} have no normal ({why}): D = --normal-scale {d:g} is a "
-            f"DIAMETER (neighbours within D/2 = {d / 2:g}); did you give a radius? Try --normal-scale {2 * d:g} "
-            f"or larger (about 10 points within D/2, paper 3.2).")
+    if few < failed - few:
+        # A larger D does not help neighbourhoods that are there but degenerate (issue 42: the
+        # radius advice at --normal-scale 1e15).
+        return (f"{share_text(failed, n, 'core points')} have no normal (collinear or coincident neighbours "
+                f"within D/2 = {d / 2:g} of --normal-scale {d:g}): their points lie on a line or coincide; a "
+                f"normal needs a surface around the core point (paper 3.2), or give one (--normal-source "
+                f"vertical or --core-normals)")
+    return (f"{share_text(failed, n, 'core points')} have no normal (too few neighbours within D/2): D = "
+            f"--normal-scale {d:g} is a DIAMETER (neighbours within D/2 = {d / 2:g}); did you give a radius? Try "
+            f"--normal-scale {2 * d:g} or larger (about 10 points within D/2, paper 3.2).")

@@ -176,6 +176,16 @@ def test_normal_failures_name_the_diameter(toronto):
     assert Q.normal_failure_message(ok, 10) is None
 
 
+def test_degenerate_neighbourhoods_get_no_radius_advice():
+    """Issue 42: 'did you give a radius?' at --normal-scale 1e15, where every neighbourhood holds
+    every point and a larger D cannot help: points on a line have no normal at any scale."""
+    t = np.linspace(0.0, 10.0, 400)
+    line = np.c_[t, 0.5 * t, np.zeros_like(t)]
+    r = m3c2kit.compare(line, line + [0, 0, 0.1], line[::40], normal_scale=4, projection_scale=1, max_depth=1)
+    m = Q.normal_failure_message(r, 4)
+    assert m is not None and "collinear or coincident" in m and "radius" not in m and "lie on a line" in m
+
+
 def test_share_text():
     assert Q.share_text(1234, 5678, "core points with a normal") == "1,234 of the 5,678 core points with a normal (21.7 %)"
 
