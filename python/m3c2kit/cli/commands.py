@@ -1,13 +1,16 @@
 """`m3c2 normals`, `m3c2 subsample`, `m3c2 info` and `m3c2 convert`."""
 from __future__ import annotations
 
+import warnings
 from pathlib import Path
 
 import numpy as np
 
-from ..base.errors import printable
+from ..base.errors import M3C2Warning, printable
 from ..io import write_cloud_table
 from ..io.collisions import check_outputs
+from ..io.crs import crs_label
+from ..io.registry import keeps_crs
 from ..io.describe import describe, describe_text
 from ..io.files import add_drop_nonfinite_option
 from ..run import in_memory
@@ -108,6 +111,10 @@ def run_subsample(args) -> int:
 def run_convert(args) -> int:
     check_outputs({"-o": args.output}, input_files(args))
     cloud = read_input(args.input, args)
+    if cloud.crs and not keeps_crs(args.output):
+        warnings.warn(f"{args.output}: {args.output.suffix or 'this format'} stores no CRS: the CRS of {args.input} "
+                      f"({crs_label(cloud.crs)}) is not in the copy; write .las or .laz to keep it", M3C2Warning,
+                      stacklevel=2)
     write_cloud_table(args.output, cloud.xyz, dict(cloud.fields), like=cloud)
     if not args.quiet:
         print(f"wrote {args.output}: {len(cloud.xyz):,} points, columns x, y, z{''.join(', ' + n for n in cloud.fields)}")

@@ -44,14 +44,11 @@ def _raise_interrupted(signum, frame):
 
 
 def _show_warning(message, category, filename, lineno, file=None, line=None):
-    """M3C2Warning (e.g. QuantisationWarning) as `m3c2: warning: ...`; others as Python shows them."""
-    if issubclass(category, M3C2Warning):
-        print(f"m3c2: warning: {printable(message)}", file=sys.stderr)
-    else:
-        _python_showwarning(message, category, filename, lineno, file, line)
-
-
-_python_showwarning = warnings.showwarning
+    """Every warning as one line, `m3c2: warning: ...`: M3C2Warning (e.g. QuantisationWarning) by
+    its text, another library's (numpy's RuntimeWarning) with its class, never with Python's
+    source file and line (issue 42: numpy warnings reached the user with our source lines)."""
+    text = printable(message) if issubclass(category, M3C2Warning) else f"{category.__name__}: {printable(message)}"
+    print(f"m3c2: warning: {text}", file=sys.stderr)
 
 
 def main(argv=None) -> int:

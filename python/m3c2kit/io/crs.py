@@ -335,6 +335,14 @@ def check_crs(reference, compared, core=None, *, ignore: bool = False, allow_ang
             raise CrsMismatch(f"{_role(reference, 'reference')} and {_role(other, role)} have CRS texts that differ, "
                               f"and telling whether they are the same CRS needs the crs extra (pyproj): pip install "
                               f"'m3c2kit[crs]', or pass --ignore-crs if the coordinates are comparable")
+        if same is None and ref_crs and other_crs:
+            # A CRS that PROJ cannot read (a WKT nested thousands deep, a truncated one) tells nothing:
+            # the clouds were compared as if it matched (issue 42).
+            unreadable = reference if parse_crs(ref_crs) is None else other
+            label = "reference" if unreadable is reference else role
+            raise CrsMismatch(f"{_role(unreadable, label)}: its CRS cannot be read (not a CRS text PROJ knows, "
+                              f"{crs_label(unreadable.crs, 60)}), so it cannot be checked against the other's; "
+                              f"give it one with --crs, or pass --ignore-crs if the coordinates are comparable")
         if same is False:
             raise CrsMismatch(f"the clouds have different CRSs: {_role(reference, 'reference')} is in "
                               f"{crs_label(ref_crs)}, {_role(other, role)} in {crs_label(other_crs)}; "

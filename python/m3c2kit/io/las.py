@@ -184,6 +184,8 @@ def write(path: Path, xyz: np.ndarray, fields: dict[str, np.ndarray], like: Clou
         if extra:
             header.add_extra_dims(extra_bytes_params(extra))
     scale, offset = _scale_offset(xyz, like)
+    if not _has_scale(like) and len(xyz) and np.isfinite(xyz).all():
+        refuse_coarse_scale(path, scale, *bounds(xyz))
     ints = _quantise(path, xyz, scale, offset)
     header.scales, header.offsets = np.array(scale), np.array(offset)
     _add_crs(header, like)
@@ -289,6 +291,22 @@ def choose_scale_offset(lo, hi) -> tuple[tuple[float, float, float], tuple[float
     if span / scale > _INT32[1]:  # log10 rounding at an exact power of ten
         scale = float(f"1e{exponent + 1}")
     return (scale,) * 3, tuple(map(float, offset))
+
+
+#: The coarsest LAS scale m3c2 chooses (one unit of the coordinates per int32 step): a coarser one
+#: means coordinates spanning over 2.1e9 units, which LAS cannot hold without moving points by
+#: more than a unit (issue 42: ±1e300 was written at a scale of 1e291, every other point moved to 0).
+COARSEST_SCALE = 1.0
+
+
+def refuse_coarse_scale(path, scale, lo, hi) -> None:
+    """A CloudWriteError when coordinates within [lo, hi] need a scale coarser than COARSEST_SCALE."""
+    if scale[0] > COARSEST_SCALE:
+        lo, hi = np.asarray(lo, dtype=np.float64), np.asarray(hi, dtype=np.float64)
+        raise CloudWriteError(f"{path}: LAS cannot store these coordinates (x {lo[0]:.6g}..{hi[0]:.6g}, y "
+                              f"{lo[1]:.6g}..{hi[1]:.6g}, z {lo[2]:.6g}..{hi[2]:.6g}): their span needs int32 steps "
+                              f"of {scale[0]:g} units, moving every point by up to half that; write .ply, .csv or "
+                              f".txt, which keep float64")
 
 
 def quantisation_error(xyz: np.ndarray, ints: np.ndarray, scale, offset) -> float:

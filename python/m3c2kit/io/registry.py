@@ -7,7 +7,7 @@ from typing import Callable
 
 from . import ascii, e57, las, npy, ply
 
-__all__ = ["Format", "FORMATS", "SUPPORTED_READ", "SUPPORTED_WRITE", "format_for", "quantises", "sniff"]
+__all__ = ["Format", "FORMATS", "SUPPORTED_READ", "SUPPORTED_WRITE", "format_for", "quantises", "keeps_crs", "sniff"]
 
 
 @dataclass(frozen=True)
@@ -23,10 +23,11 @@ class Format:
     write: Callable | None = None
     takes_columns: bool = False
     quantises: bool = False
+    keeps_crs: bool = False  # the writer stores a CRS (LAS: WKT or GeoTIFF keys)
 
 
 FORMATS: tuple[Format, ...] = (
-    Format("LAS/LAZ", (".las", ".laz", ".copc.laz"), las.read, las.write, quantises=True),
+    Format("LAS/LAZ", (".las", ".laz", ".copc.laz"), las.read, las.write, quantises=True, keeps_crs=True),
     Format("E57", (".e57",), e57.read),
     Format("PLY", (".ply",), ply.read, ply.write),
     Format("ASCII", ascii.EXTENSIONS, ascii.read, ascii.write, takes_columns=True),
@@ -57,6 +58,12 @@ def format_for(path: Path, *, writing: bool = False) -> Format | None:
         if ext in f.extensions:
             return f
     return None
+
+
+def keeps_crs(path) -> bool:
+    """Whether the output file `path` is written in a format that stores a CRS."""
+    fmt = format_for(Path(path), writing=True)
+    return fmt is not None and fmt.keeps_crs
 
 
 def quantises(path) -> bool:

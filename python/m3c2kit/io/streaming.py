@@ -393,6 +393,7 @@ class TableWriter:
         elif (self.xyz_min is not None and self.xyz_max is not None and np.isfinite(self.xyz_min).all()
               and np.isfinite(self.xyz_max).all()):
             scale, offset = las.choose_scale_offset(self.xyz_min, self.xyz_max)
+            las.refuse_coarse_scale(self.path, scale, self.xyz_min, self.xyz_max)
             self._quantised = [0.0, 0.0, True, np.full(3, np.inf), np.full(3, -np.inf)]
         elif self.xyz_min is not None and np.isfinite(self.xyz_min).all():
             raise CloudWriteError(f"{self.path}: a LAS scale for these coordinates needs their maximum too "

@@ -238,3 +238,15 @@ def test_every_command_that_writes_or_runs_takes_quiet():
     missing = [where for where in runnable
                if not {"-q", "--quiet"} <= set(PARSERS[where]._option_string_actions)]
     assert not missing, missing
+
+
+def test_a_library_warning_is_one_line_without_source(capsys):
+    """Issue 42: numpy's warnings reached the user with Python's file and source line."""
+    import warnings
+
+    from m3c2kit.cli import main as cli_main
+    cli_main._show_warning(RuntimeWarning("invalid value encountered in divide"), RuntimeWarning,
+                           "/somewhere/m3c2kit/x.py", 12, line="y = a / b")
+    err = capsys.readouterr().err
+    assert err == "m3c2: warning: RuntimeWarning: invalid value encountered in divide\n"
+    assert warnings.showwarning is not cli_main._show_warning  # installed only while main runs

@@ -41,3 +41,28 @@ def test_a_missing_input_names_the_file_and_writes_nothing(tmp_path, capsys):
     assert main(["convert", str(tmp_path / "absent.laz"), "-o", str(out)]) != 0
     assert "absent.laz" in capsys.readouterr().err
     assert not out.exists()
+
+
+def test_a_crs_dropping_conversion_says_so(tmp_path, capsys):
+    """Issue 42: LAS -> CSV/TXT/PLY dropped the CRS silently."""
+    for ext in (".csv", ".txt", ".ply"):
+        assert main(["convert", str(LAS), "-o", str(tmp_path / f"copy{ext}")]) == 0
+        err = capsys.readouterr().err
+        assert f"copy{ext}: {ext} stores no CRS" in err and "write .las or .laz to keep it" in err
+        assert err.count("\n") == 1  # one line
+    assert main(["convert", str(LAS), "-o", str(tmp_path / "copy.laz")]) == 0
+    assert "stores no CRS" not in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("ext", [".las", ".laz"])
+def test_coordinates_las_cannot_hold_are_refused_not_moved(ext, tmp_path, capsys):
+    """Issue 42: `convert` to LAS wrote points at +-1e300 at a scale of 1e291: every other point
+    moved to 0, without a word. Text keeps them."""
+    src = tmp_path / "far.xyz"
+    np.savetxt(src, np.array([[0.0, 0.0, 0.0], [1e300, 0.0, 0.0], [1.0, 1.0, 1.0]]))
+    out = tmp_path / f"far{ext}"
+    assert main(["convert", str(src), "-o", str(out)]) == 1
+    err = capsys.readouterr().err
+    assert "LAS cannot store these coordinates" in err and "write .ply, .csv or .txt" in err and not out.exists()
+    assert main(["convert", str(src), "-o", str(tmp_path / "far.csv"), "-q"]) == 0
+    assert np.array_equal(m3c2kit.read(tmp_path / "far.csv").xyz, np.loadtxt(src))

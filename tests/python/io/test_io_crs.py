@@ -74,6 +74,18 @@ def test_check_crs_rules():
         C.check_crs(_cloud(None, "degree", "a.las"), _cloud(None, "degree", "b.las"))
 
 
+@pytest.mark.parametrize("junk", ["GEOGCS[" * 3000 + "]" * 3000, 'PROJCS["cut short', "not a crs at all"])
+def test_an_unreadable_crs_is_refused_unless_ignored(junk):
+    """Issue 42: a compared cloud whose CRS cannot be read (a WKT nested thousands deep) was compared
+    with a reference that has one, without a word."""
+    ref = _cloud(ESRI_2994, "foot", "ref.las")
+    with pytest.raises(C.CrsMismatch, match=r"compared cmp.las: its CRS cannot be read .*--ignore-crs"):
+        C.check_crs(ref, _cloud(junk, None, "cmp.las"))
+    with pytest.raises(C.CrsMismatch, match=r"reference ref.las: its CRS cannot be read"):
+        C.check_crs(_cloud(junk, None, "ref.las"), ref)
+    C.check_crs(ref, _cloud(junk, None, "cmp.las"), ignore=True)
+
+
 def test_reference_extent_is_computed_once_and_only_when_needed(monkeypatch):
     # `m3c2 series` checks one reference against every epoch: its extent (the sample points of a
     # CRS conversion) is computed only when a conversion needs it, and once per reference.
