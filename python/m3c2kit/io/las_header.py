@@ -70,6 +70,10 @@ def check_las_file(path: os.PathLike | str) -> LasLayout:
             count = count64 or legacy_count
         compressed = bool(format_byte & 0x80)
         point_format = format_byte & 0x3F
+        if point_format > _LAST_POINT_FORMAT:
+            raise ValueError(f"unknown LAS point format {point_format} (header byte {format_byte}; LAS 1.4 defines 0 "
+                             f"to {_LAST_POINT_FORMAT}): a damaged header or not a LAS file")
+        _check_scales(struct.unpack_from("<3d", head, 131))
 
         f.seek(header_size)
         vlr_bytes = offset - header_size
@@ -104,6 +108,19 @@ def check_las_file(path: os.PathLike | str) -> LasLayout:
     if not compressed and record_length:
         _check_las_point_count(count, offset, data_end, record_length)
     return LasLayout(f"{major}.{minor}", point_format, count, compressed, copc, record_length)
+
+
+#: LAS 1.4 R15, Table 7: point data record formats 0 to 10.
+_LAST_POINT_FORMAT = 10
+
+
+def _check_scales(scales) -> None:
+    """Each axis's scale factor must be finite and non-zero: a z scale of 0 read every z as the
+    offset, without a word (issue 42)."""
+    for axis, scale in zip("xyz", scales):
+        if not (abs(scale) > 0.0 and abs(scale) < float("inf")):
+            raise ValueError(f"malformed LAS header: its {axis} scale factor is {scale!r}: every {axis} would read "
+                             f"as the offset")
 
 
 def _point_data_end(head: bytes, minor: int, header_size: int, offset: int, size: int) -> int:

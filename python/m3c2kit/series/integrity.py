@@ -262,7 +262,7 @@ def check(path: Path) -> tuple[list[str], list[str]]:
             try:
                 array[selection]
             except Exception as e:  # noqa: BLE001 - any decode failure is damage
-                damages.append(f"array {name} chunk {key}: cannot be decoded ({e})")
+                damages.append(f"array {name} chunk {key}: cannot be decoded ({st.decode_problem(e)})")
     found.append(f"{chunks} chunk(s) {'present and ' if version >= st.CHECKSUMMED_FROM else ''}read")
     if (path / STAGING).exists():
         found.append(f"{STAGING}: arrays of an interrupted step (not part of the store; the next writing step "

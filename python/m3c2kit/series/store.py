@@ -263,6 +263,17 @@ def epoch_info(path: Path) -> dict:
     return info
 
 
+def decode_problem(error: Exception) -> str:
+    """Why a chunk did not decode, in the user's terms: the CRC-32C codec's message held the raw
+    checksum bytes (issue 42), others a codec's internals."""
+    text = str(error)
+    if "checksum" in text.lower():
+        return "its checksum does not match: the chunk was altered or truncated"
+    from ..base.errors import printable
+    first = printable(" ".join(text.split()))[:120]
+    return f"{type(error).__name__}{': ' + first if first else ''}"
+
+
 def read(path: Path, group, name: str, selection=slice(None)) -> np.ndarray:
     """group[name][selection], or a StoreError naming the array and the first chunk that does not
     decode (a truncated, flipped or foreign chunk: never read as NaN)."""
@@ -271,7 +282,7 @@ def read(path: Path, group, name: str, selection=slice(None)) -> np.ndarray:
         return np.asarray(array[selection])
     except Exception as e:  # noqa: BLE001 - zarr and its codecs raise many types for a bad chunk
         key = bad_chunk(array) or "?"
-        raise StoreError(f"{path}: damaged: array {name} chunk {key} cannot be decoded ({e}); "
+        raise StoreError(f"{path}: damaged: array {name} chunk {key} cannot be decoded ({decode_problem(e)}); "
                          f"m3c2 series check {path} lists every damage") from None
 
 
@@ -285,7 +296,7 @@ def write(path: Path, array, name: str, selection, values) -> None:
         raise
     except Exception as e:  # noqa: BLE001 - as read()
         key = bad_chunk(array) or "?"
-        raise StoreError(f"{path}: damaged: array {name} chunk {key} cannot be decoded ({e}); "
+        raise StoreError(f"{path}: damaged: array {name} chunk {key} cannot be decoded ({decode_problem(e)}); "
                          f"m3c2 series check {path} lists every damage") from None
 
 

@@ -147,3 +147,30 @@ def test_float32_coordinates_are_not_said_to_lose_precision(tmp_path):
     with warnings.catch_warnings():
         warnings.simplefilter("error", QuantisationWarning)
         write_cloud_table(tmp_path / "f32.las", xyz, {})
+
+
+def _patched_header(src, dst, offset: int, fmt: str, value) -> None:
+    data = bytearray(src.read_bytes())
+    struct.pack_into(fmt, data, offset, value)
+    dst.write_bytes(bytes(data))
+
+
+@pytest.mark.parametrize("offset, fmt, value, words", [
+    (104, "<B", 99, "unknown LAS point format 35 (header byte 99"),  # was only "PATH: 35"
+    (104, "<B", 11, "unknown LAS point format 11"),
+    (147, "<d", 0.0, "its z scale factor is 0.0: every z would read as the offset"),  # z read as 0, exit 0
+    (131, "<d", float("nan"), "its x scale factor is nan"),
+    (139, "<d", float("inf"), "its y scale factor is inf"),
+])
+def test_a_las_header_of_an_impossible_format_or_scale_is_refused(tmp_path, capsys, offset, fmt, value, words):
+    """Issue 42: point format 99 said only 'PATH: 35'; a z scale of 0 was accepted."""
+    src = tmp_path / "ok.las"
+    xyz = np.random.default_rng(3).uniform(0, 10, (50, 3))
+    write_cloud_table(src, xyz, {})
+    bad = tmp_path / "bad.las"
+    _patched_header(src, bad, offset, fmt, value)
+    assert main(["info", str(bad)]) == 1
+    err = capsys.readouterr().err
+    assert err.startswith(f"m3c2: error: {bad}: ") and words in err, err
+    with pytest.raises(CloudReadError, match=words.split(" (")[0]):
+        read_cloud(bad)

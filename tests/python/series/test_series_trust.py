@@ -409,7 +409,10 @@ def test_a_damaged_chunk_is_named_by_check_and_refused(base, epochs, tmp_path, c
                  ["report", store, "-o", tmp_path / "r.html"]):
         code, _, err = run(capsys, "series", *argv)
         assert code == 1 and "damaged: array distance" in err and named.split()[1] in err, (argv, err)
+        assert "b'" not in err and "\\x" not in err, err  # issue 42: the codec's raw checksum bytes
     assert not (tmp_path / "o.csv").exists() and not (tmp_path / "r.html").exists()
+    if damage is _flipped:
+        assert "its checksum does not match" in out + err
 
 
 # ----------------------------------------------------------------------------------------------
