@@ -333,10 +333,16 @@ def read_classifier(path: str | os.PathLike) -> Classifier:
     return _from_json(path, d)
 
 
+def classifier_bytes(path: str | os.PathLike, clf: Classifier) -> bytes:
+    """The file write_classifier writes at `path`: .prm (qCANUPO binary) by extension, else JSON."""
+    path = Path(path)
+    return _prm_bytes(path, clf) if is_prm(path) else (json.dumps(_to_json(clf), indent=1) + "\n").encode()
+
+
 def write_classifier(path: str | os.PathLike, clf: Classifier) -> None:
     """Writes `clf` atomically: .prm (qCANUPO binary, integer classes only) by extension, else JSON."""
     path = Path(path)
-    data = _prm_bytes(path, clf) if is_prm(path) else (json.dumps(_to_json(clf), indent=1) + "\n").encode()
+    data = classifier_bytes(path, clf)
     try:
         with atomic_output(path) as tmp:
             Path(tmp).write_bytes(data)

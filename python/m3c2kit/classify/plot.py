@@ -14,6 +14,23 @@ MAX_DRAWN = 20_000  # points per class drawn (seeded subsample beyond)
 
 
 def plot_training(clf: Classifier, X: np.ndarray, y: np.ndarray, path: Path, seed: int = 0) -> None:
+    """Draws the training samples in each binary classifier's plane into `path`, atomically."""
+    fig = training_figure(clf, X, y, seed)
+    with atomic_output(path) as tmp:
+        save_training_figure(fig, tmp, path)
+
+
+def save_training_figure(fig, target, named: Path) -> None:
+    """Saves `fig` at `target` in the format `named`'s extension says, and closes it."""
+    import matplotlib.pyplot as plt
+    try:
+        fig.savefig(target, format=figure_format(named, extra="classify"), dpi=110)
+    finally:
+        plt.close(fig)
+
+
+def training_figure(clf: Classifier, X: np.ndarray, y: np.ndarray, seed: int = 0):
+    """The figure of plot_training, drawn but not saved."""
     try:
         import matplotlib
         matplotlib.use("Agg")
@@ -50,6 +67,4 @@ def plot_training(clf: Classifier, X: np.ndarray, y: np.ndarray, path: Path, see
         ax.legend(loc="best", markerscale=5, fontsize=8)
     fig.suptitle("CANUPO training samples, scales " + ", ".join(f"{s:g}" for s in clf.scales))
     fig.tight_layout()
-    with atomic_output(path) as tmp:
-        fig.savefig(tmp, format=figure_format(path, extra="classify"), dpi=110)
-    plt.close(fig)
+    return fig

@@ -13,12 +13,13 @@ from .integers import COUNT_MAX, integer
 from .options import add, add_table_option
 from ..base.errors import UsageError
 from ..io import read_cloud, write_cloud_table
+from ..io.atomic import staged_outputs
 from ..io.collisions import check_outputs
 from ..io.files import add_drop_nonfinite_option
 from ..settings.parsers import normal_scales
 from ..classify.apply import classify
 from ..classify.labels import labels_from_field, labels_from_polygons, parse_mapping, parse_sample, read_polygons
-from ..classify.model import read_classifier, write_classifier
+from ..classify.model import classifier_bytes, read_classifier
 
 DEFAULT_SCALE_FACTORS = (4, 6, 8, 12, 16, 24, 32)  # times the point spacing sqrt(XY area / N)
 
@@ -119,7 +120,7 @@ def _check_outputs(args, inputs: dict) -> None:
 
 
 def run_train(args) -> int:
-    from ..classify.plot import plot_training
+    from ..classify.plot import save_training_figure, training_figure
     from ..classify.train import train_with_samples
     samples = {f"sample {text}": parse_sample(text)[0] for text in args.samples}
     _check_outputs(args, dict(samples, **{"polygons file": args.polygons}))
@@ -133,9 +134,14 @@ def run_train(args) -> int:
                                    min_points=args.min_points, threads=args.threads,
                                    max_per_class=args.max_per_class or None, seed=args.seed)
     clf.info["samples"] = [str(path) for path, _, _ in samples]
-    write_classifier(args.output, clf)
-    if args.plot:
-        plot_training(clf, X, y, args.plot, args.seed)
+    # The classifier and its figure appear together or not at all: a failed --plot left the
+    # classifier written (issue 42).
+    fig = training_figure(clf, X, y, args.seed) if args.plot else None
+    data = classifier_bytes(args.output, clf)
+    with staged_outputs([p for p in (args.output, args.plot) if p]) as staged:
+        staged[args.output].write_bytes(data)
+        if fig is not None:
+            save_training_figure(fig, staged[args.plot], args.plot)
     tr = clf.info["training"]
     lines = [f"scales (diameters): {', '.join(f'{s:g}' for s in clf.scales)}",
              "training points: " + ", ".join(f"{c} {n}" for c, n in tr["points"].items())

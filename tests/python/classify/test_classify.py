@@ -191,6 +191,28 @@ def test_command_line_train_and_apply(tmp_path, capsys):
     assert np.all((got.fields["confidence"] >= 0) & (got.fields["confidence"] <= 1))
 
 
+@pytest.mark.parametrize("failure", ["no folder", "drawing fails"])
+def test_train_writes_no_classifier_when_its_plot_fails(failure, tmp_path, capsys, monkeypatch):
+    """Issue 42: `classify train` wrote its classifier, then failed on --plot: both or neither."""
+    a, la = scene(7, size=8)
+    write_cloud_table(tmp_path / "ground.laz", a[la == GROUND], {})
+    write_cloud_table(tmp_path / "veg.ply", a[la == VEGETATION], {})
+    plot = tmp_path / "missing" / "c.png" if failure == "no folder" else tmp_path / "c.png"
+    if failure == "drawing fails":
+        import matplotlib.figure
+
+        def broken(*args, **kwargs):
+            raise OSError(28, "No space left on device")
+
+        monkeypatch.setattr(matplotlib.figure.Figure, "savefig", broken)
+    clf = tmp_path / "c.json"
+    code = main(["classify", "train", f"{tmp_path / 'ground.laz'}=ground", f"{tmp_path / 'veg.ply'}=vegetation",
+                 "-o", str(clf), "--scales", "0.5:2:0.5", "--plot", str(plot)])
+    assert code == 1 and "Traceback" not in capsys.readouterr().err
+    assert not clf.exists() and not plot.exists()
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["ground.laz", "veg.ply"]  # no private folder left
+
+
 def test_command_line_errors(tmp_path, capsys, monkeypatch):
     a, la = scene(9, size=8)
     write_cloud_table(tmp_path / "s.laz", a, {"classification": la})
