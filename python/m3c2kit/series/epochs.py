@@ -49,14 +49,24 @@ def _list_text(path: Path) -> str:
 
 
 def _is_list_file(path: Path) -> bool:
-    """A text file whose every entry line starts with the path of an existing file."""
+    """A text file whose entry lines start with a path, not a number (an ASCII point cloud's lines
+    start with x). Whether the files exist is read_list_file's to say: a list naming one missing
+    file was read as a point cloud, with a message about x y z columns (issue 42)."""
     if path.suffix.lower() not in (".txt", ".csv", ".list", ".lst", ".tsv") or not path.is_file():
         return False
     try:
         lines = [l for l in _list_text(path).splitlines() if l.strip() and not l.lstrip().startswith("#")]
     except UsageError:  # not text, or too large for a list: then it is an epoch file, read as one
         return False
-    return bool(lines) and all((path.parent / _split(l)[0]).is_file() for l in lines[:50])
+    return bool(lines) and all(not _is_number(_split(l)[0]) for l in lines[:50])
+
+
+def _is_number(text: str) -> bool:
+    try:
+        float(text.split()[0] if text.split() else text)
+    except ValueError:
+        return False
+    return True
 
 
 def _split(line: str) -> list[str]:
@@ -71,6 +81,9 @@ def read_list_file(path: Path) -> list[Epoch]:
             continue
         parts = _split(line)
         file = path.parent / parts[0]
+        if not (file.exists() or file.is_symlink()):
+            raise UsageError(f"{path}:{number}: the epoch {parts[0]} does not exist ({file})")
+        check_input_file(file, label=f"{path}:{number}: the epoch {parts[0]}")  # a FIFO or folder: never read
         time = _parse_time(parts[1], f"{path}:{number}") if len(parts) > 1 else None
         out.append(Epoch(file, time, "list") if time is not None else metadata_epoch(file))
     return out

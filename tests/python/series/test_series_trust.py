@@ -435,6 +435,25 @@ def test_a_special_epoch_or_list_file_is_refused_without_blocking(kind, base, tm
 
 
 
+@pytest.mark.parametrize("entry", ["missing", "fifo", "folder"])
+def test_a_list_naming_a_missing_or_special_epoch_names_its_line(entry, base, epochs, tmp_path, capsys):
+    """Issue 42: a list whose entry was missing was read as a point cloud ('no line with three
+    numbers'). A list is told by its lines starting with a path; each entry is checked, by line."""
+    store = copy(base, tmp_path)
+    before = tree(store)
+    bad = tmp_path / "gone.npy"
+    if entry == "fifo":
+        os.mkfifo(bad)
+    elif entry == "folder":
+        bad.mkdir()
+    listing = tmp_path / "epochs.txt"
+    listing.write_text(f"{epochs[8]}, 2024-01-09\ngone.npy, 2024-01-10\n")
+    code, _, err = run(capsys, "series", "add", store, listing, "--quiet")
+    assert code == 2 and f"{listing}:2: the epoch gone.npy" in err, err
+    assert "three numbers" not in err
+    assert tree(store) == before
+
+
 # ----------------------------------------------------------------------------------------------
 # red team (issue 31, item 3): variants found after the first implementation
 
