@@ -222,6 +222,28 @@ def result_column(cloud, name: str) -> np.ndarray | None:
     return None
 
 
+#: Without stable areas, a result whose core points are significant beyond this share holds change
+#: that the variogram would take for error (a 95 % LOD flags about 5 % of unchanged core points).
+CHANGED_SHARE_WARNED = 0.10
+
+
+def change_taken_for_error(cloud) -> str | None:
+    """A warning when the variogram, fitted on every core point (no stable areas given), would fit
+    the change itself as if it were error: more than CHANGED_SHARE_WARNED of the core points with
+    a distance are significant (issue 42)."""
+    significant, distance = result_column(cloud, "significant"), result_column(cloud, "distance")
+    if significant is None or distance is None:
+        return None
+    judged = np.isfinite(significant) & np.isfinite(distance)
+    share = float(np.mean(significant[judged] > 0)) if judged.any() else 0.0
+    if share <= CHANGED_SHARE_WARNED:
+        return None
+    return (f"{100 * share:.1f} % of the core points are significant at their LOD and every core point is taken "
+            f"as stable: where that is change, not correlated error, the variogram fits the change as if it were "
+            f"error (its sill and range, not the errors'); give the stable areas with --stable POLYGONS or "
+            f"--stable-field NAME=VALUE")
+
+
 def eq1_variance(cloud) -> np.ndarray:
     """u^2 = sigma1^2/n1 + sigma2^2/n2 per core point of a compare output (eq. (1)'s variance
     without the correlated part); UsageError naming the file when a column is missing."""

@@ -66,6 +66,8 @@ def run_variogram(args) -> int:
                          f"(its fields: {', '.join(sorted(cloud.fields)) or 'none'})")
     u2 = vg.eq1_variance(cloud)
     mask = vg.stable_mask(cloud, polygons=args.stable, field=args.stable_field)
+    if args.stable is None and args.stable_field is None and (message := vg.change_taken_for_error(cloud)):
+        warnings.warn(f"{args.result}: {message}", M3C2Warning, stacklevel=2)
     try:
         fitted = vg.fit_error_model(cloud.xyz[mask], distance[mask], u2[mask], seed=args.seed, bins=args.bins,
                                     max_lag=args.max_lag, lag_distance=args.lag_distance, far_pairs=args.pairs,

@@ -12,6 +12,7 @@ import pytest
 from m3c2kit import engine
 from m3c2kit.analysis.error_model import Component, ErrorModel, load
 from m3c2kit.analysis.random_fields import sample_field
+from m3c2kit.analysis import variogram as vg
 from m3c2kit.analysis.variogram import empirical_variogram, fit_model
 from m3c2kit.base.errors import UsageError
 
@@ -108,6 +109,8 @@ def test_command_and_error_model_end_to_end(tmp_path):
     assert r.returncode == 0, r.stderr
     # issue 42: a figure only with --plot; model.png beside it was replaced
     assert "correlated variance" in r.stdout and (tmp_path / "model.png").read_bytes() == b"the user's own figure"
+    # issue 42: fitted on every core point while many are significant: said (here correlated error, no change)
+    assert "% of the core points are significant at their LOD and every core point is taken as stable" in r.stderr
     plotted = _m3c2("variogram", tmp_path / "plain.csv", "--projection-scale", "1", "-o", tmp_path / "other.json",
                     "--plot", tmp_path / "figure.svg", "-q")
     assert plotted.returncode == 0, plotted.stderr
@@ -167,3 +170,14 @@ def test_error_model_refused_with_pm(tmp_path):
     with pytest.raises(UsageError, match="--error-model would change nothing"):
         build_params(projection_scale=1.0, max_depth=1.0, normal_scale=1.0, uncertainty="pm",
                      error_model=str(tmp_path / "m.json"))
+
+
+def test_the_change_taken_for_error_is_said_only_past_the_false_alarm_rate():
+    from types import SimpleNamespace
+    distance = np.linspace(-1, 1, 1000)
+    for share, said in ((0.05, False), (0.10, False), (0.11, True), (0.6, True)):
+        significant = (np.arange(1000) < share * 1000).astype(float)
+        cloud = SimpleNamespace(fields={"distance": distance, "significant": significant})
+        message = vg.change_taken_for_error(cloud)
+        assert (message is not None) == said, share
+    assert vg.change_taken_for_error(SimpleNamespace(fields={"distance": distance})) is None
