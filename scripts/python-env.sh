@@ -2,8 +2,11 @@
 # - An activated virtual environment ($VIRTUAL_ENV) is used as it is.
 # - Otherwise the repository's own .venv, created on first use. Debian's python3 refuses pip
 #   installs outside a venv (PEP 668, "externally-managed-environment"), and a venv needs no
-#   root. It sees the interpreter's own site-packages (--system-site-packages) so that what the
-#   machine already has (CI's numpy, rasterio, ...) is reused and pip fetches only what is missing.
+#   root. It is isolated from the interpreter's own site-packages: with them, on a machine where
+#   QGIS is installed, pip kept Debian's python3-matplotlib (built for numpy 1.x) beside a numpy
+#   2.x from PyPI, and the report and the test collection failed to import (issue 44). Every
+#   package comes from PyPI, built for the numpy pip installs. A .venv made by an earlier version
+#   with the system's site-packages is switched to isolated (its pyvenv.cfg) before use.
 # After sourcing, `python` is the environment's interpreter and `$M3C2_PYTHON` its path.
 
 m3c2_repo=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)
@@ -49,7 +52,11 @@ m3c2_activate() {
         m3c2_apt_install "python$v-venv" || return 1
       fi
       echo "creating the virtual environment $venv"
-      "$base" -m venv --system-site-packages "$venv"
+      "$base" -m venv "$venv"
+    fi
+    if grep -qiE '^include-system-site-packages *= *true' "$venv/pyvenv.cfg" 2>/dev/null; then
+      echo "isolating the virtual environment $venv from the system's site-packages (pip installs what it lacks)"
+      sed -i -E 's/^(include-system-site-packages *= *)true/\1false/I' "$venv/pyvenv.cfg"
     fi
     # shellcheck disable=SC1091
     source "$venv/bin/activate"

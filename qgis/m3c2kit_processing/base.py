@@ -58,14 +58,23 @@ class M3C2Algorithm(QgsProcessingAlgorithm):
         if not value:
             return None
         if os.path.exists(value):
-            return value
+            return runner.path_argument(value)
         layer = QgsProcessingUtils.mapLayerFromString(value, context)
         if layer is None:
-            return value  # m3c2 names the missing file in its own message
+            return runner.path_argument(value)  # m3c2 names the missing file in its own message
         if not isinstance(layer, QgsPointCloudLayer):
             raise QgsProcessingException(f"{name}: {layer.name()} is not a point-cloud layer: m3c2 compares point "
                                          "clouds (a file, or a point-cloud layer's file)")
-        return layer.source()
+        return runner.path_argument(layer.source())
+
+    def output_path(self, parameters, name, context):
+        """The file output `name`, as m3c2 reads a path (runner.path_argument)."""
+        return runner.path_argument(self.parameterAsFileOutput(parameters, name, context))
+
+    def file_path(self, parameters, name, context):
+        """The file (or folder) input `name`, as m3c2 reads a path; None when not given."""
+        value = self.parameterAsFile(parameters, name, context)
+        return runner.path_argument(value) if value else None
 
     def m3c2(self, arguments, feedback, progress=False):
         return runner.run(arguments, feedback, progress=progress)

@@ -45,8 +45,9 @@ def write_geopackage(output, feedback, context) -> str:
     # QGIS's Python has no m3c2kit: m3c2 itself copies the output into a CSV (every column, float64
     # written losslessly) and says its CRS.
     table = QgsProcessingUtils.generateTempFilename("m3c2kit_table.csv")
-    runner.run(["convert", str(output), "-o", table], feedback)
-    wkt = (json.loads(runner.run(["info", "--json", str(output)], feedback)).get("crs") or {}).get("wkt") or ""
+    runner.run(["convert", runner.path_argument(output), "-o", table], feedback)
+    wkt = (json.loads(runner.run(["info", "--json", runner.path_argument(output)], feedback)).get("crs") or {}).get(
+        "wkt") or ""
     name = os.path.basename(str(output))
     memory = QgsVectorLayer("PointZ", name, "memory")
     if wkt:

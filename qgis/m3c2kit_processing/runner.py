@@ -51,6 +51,14 @@ def executable() -> str:
     return found
 
 
+def path_argument(path) -> str:
+    """A file path as m3c2 reads a path, never an option (issue 42: an input named `--help` printed
+    the help, an output starting with `-` failed after the run): a relative path that starts with
+    '-' gets './'. Absolute paths (`/...`, `C:\\...`) never start with '-'."""
+    text = str(path)
+    return os.path.join(".", text) if text.startswith("-") else text
+
+
 def quoted(command) -> str:
     return " ".join(shlex.quote(str(a)) for a in command)
 

@@ -49,9 +49,9 @@ def m3c2(*args, **kwargs):
                           env=environment(), **kwargs)
 
 
-def qgis_process(*args, env=None, timeout=300):
+def qgis_process(*args, env=None, timeout=300, cwd=None):
     return subprocess.run([QGIS_PROCESS, *map(str, args)], capture_output=True, text=True,
-                          env=env or environment(), timeout=timeout)
+                          env=env or environment(), timeout=timeout, cwd=cwd)
 
 
 def read(path) -> bytes:

@@ -4,6 +4,7 @@ diameters, a missing input fails with m3c2's message and writes nothing, a missi
 2D mode's rasters, the committed model runs. Run by Debian's python3 (scripts/check-qgis.sh)."""
 import json
 import os
+import shutil
 import sys
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
@@ -95,6 +96,18 @@ def test_missing_input_fails_with_m3c2s_message_and_writes_nothing():
         assert ran.returncode != 0
         assert message in ran.stdout + ran.stderr, ran.stdout[-3000:] + ran.stderr[-3000:]
         assert os.listdir(d) == [], os.listdir(d)
+
+
+def test_paths_that_look_like_options_are_read_as_paths():
+    """Issue 42: the runner passed paths as they were: an input named `--help` printed the help, an
+    output starting with `-` failed after the run (convert read it as an option)."""
+    with Folder() as d:
+        shutil.copy(REFERENCE, os.path.join(d, "--help.laz"))
+        ran = qgis_process("run", "m3c2kit:compare", "--REFERENCE=--help.laz", f"--COMPARED={COMPARED}",
+                           *SMALL_QGIS, "--OUTPUT=-out.laz", cwd=d)
+        assert ran.returncode == 0, ran.stdout[-3000:] + ran.stderr[-3000:]
+        assert "usage:" not in ran.stdout + ran.stderr
+        assert os.path.isfile(os.path.join(d, "-out.laz")) and os.path.isfile(os.path.join(d, "-out.laz.gpkg"))
 
 
 def test_a_missing_m3c2_is_named():

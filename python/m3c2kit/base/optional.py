@@ -45,12 +45,18 @@ def require(module: str, extra: str, purpose: str) -> ModuleType:
     ``"{purpose} needs the {extra} extra: pip install 'm3c2kit[{extra}]'"``."""
     try:
         return importlib.import_module(module)
-    except ImportError as err:
+    except ModuleNotFoundError as err:
         missing = (err.name or module).split(".")[0]
         if missing != module.split(".")[0]:
-            raise  # the library is there but one of its own dependencies is broken: show that
+            raise  # the library is there but one of its own dependencies is missing: show that
         raise MissingExtraError(f"{purpose} needs the {extra} extra: pip install 'm3c2kit[{extra}]' "
                                 f"(no module named {missing!r})", missing, extra) from None
+    except ImportError as err:
+        # Installed but broken (a binary built for another numpy: "numpy.core.multiarray failed to
+        # import"): its real cause, not "no module named" and advice to install what is there (issue 44).
+        raise M3C2Error(f"{purpose} needs {module.split('.')[0]}, which is installed but does not import: "
+                        f"{' '.join(str(err).split())} (reinstall it for this numpy: pip install --force-reinstall "
+                        f"'m3c2kit[{extra}]')") from None
 
 
 class _LazyModule:

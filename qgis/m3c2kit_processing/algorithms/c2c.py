@@ -32,7 +32,7 @@ class C2CAlgorithm(OptionsAlgorithm):
         self.addOutput(QgsProcessingOutputVectorLayer("OUTPUT_LAYER", "C2C layer"))
 
     def processAlgorithm(self, parameters, context, feedback):  # noqa: N802 - QGIS's name
-        output = self.parameterAsFileOutput(parameters, "OUTPUT", context)
+        output = self.output_path(parameters, "OUTPUT", context)
         args = ["c2c", self.cloud_path(parameters, "REFERENCE", context),
                 self.cloud_path(parameters, "COMPARED", context), "-o", output]
         core = self.cloud_path(parameters, "CORE", context)

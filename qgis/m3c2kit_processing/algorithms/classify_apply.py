@@ -27,8 +27,8 @@ class ClassifyApplyAlgorithm(OptionsAlgorithm):
         self.addParameter(QgsProcessingParameterFileDestination("OUTPUT", "Classified cloud", OUTPUT_FILTER))
 
     def processAlgorithm(self, parameters, context, feedback):  # noqa: N802 - QGIS's name
-        output = self.parameterAsFileOutput(parameters, "OUTPUT", context)
+        output = self.output_path(parameters, "OUTPUT", context)
         args = ["classify", "apply", self.cloud_path(parameters, "INPUT", context), "--classifier",
-                self.parameterAsFile(parameters, "CLASSIFIER", context), "-o", output]
+                self.file_path(parameters, "CLASSIFIER", context), "-o", output]
         self.m3c2(args + self.option_arguments(parameters, context), feedback)
         return {"OUTPUT": output}

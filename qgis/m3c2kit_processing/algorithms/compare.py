@@ -70,7 +70,7 @@ class CompareAlgorithm(M3C2Algorithm):
 
     def command_arguments(self, parameters, context):
         """m3c2 compare's arguments for `parameters` (the command line logged and run)."""
-        output = self.parameterAsFileOutput(parameters, "OUTPUT", context)
+        output = self.output_path(parameters, "OUTPUT", context)
         args = ["compare", self.cloud_path(parameters, "REFERENCE", context),
                 self.cloud_path(parameters, "COMPARED", context), "-o", output]
         core = self.cloud_path(parameters, "CORE", context)
@@ -89,7 +89,7 @@ class CompareAlgorithm(M3C2Algorithm):
                 args.append(flag)
         if parameters.get("TILE_SIZE") is not None:
             args += ["--tile-size", repr(self.parameterAsDouble(parameters, "TILE_SIZE", context))]
-        report = self.parameterAsFileOutput(parameters, "REPORT", context) if parameters.get("REPORT") else ""
+        report = self.output_path(parameters, "REPORT", context) if parameters.get("REPORT") else ""
         if report:
             args += ["--report", report]
         return args, output, report

@@ -53,7 +53,7 @@ class PdalCompareAlgorithm(M3C2Algorithm):
             raise QgsProcessingException("ORIENTATION none: m3c2 always orients the normals (section 3.1.2); choose "
                                          "up (PDAL's default) or down, or M3C2 compare's ORIENTATION")
         number = lambda name: self.parameterAsDouble(parameters, name, context)  # noqa: E731
-        output = self.parameterAsFileOutput(parameters, "OUTPUT", context)
+        output = self.output_path(parameters, "OUTPUT", context)
         args = ["compare", self.cloud_path(parameters, "REFERENCE", context),
                 self.cloud_path(parameters, "COMPARED", context), "-o", output]
         core = self.cloud_path(parameters, "CORE", context)

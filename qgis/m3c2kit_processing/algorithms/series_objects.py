@@ -40,7 +40,7 @@ class SeriesObjectsAlgorithm(OptionsAlgorithm):
         self.addParameter(QgsProcessingParameterFileDestination("OUTPUT", "Objects table", "CSV (*.csv)"))
 
     def processAlgorithm(self, parameters, context, feedback):  # noqa: N802 - QGIS's name
-        output = self.parameterAsFileOutput(parameters, "OUTPUT", context)
-        args = ["series", "objects", self.parameterAsFile(parameters, "STORE", context), "-o", output]
+        output = self.output_path(parameters, "OUTPUT", context)
+        args = ["series", "objects", self.file_path(parameters, "STORE", context), "-o", output]
         self.m3c2(args + self.option_arguments(parameters, context), feedback)
         return {"OUTPUT": output}

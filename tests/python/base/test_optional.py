@@ -54,6 +54,18 @@ def test_a_broken_dependency_of_an_installed_library_is_not_called_a_missing_ext
     assert not isinstance(info.value, optional.MissingExtraError)
 
 
+def test_an_installed_library_that_fails_to_import_is_named_with_its_real_cause(monkeypatch, tmp_path):
+    """Issue 44: Debian's matplotlib (built for numpy 1.x) beside numpy 2.x failed with "no module
+    named 'matplotlib'" and the advice to install the extra that was installed."""
+    (tmp_path / "brokenlib.py").write_text("raise ImportError('numpy.core.multiarray failed to import')\n")
+    monkeypatch.syspath_prepend(str(tmp_path))
+    with pytest.raises(M3C2Error) as info:
+        optional.require("brokenlib", extra="report", purpose="drawing --report")
+    text = str(info.value)
+    assert not isinstance(info.value, optional.MissingExtraError) and "no module named" not in text
+    assert "brokenlib, which is installed but does not import: numpy.core.multiarray failed to import" in text
+
+
 def test_lazy_module_imports_only_when_used(absent):
     absent("pye57")
     stand_in = optional.lazy_module("pye57", extra="e57", purpose="reading .e57 files")  # no error yet
