@@ -5,12 +5,17 @@ removed by CANUPO before the comparison). m3c2kit.run takes it as an input (run.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from ..base.errors import UsageError
-from .apply import classify, filtered
-from .model import Classifier, read_classifier
+
+if TYPE_CHECKING:
+    from .model import Classifier
+
+# .apply and .model are imported where a filter is used: every compare imports this module for
+# vegetation_filter(), and most use no classifier (issue 45).
 
 
 @dataclass
@@ -28,6 +33,7 @@ class VegetationFilter:
     @property
     def classifier(self) -> Classifier:
         if self._classifier is None:
+            from .model import read_classifier
             self._classifier = read_classifier(self.path)
         return self._classifier
 
@@ -40,10 +46,12 @@ class VegetationFilter:
 
     def filtered(self, cloud, name: str, threads: int = 0):
         """In memory: `cloud` reduced to its kept points (UsageError naming `name` when none is left)."""
+        from .apply import filtered
         return filtered(self.classifier, cloud, self.keep, name, threads=threads)
 
     def keep_mask(self, near: np.ndarray, own: np.ndarray, threads: int = 0) -> np.ndarray:
         """One tile: uint8 1 for each point of `own` kept, classified from its neighbours `near`."""
+        from .apply import classify
         clf = self.classifier
         p = classify(clf, near, own, threads=threads)
         wanted = np.array([clf.labels.index(k) for k in self.keep])

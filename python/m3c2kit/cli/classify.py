@@ -17,9 +17,8 @@ from ..io.atomic import staged_outputs
 from ..io.collisions import check_outputs
 from ..io.files import add_drop_nonfinite_option
 from ..settings.parsers import normal_scales
-from ..classify.apply import classify
-from ..classify.labels import labels_from_field, labels_from_polygons, parse_mapping, parse_sample, read_polygons
-from ..classify.model import classifier_bytes, read_classifier
+# The classifier's modules are imported by the commands that use them (issue 45: building the
+# parser of every m3c2 run imported them).
 
 DEFAULT_SCALE_FACTORS = (4, 6, 8, 12, 16, 24, 32)  # times the point spacing sqrt(XY area / N)
 
@@ -93,6 +92,7 @@ def default_scales(xyz: np.ndarray) -> list[float]:
 
 
 def _samples(args):
+    from ..classify.labels import labels_from_field, labels_from_polygons, parse_mapping, parse_sample, read_polygons
     value_names = parse_mapping(args.label_values, "--label-values")
     polygons = read_polygons(args.polygons, args.polygon_property) if args.polygons else None
     if value_names and not args.label_field:
@@ -120,6 +120,8 @@ def _check_outputs(args, inputs: dict) -> None:
 
 
 def run_train(args) -> int:
+    from ..classify.labels import parse_sample
+    from ..classify.model import classifier_bytes
     from ..classify.plot import save_training_figure, training_figure
     from ..classify.train import train_with_samples
     samples = {f"sample {text}": parse_sample(text)[0] for text in args.samples}
@@ -164,6 +166,7 @@ CODE_MIN, CODE_MAX = -2**31, 2**31 - 1
 
 
 def class_codes(clf, spec: str | None) -> dict[str, int]:
+    from ..classify.labels import parse_mapping
     mapping = parse_mapping(spec, "--class-map")
     unknown = [k for k in mapping if k not in clf.labels]
     if unknown:
@@ -183,6 +186,8 @@ def class_codes(clf, spec: str | None) -> dict[str, int]:
 
 
 def run_apply(args) -> int:
+    from ..classify.apply import classify
+    from ..classify.model import read_classifier
     _check_outputs(args, {"input cloud": args.cloud, "classifier file": args.classifier})
     clf = read_classifier(args.classifier)
     codes = class_codes(clf, args.class_map)

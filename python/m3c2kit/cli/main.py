@@ -9,13 +9,6 @@ import sys
 import warnings
 
 from ..base.errors import M3C2Error, M3C2Warning, UsageError, printable
-from ..io import laspy_local, laz_threads
-from ..io.input_file import os_error_message
-from .analysis import analysis_parsers
-from .classify import classify_parsers
-from .commands import convert_parser, info_parser, normals_parser, subsample_parser
-from .compare import compare_parser
-from .parser import ArgumentParser
 
 
 class Interrupted(M3C2Error):
@@ -23,9 +16,14 @@ class Interrupted(M3C2Error):
 
 
 def make_parser() -> argparse.ArgumentParser:
+    # The subcommands' modules are imported here, not at the top: `m3c2 --version` needs none.
+    from .analysis import analysis_parsers
+    from .classify import classify_parsers
+    from .commands import convert_parser, info_parser, normals_parser, subsample_parser
+    from .compare import compare_parser
+    from .parser import ArgumentParser
     parser = ArgumentParser(prog="m3c2", description="M3C2 point-cloud change detection (Lague et al. 2013)")
-    from .. import __version__
-    parser.add_argument("--version", action="version", version=f"m3c2 (m3c2kit) {__version__}")
+    parser.add_argument("--version", action="version", version=_version_text())
     sub = parser.add_subparsers(dest="command", required=True, parser_class=ArgumentParser)
     from .series import series_parsers  # noqa: PLC0415 - m3c2 series (docs/series.md)
     from .variogram import variogram_parser  # noqa: PLC0415 - m3c2 variogram (docs/analysis.md)
@@ -51,10 +49,20 @@ def _show_warning(message, category, filename, lineno, file=None, line=None):
     print(f"m3c2: warning: {text}", file=sys.stderr)
 
 
+def _version_text() -> str:
+    from .. import __version__
+    return f"m3c2 (m3c2kit) {__version__}"
+
+
 def main(argv=None) -> int:
     """The `m3c2` command. Without `argv` (the `m3c2` script, ``python -m m3c2kit``) the process
     is the command line's own: laspy is imported without the modules a local file never uses
     (m3c2kit.io.laspy_local) when the arguments name a LAS/LAZ file."""
+    words = sys.argv[1:] if argv is None else [str(a) for a in argv]
+    if words == ["--version"]:  # answered before any parser or library is imported
+        print(_version_text())
+        return 0
+    from ..io import laspy_local
     if argv is None and laspy_local.names_las_file(sys.argv[1:]):
         laspy_local.import_laspy_for_local_files()
     # SIGHUP, SIGQUIT and SIGTERM end the run as SIGINT does: an exception that unwinds through
@@ -77,6 +85,7 @@ def _main(argv) -> int:
             # A value starting with "-" (`--orient -z`) is its option's: m3c2kit.cli.parser.ArgumentParser.
             args = make_parser().parse_args([str(a) for a in (sys.argv[1:] if argv is None else argv)])
             # --threads bounds LAZ coding too, as its help says (compare adds its --params file's).
+            from ..io import laz_threads
             laz_threads.set_threads(getattr(args, "threads", None) or 0)
             code = args.run(args)
             sys.stdout.flush()  # a closed stdout raises here, not in the interpreter's final flush
@@ -102,6 +111,7 @@ def _main(argv) -> int:
         # An OS error no reader or writer turned into a message: e.g. a name over 255 bytes, which
         # pathlib's checks (exists, is_file) raise instead of answering. Writers remove their
         # temporaries on any exception (io.atomic), so nothing half-written is left.
+        from ..io.input_file import os_error_message
         print(f"m3c2: error: {printable(os_error_message(e))}", file=sys.stderr)
         return 1
 

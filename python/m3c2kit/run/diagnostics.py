@@ -32,6 +32,9 @@ def run_warnings(result, values: Mapping, reference=None, compared=None) -> list
     lines = cylinder_warnings(result, values["min_points"], values.get("max_depth"), values.get("projection_scale"))
     failed = quality.normal_failure_message(result, values.get("normal_scale") or 0.0)
     lines += [failed] if failed else []
+    if reference is not None:
+        lines += quality.scale_messages(values.get("normal_scale"), values.get("projection_scale"),
+                                        values.get("max_depth"), quality.extent_of(reference))
     if reference is not None and compared is not None:
         lines += _empty_cylinder_warnings(result, values, reference, compared)
     return lines + normal_accuracy_warnings(result)

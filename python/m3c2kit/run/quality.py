@@ -233,3 +233,42 @@ def normal_failure_message(result, normal_scale) -> str | None:
     return (f"{share_text(failed, n, 'core points')} have no normal (too few neighbours within D/2): D = "
             f"--normal-scale {d:g} is a DIAMETER (neighbours within D/2 = {d / 2:g}); did you give a radius? Try "
             f"--normal-scale {2 * d:g} or larger (about 10 points within D/2, paper 3.2).")
+
+
+def extent_of(cloud) -> float:
+    """The diagonal of the cloud's bounding box: an (N, 3) array, or a tiled run's streamed cloud
+    (its bounds()); NaN when it has no finite point."""
+    if hasattr(cloud, "bounds"):
+        lo, hi = cloud.bounds()
+    else:
+        xyz = np.asarray(cloud, dtype=np.float64)
+        if xyz.size == 0:
+            return float("nan")
+        with np.errstate(invalid="ignore"):
+            lo, hi = np.nanmin(xyz, axis=0), np.nanmax(xyz, axis=0)
+    diagonal = float(np.linalg.norm(np.asarray(hi) - np.asarray(lo)))
+    return diagonal if np.isfinite(diagonal) else float("nan")
+
+
+def scale_messages(normal_scale, projection_scale, max_depth, extent: float) -> list[str]:
+    """Scales absurd for the data (issue 44): D, d or the depth beyond the reference's extent (the
+    diagonal of its bounding box). A d past half the extent puts most of the cloud in every
+    cylinder: each distance is then the offset between the clouds' means, and at n in the
+    thousands every core point is significant; typed 100 times too large, they passed silently."""
+    if not np.isfinite(extent) or extent <= 0.0:
+        return []
+    lines = []
+    scales = np.atleast_1d(np.asarray(normal_scale if normal_scale is not None else [], dtype=np.float64))
+    if scales.size and float(np.nanmax(scales)) > extent:
+        lines.append(f"--normal-scale {float(np.nanmax(scales)):g} exceeds the reference's extent ({extent:.4g}, the "
+                     f"diagonal of its bounding box): every normal is fitted to the whole cloud; D is a diameter, "
+                     f"of the order of the roughness' scale (paper 3.2), not of the site")
+    if projection_scale is not None and float(projection_scale) > 0.5 * extent:
+        lines.append(f"--projection-scale {float(projection_scale):g} is over half the reference's extent "
+                     f"({extent:.4g}): each cylinder holds most of the cloud, so each distance is the offset between "
+                     f"the clouds' means and its LOD shrinks with thousands of points; d is a diameter of the order of "
+                     f"the point spacing's few multiples (paper 3.3)")
+    if max_depth is not None and float(max_depth) > extent:
+        lines.append(f"--max-depth {float(max_depth):g} exceeds the reference's extent ({extent:.4g}): the cylinders "
+                     f"reach other surfaces of the scene; the depth need only exceed the largest change expected")
+    return lines

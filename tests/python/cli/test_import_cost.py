@@ -15,7 +15,8 @@ HEAVY = ("matplotlib", "dask", "distributed", "pyproj", "rasterio", "xarray", "z
          "scipy", "tqdm", "laspy", "requests", "pye57")
 #: The package's own modules a compare run does not use.
 OWN = ("m3c2kit.output.report.figures", "m3c2kit.output.report.view3d", "m3c2kit.output.report.cartography", "m3c2kit.series.epochs",
-       "m3c2kit.classify.plot")
+       "m3c2kit.classify.plot", "m3c2kit.classify.apply", "m3c2kit.classify.model", "m3c2kit.classify.features",
+       "m3c2kit.classify.train", "m3c2kit.classify.labels")
 
 
 def _imported_after(code: str) -> list[str]:
@@ -31,7 +32,26 @@ def _heavy(modules: list[str], names) -> list[str]:
 def test_import_m3c2kit_imports_no_heavy_library():
     modules = _imported_after("import m3c2kit")
     assert _heavy(modules, HEAVY + OWN) == []
-    assert "m3c2kit._core" in modules  # the probe sees imports at all
+    assert "m3c2kit" in modules and "m3c2kit._core" not in modules  # the public names load on first use
+    modules = _imported_after("import m3c2kit\nm3c2kit.compare")
+    assert "m3c2kit._core" in modules and _heavy(modules, HEAVY + OWN) == []  # the probe sees imports at all
+
+
+def test_version_imports_no_library():
+    """Issue 45: `m3c2 --version` took 0.29 s, importing every subcommand's modules."""
+    modules = _imported_after("from m3c2kit.cli.main import main\nassert main(['--version']) == 0")
+    assert "numpy" not in modules and not [m for m in modules if m.startswith("m3c2kit.") and not m.startswith(
+        ("m3c2kit.base", "m3c2kit.cli"))], modules
+
+
+def test_the_lazy_public_names_are_the_modules_own():
+    import m3c2kit
+    from m3c2kit import api, engine, io, output, run
+    assert m3c2kit.compare is api.compare and m3c2kit.read is io.read_cloud and m3c2kit.info is io.info
+    assert m3c2kit.write is output.writing.write and m3c2kit.normals is run.in_memory.normals
+    assert m3c2kit.Result is engine.result.Result and set(m3c2kit.__all__) <= set(dir(m3c2kit))
+    with pytest.raises(AttributeError, match="no attribute 'nope'"):
+        m3c2kit.nope  # noqa: B018
 
 
 def test_building_the_parser_imports_no_heavy_library():

@@ -202,3 +202,21 @@ def test_status_in_is_membership_of_the_named_codes():
         want = np.array([int(s) in codes for s in status])
         np.testing.assert_array_equal(status_in(status, names), want)
     assert status_in(status, ()).dtype == bool and not status_in(status, ()).any()
+
+
+def test_scales_absurd_for_the_data_are_warned():
+    """Issue 44: D and d far beyond the cloud's extent put the whole cloud in every cylinder and called
+    every core point significant (289 of 289), without a word."""
+    rng = np.random.default_rng(4)
+    ref = np.c_[rng.uniform(0, 10, (3000, 2)), 0.01 * rng.normal(size=3000)]
+    cmp_ = ref + [0, 0, 0.02]
+    with pytest.warns(m3c2kit.M3C2Warning) as caught:
+        r = m3c2kit.compare(ref, cmp_, core_spacing=2, normal_scale=100, projection_scale=100, max_depth=100)
+    said = " ".join(str(w.message) for w in caught)
+    assert "--normal-scale 100 exceeds the reference's extent" in said
+    assert "--projection-scale 100 is over half the reference's extent" in said
+    assert "--max-depth 100 exceeds the reference's extent" in said
+    assert np.nanmean(r.significant) == 1.0  # what the warning is about: every core point significant
+    assert Q.scale_messages(2.0, 1.0, 1.0, Q.extent_of(ref)) == []  # ordinary scales: nothing
+    assert Q.scale_messages([1, 2, 30], None, None, 14.2)[0].startswith("--normal-scale 30 exceeds")
+    assert Q.scale_messages(1.0, 1.0, 1.0, float("nan")) == []
