@@ -228,12 +228,17 @@ def test_the_window_cap_and_min_points_change_the_result():
     assert more["points2"].sum() > wide["points2"].sum()  # (min_points also moves the normal's contest)
 
 
-def test_the_same_bits_for_any_thread_count():
+@pytest.mark.parametrize("extended", [False, True])
+def test_the_same_bits_for_any_thread_count(extended):
     clouds, times, core = tiny_series(4, epochs=9)
     pool = facade.tam3c2_pool(clouds, times)
     s = settings(weights="gaussian")
-    a = facade.tam3c2(pool, core, 0, range(9), s, threads=1)
-    b = facade.tam3c2(pool, core, 0, range(9), s, threads=3)
+    m = None
+    if extended:  # the fallback and the breaks
+        s.update(fallback="m3c2", breaks="changepoints", break_width=4, break_min_size=2)
+        m = _epochwise(times, 0, len(core), 4)
+    a = facade.tam3c2(pool, core, 0, range(9), s, epochwise=m, threads=1)
+    b = facade.tam3c2(pool, core, 0, range(9), s, epochwise=m, threads=3)
     for key in a:
         assert a[key].tobytes() == b[key].tobytes(), key
 
