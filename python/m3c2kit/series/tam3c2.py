@@ -273,9 +273,11 @@ def tam3c2(store: Path, options: Tam3c2Options = Tam3c2Options()) -> dict:
 
 def _staged_all(folder: Path, group, common: dict) -> dict:
     _, zarr = st.require_extra()
-    spec = [(DISTANCE, np.float64, np.nan, "TAM3C2 distance (reference side to the epoch's side)"),
+    spec = [(DISTANCE, np.float64, np.nan, "TAM3C2 distance (reference side to the epoch's side); where tam3c2_window is 0, the "
+                                            "epoch's own M3C2 distance, LOD, significant, n1, n2"),
             (LOD, np.float64, np.nan, "TAM3C2 level of detection: z or Welch's t (attribute lod) x sqrt(s1^2/n1 + s2^2/n2) + registration error"),
-            (SIGNIFICANT, np.int8, -1, "|tam3c2_distance| > tam3c2_lod (1 yes, 0 no, -1 no distance)"),
+            (SIGNIFICANT, np.int8, -1, "|tam3c2_distance| > tam3c2_lod (1 yes, 0 no, -1 no distance); where tam3c2_window "
+                                            "is 0, the epoch's own M3C2 significant"),
             (WINDOW, np.int32, -1, "epochs aggregated, the reference's side and the epoch's side together; "
                                    "0: the epoch's own M3C2 (fallback); -1: no distance"),
             (N1, np.float64, np.nan, "points of the reference's side (Kish's effective n when weighted)"),
