@@ -160,11 +160,11 @@ def tam3c2_parser():
     p.add_argument("--window-breaks", choices=engine.TAM3C2_CHOICES["breaks"], default="none",
                    help="changepoints: the windows stop at the change points of the core point's per-epoch "
                         "M3C2 distances, so that none borrows across a step (default none: the authors' rule)")
-    p.add_argument("--break-width", type=integer(2, COUNT_MAX), default=None,
+    p.add_argument("--break-width", type=integer(2, COUNT_MAX), default=None, metavar="N",
                    help=f"epochs in the breaks' change-point window (default {defaults.break_width})")
-    p.add_argument("--break-min-size", type=integer(1, COUNT_MAX), default=None,
+    p.add_argument("--break-min-size", type=integer(1, COUNT_MAX), default=None, metavar="N",
                    help=f"fewest epochs of a segment between breaks (default {defaults.break_min_size})")
-    p.add_argument("--break-penalty", type=positive_real("--break-penalty"), default=None,
+    p.add_argument("--break-penalty", type=positive_real("--break-penalty"), default=None, metavar="P",
                    help=f"a break is kept when it lowers the series' L1 cost by more than this, in the "
                         f"distance's unit (default {defaults.break_penalty:g})")
     add_table_option(p, "confidence")  # of tam3c2_lod; default: the store's
