@@ -92,7 +92,9 @@ def _ours(name: str) -> dict:
     seconds = np.array([(d - dates[0]).total_seconds() for d in dates])
     weights, r_st = CASES[name]
     pool = facade.tam3c2_pool(clouds, seconds / 86400.0)
-    s = dict(COMMON, weights=weights, space_time_ratio=r_st, critical_value=1.96, orientation=[0.0, 0.0, 1.0])
+    # their rule: neither of our extensions (docs/series.md, "Fallback and window breaks")
+    s = dict(COMMON, weights=weights, space_time_ratio=r_st, critical_value=1.96, orientation=[0.0, 0.0, 1.0],
+             fallback="none", breaks="none")
     return facade.tam3c2(pool, core, 2, range(len(clouds)), s)
 
 

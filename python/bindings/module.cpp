@@ -788,40 +788,81 @@ NB_MODULE(_core, m) {
           },
           "clouds"_a, "times"_a)
       .def_prop_ro("size", [](const Tam3c2Pool& p) { return p.pool->size(); });
+  // Tam3c2Params, its enums by their option names (tam3c2.hpp's k...Names, their one place).
+  nb::class_<m3c2::Tam3c2Params> tam3c2_params(m, "Tam3c2Params");
+  tam3c2_params.def(nb::init<>())
+      .def_rw("normal_radii", &m3c2::Tam3c2Params::normal_radii)
+      .def_rw("window_ratios", &m3c2::Tam3c2Params::window_ratios)
+      .def_rw("min_points", &m3c2::Tam3c2Params::min_points)
+      .def_rw("cylinder_radius", &m3c2::Tam3c2Params::cylinder_radius)
+      .def_rw("max_distance", &m3c2::Tam3c2Params::max_distance)
+      .def_rw("sigma_ratio", &m3c2::Tam3c2Params::sigma_ratio)
+      .def_rw("space_time_ratio", &m3c2::Tam3c2Params::space_time_ratio)
+      .def_rw("registration_error", &m3c2::Tam3c2Params::registration_error)
+      .def_rw("critical_value", &m3c2::Tam3c2Params::critical_value)
+      .def_rw("confidence", &m3c2::Tam3c2Params::confidence)
+      .def_prop_rw(
+          "orientation",
+          [](const m3c2::Tam3c2Params& p) {
+            return std::array<double, 3>{p.orientation[0], p.orientation[1], p.orientation[2]};
+          },
+          [](m3c2::Tam3c2Params& p, std::array<double, 3> v) { p.orientation = m3c2::Vec3(v[0], v[1], v[2]); })
+      .def_prop_rw(
+          "break_width", [](const m3c2::Tam3c2Params& p) { return p.change_points.width; },
+          [](m3c2::Tam3c2Params& p, std::uint32_t v) { p.change_points.width = v; })
+      .def_prop_rw(
+          "break_min_size", [](const m3c2::Tam3c2Params& p) { return p.change_points.min_size; },
+          [](m3c2::Tam3c2Params& p, std::uint32_t v) { p.change_points.min_size = v; })
+      .def_prop_rw(
+          "break_jump", [](const m3c2::Tam3c2Params& p) { return p.change_points.jump; },
+          [](m3c2::Tam3c2Params& p, std::uint32_t v) { p.change_points.jump = v; })
+      .def_prop_rw(
+          "break_penalty", [](const m3c2::Tam3c2Params& p) { return p.change_points.penalty; },
+          [](m3c2::Tam3c2Params& p, double v) { p.change_points.penalty = v; });
+  nb::dict tam3c2_choices;
+  const auto enum_field = [&](const char* name, auto field, const auto& names, const char* what) {
+    tam3c2_params.def_prop_rw(
+        name, [field, &names](const m3c2::Tam3c2Params& p) { return std::string(names[std::size_t(p.*field)]); },
+        [field, &names, what](m3c2::Tam3c2Params& p, const std::string& v) {
+          std::string known;
+          for (std::size_t k = 0; k < names.size(); ++k) {
+            if (v == names[k]) return void(p.*field = std::remove_reference_t<decltype(p.*field)>(k));
+            known += (k ? ", " : "") + std::string(names[k]);
+          }
+          throw m3c2::InvalidArgument(std::string("TAM3C2's ") + what + " must be one of " + known + ", got " + v);
+        });
+    tam3c2_choices[name] = std::vector<std::string>(names.begin(), names.end());
+  };
+  enum_field("weights", &m3c2::Tam3c2Params::weights, m3c2::kTam3c2WeightsNames, "weights");
+  enum_field("lod", &m3c2::Tam3c2Params::lod, m3c2::kTam3c2LodNames, "LOD statistic");
+  enum_field("fallback", &m3c2::Tam3c2Params::fallback, m3c2::kTam3c2FallbackNames, "fallback");
+  enum_field("breaks", &m3c2::Tam3c2Params::breaks, m3c2::kTam3c2BreaksNames, "window breaks");
+  m.attr("TAM3C2_CHOICES") = tam3c2_choices;  // the option names of each enum field, in order
+  nb::enum_<m3c2::Tam3c2Source>(m, "Tam3c2Source")
+      .value("none", m3c2::Tam3c2Source::kNone)
+      .value("windows", m3c2::Tam3c2Source::kWindows)
+      .value("epoch", m3c2::Tam3c2Source::kEpoch);
+  // epochwise: None, or (5, core, pool) float64: the epochs' own M3C2 distance, lod, significant,
+  // n1, n2 (m3c2::Tam3c2Epochwise), NaN where none.
+  using Epochwise = nb::ndarray<const double, nb::ndim<3>, nb::c_contig, nb::device::cpu>;
   m.def(
       "tam3c2",
       [](const Tam3c2Pool& pool, const Points& core, std::size_t reference, std::vector<std::size_t> targets,
-         std::vector<double> normal_radii, std::vector<double> window_ratios, std::uint32_t min_points,
-         double cylinder_radius, double max_distance, const std::string& weights, double sigma_ratio,
-         double space_time_ratio, double registration_error, double critical_value, std::array<double, 3> orientation,
-         const std::string& lod, double confidence, std::optional<Points> orientations, int threads) {
+         const m3c2::Tam3c2Params& p, std::optional<Points> orientations, std::optional<Epochwise> epochwise,
+         int threads) {
         if (targets.empty()) throw m3c2::InvalidArgument("TAM3C2 needs at least one target epoch");
-        m3c2::Tam3c2Params p;
-        p.normal_radii = std::move(normal_radii), p.window_ratios = std::move(window_ratios);
-        p.min_points = min_points, p.cylinder_radius = cylinder_radius, p.max_distance = max_distance;
-        if (weights == "none")
-          p.weights = m3c2::Tam3c2Weights::kNone;
-        else if (weights == "linear")
-          p.weights = m3c2::Tam3c2Weights::kLinear;
-        else if (weights == "gaussian")
-          p.weights = m3c2::Tam3c2Weights::kGaussian;
-        else
-          throw m3c2::InvalidArgument("TAM3C2 weights must be none, linear or gaussian");
-        p.sigma_ratio = sigma_ratio, p.space_time_ratio = space_time_ratio;
-        p.registration_error = registration_error, p.critical_value = critical_value;
-        p.orientation = m3c2::Vec3(orientation[0], orientation[1], orientation[2]);
-        if (lod == "z")
-          p.lod = m3c2::Tam3c2Lod::kZ;
-        else if (lod == "t")
-          p.lod = m3c2::Tam3c2Lod::kT;
-        else if (lod == "auto")
-          p.lod = m3c2::Tam3c2Lod::kAuto;
-        else
-          throw m3c2::InvalidArgument("TAM3C2's LOD statistic must be z, t or auto");
-        p.confidence = confidence;
+        m3c2::Tam3c2Epochwise m;
+        if (epochwise) {
+          if (epochwise->shape(0) != 5 || epochwise->shape(1) != core.shape(0) ||
+              epochwise->shape(2) != pool.pool->size())
+            throw m3c2::InvalidArgument("TAM3C2's epochwise M3C2 must be 5 x core points x pool epochs");
+          const double* d = epochwise->data();
+          const std::size_t plane = core.shape(0) * pool.pool->size();
+          m = {d, d + plane, d + 2 * plane, d + 3 * plane, d + 4 * plane};
+        }
         auto r = run_engine(nb::none(), threads, [&](const m3c2::RunOptions& run) {
           return m3c2::tam3c2(p, *pool.pool, reference, targets, view(core),
-                              orientations ? view(*orientations) : m3c2::PointsView(), run);
+                              orientations ? view(*orientations) : m3c2::PointsView(), m, run);
         });
         const std::size_t nt = targets.size();
         nb::dict d;
@@ -831,10 +872,9 @@ NB_MODULE(_core, m) {
         d["n1"] = to_numpy(std::move(r.n1), nt), d["n2"] = to_numpy(std::move(r.n2), nt);
         d["epochs1"] = to_numpy(std::move(r.epochs1), nt), d["epochs2"] = to_numpy(std::move(r.epochs2), nt);
         d["points1"] = to_numpy(std::move(r.points1), nt), d["points2"] = to_numpy(std::move(r.points2), nt);
+        d["significant"] = to_numpy(std::move(r.significant), nt), d["source"] = to_numpy(std::move(r.source), nt);
         return d;
       },
-      "pool"_a, "core"_a, "reference"_a, "targets"_a, "normal_radii"_a, "window_ratios"_a, "min_points"_a,
-      "cylinder_radius"_a, "max_distance"_a, "weights"_a, "sigma_ratio"_a, "space_time_ratio"_a, "registration_error"_a,
-      "critical_value"_a, "orientation"_a, "lod"_a = "z", "confidence"_a = 0.95, "orientations"_a = nb::none(),
-      "threads"_a = 0);
+      "pool"_a, "core"_a, "reference"_a, "targets"_a, "params"_a, "orientations"_a = nb::none(),
+      "epochwise"_a = nb::none(), "threads"_a = 0);
 }

@@ -12,6 +12,9 @@
 //             (radius, ratio) of highest planarity wins, W = (time range) * ratio for this contest
 //   distance  m2 - m1, m the (weighted) mean of (p - c) . n on each side
 //   LOD       z sqrt(s1^2 / n1 + s2^2 / n2) + reg, n = max(1, count or (sum w)^2 / sum w^2)
+//
+// Ours (issue 41, off by default): the breaks keep each walk inside its centre's segment
+// (tam3c2_breaks.hpp); the fallback gives a short cell the epoch's own M3C2 (fall_back()).
 
 #include <m3c2/errors.hpp>
 #include <m3c2/tam3c2.hpp>
@@ -20,6 +23,7 @@
 #include "index/kdtree.hpp"
 #include "index/spatial_order.hpp"
 #include "support/parallel_for.hpp"
+#include "tam3c2_breaks.hpp"
 #include "uncertainty/confidence.hpp"
 
 #include <Eigen/Eigenvalues>
@@ -83,14 +87,25 @@ struct CorePoint {
   Vec3 c, normal;
   double ratio = 0.0;
   Side reference;
+  std::vector<std::uint32_t> segment;  ///< per pool epoch, with the breaks; else empty
 };
 
 struct Scratch {
   std::vector<std::uint32_t> found;
   Side a, b;
   std::vector<CorePoint> block;
-  std::vector<double> w1, w2, proj;
+  std::vector<double> w1, w2, proj, finite;
 };
+
+/// The epochs a walk may take: all (no breaks), or those of the centre's segment.
+struct Segment {
+  const std::uint32_t* of = nullptr;  ///< per pool epoch; nullptr: no breaks
+  std::uint32_t keep = 0;
+  bool admits(std::size_t e) const { return of == nullptr || of[e] == keep; }
+};
+Segment segment_of(const CorePoint& cp, std::size_t centre) {
+  return cp.segment.empty() ? Segment{} : Segment{cp.segment.data(), cp.segment[centre]};
+}
 
 /// The pool's indices nearest in time to `centre` first; equal distances in pool order (time
 /// order for a pool sorted by time). Made once per centre epoch: every core point walks it.
@@ -103,15 +118,17 @@ std::vector<std::size_t> nearest_first(const std::vector<double>& times, double 
   return order;
 }
 
-/// Aggregates around time `centre` (nearest first, within `window`, until min_points); `query`
-/// appends the indices of an epoch's points in the neighbourhood (a sphere or a cylinder).
+/// Aggregates around time `centre` (nearest first, within `window`, until min_points, only epochs
+/// `segment` admits); `query` appends the indices of an epoch's points in the neighbourhood (a
+/// sphere or a cylinder).
 template <class Query>
 void aggregate(const Tam3c2Pool& pool, const std::vector<std::size_t>& order, double centre, double window,
-               std::uint32_t min_points, Scratch& s, Side& side, Query&& query) {
+               std::uint32_t min_points, Segment segment, Scratch& s, Side& side, Query&& query) {
   side.clear();
   for (std::size_t e : order) {
     const double dt = pool.times()[e] - centre;
     if (std::abs(dt) > window) break;
+    if (!segment.admits(e)) continue;
     s.found.clear();
     query(pool.impl().trees[e], s.found);
     if (s.found.empty()) continue;
@@ -211,6 +228,20 @@ Moments side_moments(const Side& side, const std::vector<double>& w, const Vec3&
   return m;
 }
 
+/// Tam3c2Fallback::kM3c2: a cell whose windows left a side short of min_points, or without a
+/// distance, takes the epoch's own M3C2 where that has a distance (issue 41: where no window
+/// reaches --required-points, the plain M3C2 value and LOD of that epoch). False: TAM3C2's own.
+bool fall_back(const Tam3c2Params& p, const Tam3c2Epochwise& m, std::size_t at, const Side& a, const Side& b,
+               Tam3c2Result& out, std::size_t o) {
+  if (p.fallback != Tam3c2Fallback::kM3c2) return false;
+  const bool reached = a.count() >= p.min_points && b.count() >= p.min_points && a.count() >= 2 && b.count() >= 2;
+  if (reached || !std::isfinite(m.distance[at])) return false;
+  out.distance[o] = m.distance[at], out.lod[o] = m.lod[at], out.n1[o] = m.n1[at], out.n2[o] = m.n2[at];
+  out.significant[o] = std::isnan(m.significant[at]) ? std::int8_t(-1) : std::int8_t(m.significant[at] != 0.0);
+  out.source[o] = std::uint8_t(Tam3c2Source::kEpoch);
+  return true;
+}
+
 /// The LOD of two sides (Tam3c2Lod). kZ keeps the reference's arithmetic; kT and kAuto first make
 /// a weighted side's spread unbiased (x n / (n - 1), Kish's n; +inf at n <= 1: one point's weight
 /// bounds nothing) and take Welch's t at the sides' (effective) n where the rule asks for it.
@@ -234,7 +265,7 @@ double side_lod(const Tam3c2Params& p, Moments& m1, bool weighted1, Moments& m2,
 }
 
 void check(const Tam3c2Params& p, const Tam3c2Pool& pool, std::size_t reference,
-           const std::vector<std::size_t>& targets) {
+           const std::vector<std::size_t>& targets, const Tam3c2Epochwise& epochwise) {
   if (p.normal_radii.empty() || p.window_ratios.empty())
     throw InvalidArgument("TAM3C2 needs at least one normal radius and one window ratio");
   for (double r : p.normal_radii)
@@ -253,6 +284,13 @@ void check(const Tam3c2Params& p, const Tam3c2Pool& pool, std::size_t reference,
     throw InvalidArgument("TAM3C2: the registration error must be >= 0 and the critical value > 0");
   if (!(p.confidence > 0.0 && p.confidence < 1.0)) throw InvalidArgument("TAM3C2: the confidence must be in (0, 1)");
   if (reference >= pool.size()) throw InvalidArgument("TAM3C2: the reference is not an epoch of the pool");
+  if (epochwise.empty() && (p.fallback != Tam3c2Fallback::kNone || p.breaks != Tam3c2Breaks::kNone))
+    throw InvalidArgument("TAM3C2: the fallback and the window breaks need the epochs' own M3C2");
+  if (!epochwise.empty() && !(epochwise.lod && epochwise.significant && epochwise.n1 && epochwise.n2))
+    throw InvalidArgument("TAM3C2: the epochs' own M3C2 needs distance, lod, significant, n1 and n2");
+  const ChangePointParams& cp = p.change_points;
+  if (p.breaks != Tam3c2Breaks::kNone && !(cp.width >= 2 && cp.jump >= 1 && cp.penalty > 0.0))
+    throw InvalidArgument("TAM3C2: the breaks' change points need a width >= 2, a jump >= 1 and a penalty > 0");
   for (std::size_t t : targets)
     if (t >= pool.size()) throw InvalidArgument("TAM3C2: a target is not an epoch of the pool");
 }
@@ -261,8 +299,8 @@ void check(const Tam3c2Params& p, const Tam3c2Pool& pool, std::size_t reference,
 
 Tam3c2Result tam3c2(const Tam3c2Params& p, const Tam3c2Pool& pool, std::size_t reference,
                     const std::vector<std::size_t>& targets, PointsView core, PointsView orientations,
-                    const RunOptions& run) {
-  check(p, pool, reference, targets);
+                    const Tam3c2Epochwise& epochwise, const RunOptions& run) {
+  check(p, pool, reference, targets, epochwise);
   if (!orientations.empty() && orientations.size() != core.size())
     throw InvalidArgument("TAM3C2: one orientation per core point, or none");
   // The side each core point's normal points to, of unit length (also the normal of a core point
@@ -293,6 +331,14 @@ Tam3c2Result tam3c2(const Tam3c2Params& p, const Tam3c2Pool& pool, std::size_t r
   out.scale.assign(nc, -1);
   for (auto* v : {&out.distance, &out.lod, &out.spread1, &out.spread2, &out.n1, &out.n2}) v->assign(nc * nt, kNaN);
   for (auto* v : {&out.epochs1, &out.epochs2, &out.points1, &out.points2}) v->assign(nc * nt, 0u);
+  out.significant.assign(nc * nt, std::int8_t(-1));
+  out.source.assign(nc * nt, std::uint8_t(Tam3c2Source::kNone));
+  const std::size_t np = pool.size();
+  // The pool in time order (ties: pool order), the breaks' series order.
+  std::vector<std::size_t> by_time(np);
+  std::iota(by_time.begin(), by_time.end(), std::size_t(0));
+  std::stable_sort(by_time.begin(), by_time.end(),
+                   [&](std::size_t i, std::size_t j) { return pool.times()[i] < pool.times()[j]; });
 
   // The points of a projection cylinder (the reference code's membership test, radial^2 = |v|^2 -
   // along^2), the tree's boxes pruned by the cylinder's bounds (index/cylinder.hpp).
@@ -313,13 +359,17 @@ Tam3c2Result tam3c2(const Tam3c2Params& p, const Tam3c2Pool& pool, std::size_t r
   // sphere), its ratio and its reference side.
   const auto prepare = [&](std::size_t i, Scratch& s, CorePoint& cp) {
     const Vec3 c = core[i], towards = orientation_of(i);
+    cp.segment.clear();
+    if (p.breaks == Tam3c2Breaks::kChangePoints)
+      detail::break_segments(epochwise.distance + i * np, by_time, p.change_points, cp.segment, s.finite);
+    const Segment around_reference = segment_of(cp, reference);
     double best = -std::numeric_limits<double>::infinity();
     Vec3 normal = towards;
     std::int32_t chosen = -1;
     for (std::size_t a = 0; a < p.normal_radii.size(); ++a)
       for (std::size_t b = 0; b < ratios; ++b) {
         const double r = p.normal_radii[a];
-        aggregate(pool, ref_order, t_ref, range * p.window_ratios[b], p.min_points, s, s.a,
+        aggregate(pool, ref_order, t_ref, range * p.window_ratios[b], p.min_points, around_reference, s, s.a,
                   [&](const detail::KdTree& tree, std::vector<std::uint32_t>& found) { tree.ball(c, r, found); });
         Vec3 nrm = towards;
         const double pl = planarity(s.a, towards, nrm);
@@ -329,8 +379,8 @@ Tam3c2Result tam3c2(const Tam3c2Params& p, const Tam3c2Pool& pool, std::size_t r
     out.scale[i] = chosen;
     cp.index = i, cp.c = c, cp.normal = normal;
     cp.ratio = p.window_ratios[chosen < 0 ? 0 : std::size_t(chosen) % ratios];
-    aggregate(pool, ref_order, t_ref, std::numeric_limits<double>::infinity(), p.min_points, s, cp.reference,
-              cylinder_of(c, normal));
+    aggregate(pool, ref_order, t_ref, std::numeric_limits<double>::infinity(), p.min_points, around_reference, s,
+              cp.reference, cylinder_of(c, normal));
   };
 
   // One cell: the core point's distance and LOD at target j.
@@ -340,10 +390,12 @@ Tam3c2Result tam3c2(const Tam3c2Params& p, const Tam3c2Pool& pool, std::size_t r
     if (gap == 0.0) gap = range;  // the target at the reference's time: the whole range (4.7)
     const double window = gap * cp.ratio;
     s.a.prefix_of(cp.reference, window);
-    aggregate(pool, target_order[j], t_tgt, window, p.min_points, s, s.b, cylinder_of(cp.c, cp.normal));
+    aggregate(pool, target_order[j], t_tgt, window, p.min_points, segment_of(cp, targets[j]), s, s.b,
+              cylinder_of(cp.c, cp.normal));
     const std::size_t o = cp.index * nt + j;
     out.epochs1[o] = s.a.epochs, out.epochs2[o] = s.b.epochs;
     out.points1[o] = std::uint32_t(s.a.count()), out.points2[o] = std::uint32_t(s.b.count());
+    if (fall_back(p, epochwise, cp.index * np + targets[j], s.a, s.b, out, o)) return;
     if (s.a.count() < 2 || s.b.count() < 2) return;  // no spread on a side: no distance
     weights(p, s.a, cp.c, cp.normal, window, s.w1);
     weights(p, s.b, cp.c, cp.normal, window, s.w2);
@@ -352,6 +404,8 @@ Tam3c2Result tam3c2(const Tam3c2Params& p, const Tam3c2Pool& pool, std::size_t r
     out.distance[o] = m2.mean - m1.mean;
     out.lod[o] = side_lod(p, m1, !s.w1.empty(), m2, !s.w2.empty());
     out.spread1[o] = m1.spread, out.spread2[o] = m2.spread, out.n1[o] = m1.n, out.n2[o] = m2.n;
+    out.significant[o] = std::int8_t(std::abs(out.distance[o]) > out.lod[o]);
+    out.source[o] = std::uint8_t(Tam3c2Source::kWindows);
   };
 
   // Blocks of core points in Morton order (neighbours together), each block walked target by

@@ -123,8 +123,8 @@ TEST(Tam3c2, SameBitsForAnyThreadCount) {
   p.weights = m3c2::Tam3c2Weights::kGaussian;
   m3c2::RunOptions one, many;
   one.threads = 1, many.threads = 4;
-  const auto a = m3c2::tam3c2(p, pool, 0, {1, 2, 3, 4, 5}, {core.data(), 200}, {}, one);
-  const auto b = m3c2::tam3c2(p, pool, 0, {1, 2, 3, 4, 5}, {core.data(), 200}, {}, many);
+  const auto a = m3c2::tam3c2(p, pool, 0, {1, 2, 3, 4, 5}, {core.data(), 200}, {}, {}, one);
+  const auto b = m3c2::tam3c2(p, pool, 0, {1, 2, 3, 4, 5}, {core.data(), 200}, {}, {}, many);
   ASSERT_EQ(a.distance.size(), b.distance.size());
   EXPECT_EQ(0, std::memcmp(a.distance.data(), b.distance.data(), 8 * a.distance.size()));
   EXPECT_EQ(0, std::memcmp(a.lod.data(), b.lod.data(), 8 * a.lod.size()));

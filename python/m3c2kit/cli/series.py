@@ -127,6 +127,8 @@ def _positive_list(text: str) -> list[float]:
 
 
 def tam3c2_parser():
+    from .. import engine  # the engine's option names and defaults (include/m3c2/tam3c2.hpp)
+    defaults = engine.tam3c2_params()
     p = _parser("m3c2 series tam3c2", "Time-adaptive M3C2 (Huang et al., ISPRS Annals 2026): for each core point "
                                       "and epoch, the reference's and the epoch's cylinders each aggregate the "
                                       "epochs nearest in time until --required-points points, within a window of "
@@ -144,7 +146,7 @@ def tam3c2_parser():
     p.add_argument("--normal-radius", type=_positive_list, default=None, metavar="R[,R...]",
                    help="radii of the normal's sphere; several: chosen per core point (default: the store's "
                         "normal scales / 2)")
-    p.add_argument("--weights", choices=("none", "linear", "gaussian"), default="none",
+    p.add_argument("--weights", choices=engine.TAM3C2_CHOICES["weights"], default="none",
                    help="space-time weights of the points, with Kish's effective n in the LOD (default none)")
     p.add_argument("--sigma-ratio", type=positive_real("--sigma-ratio"), default=1.0,
                    help="width of the gaussian weights in units of the radius and window (default 1)")
@@ -152,6 +154,20 @@ def tam3c2_parser():
                    help="the temporal kernel's window is the window times this (default 1)")
     p.add_argument("--reference-time", default=None, metavar="TIME",
                    help="the reference's time (ISO 8601) when the store has none recorded")
+    p.add_argument("--fallback", choices=engine.TAM3C2_CHOICES["fallback"], default="m3c2",
+                   help="a cell whose windows leave a side short of --required-points: the epoch's own M3C2 "
+                        "from the store where it has a distance (m3c2, the default; tam3c2_window 0) or the "
+                        "authors' rule (none)")
+    p.add_argument("--window-breaks", choices=engine.TAM3C2_CHOICES["breaks"], default="none",
+                   help="changepoints: the windows stop at the change points of the core point's per-epoch "
+                        "M3C2 distances, so that none borrows across a step (default none: the authors' rule)")
+    p.add_argument("--break-width", type=integer(2, COUNT_MAX), default=None, metavar="N",
+                   help=f"epochs in the breaks' change-point window (default {defaults.break_width})")
+    p.add_argument("--break-min-size", type=integer(1, COUNT_MAX), default=None, metavar="N",
+                   help=f"fewest epochs of a segment between breaks (default {defaults.break_min_size})")
+    p.add_argument("--break-penalty", type=positive_real("--break-penalty"), default=None, metavar="P",
+                   help=f"a break is kept when it lowers the series' L1 cost by more than this, in the "
+                        f"distance's unit (default {defaults.break_penalty:g})")
     add_table_option(p, "confidence")  # of tam3c2_lod; default: the store's
     add_table_option(p, "lod")  # its statistic: z, t or auto; default: the store's (docs/series.md, "TAM3C2")
     add_table_option(p, "threads", filled=True)
@@ -405,11 +421,13 @@ def _run_tam3c2(args) -> int:
                             window_ratios=tuple(args.window_ratio), min_points=args.required_points, weights=args.weights,
                             sigma_ratio=args.sigma_ratio, space_time_ratio=args.space_time_ratio,
                             reference_time=args.reference_time, confidence=args.confidence, lod=args.lod,
+                            fallback=args.fallback, breaks=args.window_breaks, break_width=args.break_width,
+                            break_min_size=args.break_min_size, break_penalty=args.break_penalty,
                             threads=args.threads or 0)
     out = tam3c2(args.store, options)
     if not args.quiet:
         print(f"{args.store}: TAM3C2 over {out['epochs']} epochs, {out['computed']} of {out['cells']} distances "
-              f"computed; LOD ({out['lod']}) at {out['confidence']:g}")
+              f"computed ({out['from_epoch']} the epoch's own M3C2); LOD ({out['lod']}) at {out['confidence']:g}")
     return 0
 
 def objects_params(args):

@@ -382,20 +382,48 @@ def tam3c2_pool(clouds, times) -> "_core.Tam3c2Pool":
                                 [float(t) for t in times])
 
 
-def tam3c2(pool, core, reference: int, targets, settings: dict, *, orientations=None, threads: int = 0) -> dict:
+#: Each enum field of Tam3c2Params and its option names, in order (include/m3c2/tam3c2.hpp's own).
+TAM3C2_CHOICES = {k: tuple(v) for k, v in _core.TAM3C2_CHOICES.items()}
+#: Where a TAM3C2 cell's numbers came from (tam3c2.hpp, Tam3c2Source): its windows, or the epoch's own M3C2.
+TAM3C2_SOURCE_WINDOWS, TAM3C2_SOURCE_EPOCH = _core.Tam3c2Source.windows.value, _core.Tam3c2Source.epoch.value
+#: The fields of the epochs' own M3C2 that TAM3C2's fallback and breaks read, in the engine's order.
+TAM3C2_EPOCHWISE = ("distance", "lod", "significant", "n1", "n2")
+
+
+def tam3c2_params(**settings) -> "_core.Tam3c2Params":
+    """The engine's Tam3c2Params (include/m3c2/tam3c2.hpp) from its fields by name: normal_radii,
+    window_ratios, min_points, cylinder_radius, max_distance, weights, sigma_ratio,
+    space_time_ratio, registration_error, critical_value, orientation, lod, confidence, fallback,
+    breaks, break_width, break_min_size, break_jump, break_penalty; the engine's default for the
+    others."""
+    p = _core.Tam3c2Params()
+    with translated():
+        for name, value in settings.items():
+            if not hasattr(p, name):
+                raise TypeError(f"Tam3c2Params has no field {name!r}")
+            setattr(p, name, value)
+    return p
+
+
+def tam3c2(pool, core, reference: int, targets, settings: dict, *, orientations=None, epochwise=None,
+           threads: int = 0) -> dict:
     """TAM3C2 of `core` between the pool's epoch `reference` and each of `targets`; `settings`:
-    normal_radii, window_ratios, min_points, cylinder_radius, max_distance, weights, sigma_ratio,
-    space_time_ratio, registration_error, critical_value, orientation (tam3c2.hpp's Tam3c2Params);
-    `orientations`: None or (N, 3), the side each core point's normal points to (the engine falls
-    back to `orientation` where a row is not finite or zero).
+    tam3c2_params' fields. `orientations`: None or (N, 3), the side each core point's normal points
+    to (the engine falls back to `orientation` where a row is not finite or zero). `epochwise`:
+    None or a dict of TAM3C2_EPOCHWISE's (N, pool size) arrays, the epochs' own M3C2 (NaN where
+    none; the reference's own column distance 0), which fallback and breaks read.
     Per-(core, target) arrays are core x targets; normal core x 3, scale per core point."""
     core = np.ascontiguousarray(core, dtype=np.float64).reshape(-1, 3)
     targets = [int(t) for t in targets]
     if orientations is not None:
         orientations = np.ascontiguousarray(orientations, dtype=np.float64).reshape(-1, 3)
+    if epochwise is not None:
+        epochwise = np.ascontiguousarray(np.stack([np.asarray(epochwise[k], dtype=np.float64)
+                                                   for k in TAM3C2_EPOCHWISE]))
+    params = tam3c2_params(**settings)
     with translated():
-        out = _core.tam3c2(pool, core, int(reference), targets, orientations=orientations, threads=threads,
-                           **settings)
+        out = _core.tam3c2(pool, core, int(reference), targets, params, orientations=orientations,
+                           epochwise=epochwise, threads=threads)
     shape = (len(core), len(targets))
     return {k: (v if k in ("normal", "scale") else v.reshape(shape)) for k, v in out.items()}
 

@@ -4,7 +4,8 @@ or Kalman: both stay readable, each on its own axes) with the per-epoch M3C2 dis
 TAM3C2 distances with their ±LOD bars (filled where tam3c2_significant), the plotted numbers
 embedded beside the figure as JSON, and one paragraph states the options the run recorded, its
 completeness against per-epoch M3C2 (the paper's gain: more (core point, epoch) cells get a
-distance) and the share significant. A run older than the store's last epochs (`series add`
+distance), how many cells hold the epoch's own M3C2 (--fallback m3c2: tam3c2_window 0; drawn as
+diamonds) and the share significant. A run older than the store's last epochs (`series add`
 extends the variables with NaN / -1) is shown over the epochs it covered, and the page says so.
 A store without the TAM3C2 variables never reaches past tam3c2_run: its report is the one it
 always was."""
@@ -24,6 +25,8 @@ from ..base.quantiles import z_critical
 from . import integrity
 from . import store as st
 
+FROM_EPOCH = st.TAM3C2_FROM_EPOCH  # tam3c2_window of a cell holding the epoch's own M3C2
+
 DISTANCE, LOD, SIGNIFICANT, WINDOW = st.TAM3C2_VARIABLES[0:4]
 #: What the report reads of the run (the other variables may be absent without changing the page).
 READ = (DISTANCE, LOD, SIGNIFICANT, WINDOW)
@@ -41,6 +44,10 @@ class Tam3c2Run:
     confidence: float
     epochs: int  # the epochs the run covered; later ones were added since (NaN, -1)
     lod: str = "z"  # the LOD's statistic (z, t, auto); runs before it was recorded used z
+    fallback: str = "none"  # a short cell's numbers (none, m3c2); runs before it was recorded: none
+    breaks: str = "none"  # where windows stop (none, changepoints); runs before it was recorded: none
+    break_width: int = 0
+    break_penalty: float = 0.0
 
     @property
     def z(self) -> float:
@@ -71,7 +78,9 @@ def tam3c2_run(store: Path, group, n: int) -> Tam3c2Run | None:
         run = Tam3c2Run(int(attrs["min_points"]), tuple(float(r) for r in attrs["window_ratios"]),
                         tuple(float(r) for r in attrs["normal_radii"]), str(attrs["weights"]),
                         float(attrs["sigma_ratio"]), float(attrs["space_time_ratio"]), float(attrs["confidence"]),
-                        int(attrs["epochs"]), str(attrs.get("lod", "z")))
+                        int(attrs["epochs"]), str(attrs.get("lod", "z")), str(attrs.get("fallback", "none")),
+                        str(attrs.get("breaks", "none")), int(attrs.get("break_width", 0)),
+                        float(attrs.get("break_penalty", 0.0)))
     except (KeyError, TypeError, ValueError) as e:
         raise M3C2Error(f"{store}: the TAM3C2 variables lack their run's record ({e}); "
                         f"rerun {_rerun(group, store)}") from None
@@ -96,18 +105,20 @@ class Counts:
     m3c2: int  # cells with a per-epoch M3C2 distance
     tam3c2: int  # cells with a TAM3C2 distance
     significant: int  # of those, tam3c2_significant
+    from_epoch: int = 0  # of those, the epoch's own M3C2 (tam3c2_window 0)
 
 
 def counts(store: Path, group, run: Tam3c2Run) -> Counts:
     """Counted one block of core chunks at a time (memory: one block, whatever the store's size)."""
     n_core, rows = group[DISTANCE].shape[0], group[DISTANCE].chunks[0]
-    m3c2 = tam = flagged = 0
+    m3c2 = tam = flagged = own = 0
     for begin in range(0, n_core, rows):
         sel = (slice(begin, min(n_core, begin + rows)), slice(0, run.epochs))
         m3c2 += int(np.isfinite(st.read(store, group, "distance", sel)).sum())
         tam += int(np.isfinite(st.read(store, group, DISTANCE, sel)).sum())
         flagged += int((st.read(store, group, SIGNIFICANT, sel) == 1).sum())
-    return Counts(n_core * run.epochs, m3c2, tam, flagged)
+        own += int((st.read(store, group, WINDOW, sel) == FROM_EPOCH).sum())
+    return Counts(n_core * run.epochs, m3c2, tam, flagged, own)
 
 
 def summary(store: Path, group, run: Tam3c2Run, n: int) -> list[str]:
@@ -124,6 +135,15 @@ def summary(store: Path, group, run: Tam3c2Run, n: int) -> list[str]:
             f"{c.cells} (core point, epoch) cells{_share(c.tam3c2, c.cells)}, per-epoch M3C2 in "
             f"{c.m3c2}{_share(c.m3c2, c.cells)}; {c.significant} of the {c.tam3c2} TAM3C2 distances"
             f"{_share(c.significant, c.tam3c2)} are tam3c2_significant (|d| > LOD).")
+    if run.fallback == "m3c2":
+        text += (f" Fallback: {c.from_epoch} of the {c.tam3c2} distances{_share(c.from_epoch, c.tam3c2)} are the "
+                 f"epoch's own M3C2 (its windows fell short of {run.min_points} points; tam3c2_window 0, "
+                 f"drawn as diamonds).")
+    else:
+        text += " Fallback: none (the authors' rule: a short window keeps its own distance)."
+    if run.breaks == "changepoints":
+        text += (f" Windows stop at the change points of each core point's per-epoch M3C2 series (window "
+                 f"{run.break_width} epochs, penalty {run.break_penalty:g}).")
     if run.epochs < n:
         text += (f" It was computed over the first {run.epochs} of {n} epochs; rerun "
                  f"<code>{html.escape(_rerun(group, store))}</code> for the epochs added since (not drawn).")
@@ -162,6 +182,10 @@ def add_row(fig: Figure, x, xlabel: str, series: CoreSeries, run: Tam3c2Run) -> 
                 elinewidth=0.8, capsize=2, label="TAM3C2 ± LOD")
     flagged = series.significant == 1
     ax.plot(xt[flagged], series.tam3c2[flagged], "s", ms=3, color="C2", zorder=3, label="tam3c2_significant")
+    own = series.window == FROM_EPOCH
+    if own.any():
+        ax.plot(xt[own], series.tam3c2[own], "D", ms=5, mfc="none", color="C3", zorder=4,
+                label="the epoch's own M3C2 (fallback)")
     if k < n:  # from half-way to the first epoch added since: visible even for one added epoch
         ax.axvspan(x[k - 1] + (x[k] - x[k - 1]) / 2, x[n - 1], color="0.9", lw=0, label="added since the run")
     ax.axhline(0, color="0.5", lw=0.5)
@@ -187,6 +211,8 @@ def data_block(x, series: CoreSeries, run: Tam3c2Run) -> str:
     data = {"core": series.core, "time": times, "epochs": len(series.distance), "epochs_covered": run.epochs,
             "distance": _values(series.distance), "tam3c2_distance": _values(series.tam3c2),
             "tam3c2_lod": _values(series.lod), "tam3c2_significant": [int(v) for v in series.significant],
-            "tam3c2_window": [int(v) for v in series.window], "confidence": run.confidence, "z": run.z}
+            "tam3c2_window": [int(v) for v in series.window],
+            "tam3c2_from_epoch": [int(v) == FROM_EPOCH for v in series.window], "fallback": run.fallback,
+            "breaks": run.breaks, "confidence": run.confidence, "z": run.z}
     text = json.dumps(data, allow_nan=False, separators=(",", ":")).replace("</", "<\\/")
     return f'<script type="application/json" class="m3c2-tam3c2" data-core="{series.core}">{text}</script>'

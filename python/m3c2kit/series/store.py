@@ -340,6 +340,8 @@ KALMAN_VARIABLES = ("kalman_distance", "kalman_distance_sigma", "kalman_rate", "
 #: significance, epochs aggregated, and the two sides' (effective) point counts.
 TAM3C2_VARIABLES = ("tam3c2_distance", "tam3c2_lod", "tam3c2_significant", "tam3c2_window", "tam3c2_n1",
                     "tam3c2_n2")
+#: tam3c2_window's code for a cell holding the epoch's own M3C2 (--fallback m3c2); -1: no distance.
+TAM3C2_FROM_EPOCH = 0
 #: Variables derived from the epochs (per core point and epoch), kept the length of the series
 #: by append_batch: smooth's, objects' labels, the Kalman filter's, TAM3C2's.
 DERIVED_VARIABLES = ("smoothed_distance", "object", *KALMAN_VARIABLES, *TAM3C2_VARIABLES)

@@ -5,11 +5,14 @@ reference, attribute `reference`; each epoch's `source`), each checked against i
 SHA-256, read once and cropped to each block of core points' reach (series/epoch_crops.py): a
 block's pool is the reference at its time and every epoch at its own. For each core point and
 epoch, the distance between the reference's side and the epoch's side, each aggregated over the epochs nearest in time to it until `--required-points`
-points, within W = |t_epoch - t_reference| x ratio.
+points, within W = |t_epoch - t_reference| x ratio. Our extensions (the engine's rules, issue 41):
+`--fallback m3c2` (the default) gives a cell whose windows fall short the epoch's own M3C2 from the
+store; `--window-breaks changepoints` stops the windows at the change points of the core point's
+per-epoch M3C2 series.
 
 The step writes tam3c2_distance, tam3c2_lod, tam3c2_significant, tam3c2_window (epochs
-aggregated, both sides together), tam3c2_n1, tam3c2_n2 (counts, or Kish's effective n when
-weighted) in the staging folder, one block of core points at a time, and publishes them together
+aggregated, both sides together; 0: the epoch's own M3C2; -1: no distance), tam3c2_n1, tam3c2_n2
+(counts, or Kish's effective n when weighted) in the staging folder, one block of core points at a time, and publishes them together
 (analysis.publish_many): a kill leaves the previous variables, or all of them marked
 half-written, never a mix."""
 from __future__ import annotations
@@ -38,11 +41,12 @@ from . import step
 from . import store as st
 
 DISTANCE, LOD, SIGNIFICANT, WINDOW, N1, N2 = st.TAM3C2_VARIABLES
-WEIGHTS = ("none", "linear", "gaussian")
-LODS = ("z", "t", "auto")
+CHOICES = facade.TAM3C2_CHOICES  # weights, lod, fallback, breaks: the engine's names
+WEIGHTS, LODS = CHOICES["weights"], CHOICES["lod"]
+FROM_EPOCH = st.TAM3C2_FROM_EPOCH
 MICROSECONDS_PER_DAY = 86_400_000_000
-#: Bytes of a block's per-(core, epoch) results (12 arrays of 8 bytes): memory is bounded by one
-#: block of core points: its results and its pool (the epochs' points within the block's reach).
+#: Bytes of a block's per-(core, epoch) results and epochs' own M3C2 (17 arrays of 8 bytes): memory
+#: is bounded by one block of core points: those and its pool (the epochs' points within its reach).
 BLOCK_BYTES = 256 << 20
 
 
@@ -57,6 +61,11 @@ class Tam3c2Options:
     reference_time: str | None = None  # the store's when None
     confidence: float | None = None  # the store's when None
     lod: str | None = None  # the LOD's statistic, z, t or auto (tam3c2.hpp, Tam3c2Lod); the store's when None
+    fallback: str = "m3c2"  # a short cell: the epoch's own M3C2 (m3c2) or the authors' rule (none)
+    breaks: str = "none"  # windows stop at change points (changepoints) or not (none, the authors')
+    break_width: int | None = None  # the breaks' change-point detection; the engine's default when None
+    break_min_size: int | None = None
+    break_penalty: float | None = None
     threads: int = 0
 
 
@@ -75,6 +84,16 @@ def _check(o: Tam3c2Options) -> None:
         raise UsageError(f"--sigma-ratio must be finite and > 0, got {o.sigma_ratio!r}")
     if o.confidence is not None and not 0.0 < o.confidence < 1.0:
         raise UsageError(f"--confidence must be in (0, 1), got {o.confidence!r}")
+    for name in ("fallback", "breaks"):
+        if getattr(o, name) not in CHOICES[name]:
+            flag = "--fallback" if name == "fallback" else "--window-breaks"
+            raise UsageError(f"{flag} must be one of {', '.join(CHOICES[name])}, got {getattr(o, name)!r}")
+    if o.break_width is not None and not (isinstance(o.break_width, int) and o.break_width >= 2):
+        raise UsageError(f"--break-width must be an integer >= 2, got {o.break_width!r}")
+    if o.break_min_size is not None and not (isinstance(o.break_min_size, int) and o.break_min_size >= 1):
+        raise UsageError(f"--break-min-size must be an integer >= 1, got {o.break_min_size!r}")
+    if o.break_penalty is not None and not (math.isfinite(o.break_penalty) and o.break_penalty > 0):
+        raise UsageError(f"--break-penalty must be finite and > 0, got {o.break_penalty!r}")
     if o.lod is not None and o.lod not in LODS:
         raise UsageError(f"--lod: TAM3C2's LOD is {', '.join(LODS)} (it cannot resample a bootstrap), got {o.lod!r}")
 
@@ -158,12 +177,32 @@ def _settings(store: Path, group, o: Tam3c2Options) -> tuple[dict, float]:
                     max_distance=params.max_depth, weights=o.weights, sigma_ratio=float(o.sigma_ratio),
                     space_time_ratio=float(o.space_time_ratio), registration_error=params.registration_error,
                     critical_value=z_critical(confidence), lod=lod, confidence=float(confidence),
-                    orientation=[0.0, 0.0, 1.0])
+                    orientation=[0.0, 0.0, 1.0], fallback=o.fallback, breaks=o.breaks)
+    defaults = facade.tam3c2_params()
+    for name in ("break_width", "break_min_size", "break_penalty"):
+        given = getattr(o, name)
+        settings[name] = getattr(defaults, name) if given is None else given
     return settings, confidence
 
 
+def _epochwise(store: Path, group, rows: slice, n: int, order: np.ndarray) -> dict:
+    """The store's own M3C2 of the rows (distance, lod, significant, n1, n2; NaN where none) as
+    the engine's pool columns: the reference's (pool position of 0 in `order`) distance 0, the
+    reference against itself."""
+    out = {}
+    for name in facade.TAM3C2_EPOCHWISE:
+        raw = st.read(store, group, name, (rows, slice(0, n)))
+        values = raw.astype(np.float64)
+        if name in st.INT_FILL:
+            values[raw == st.INT_FILL[name][1]] = np.nan
+        full = np.full((values.shape[0], n + 1), 0.0 if name == "distance" else np.nan)
+        full[:, 1:] = values
+        out[name] = full[:, order]
+    return out
+
+
 def _block_rows(group, n: int) -> list[tuple[int, int]]:
-    most = max(1, BLOCK_BYTES // (max(1, n) * 8 * 12))
+    most = max(1, BLOCK_BYTES // (max(1, n) * 8 * 17))
     out = []
     for begin, end in analysis._core_chunks(group):
         out.extend((b, min(end, b + most)) for b in range(begin, end, most))
@@ -199,40 +238,48 @@ def tam3c2(store: Path, options: Tam3c2Options = Tam3c2Options()) -> dict:
         common = {"epochs": int(n), "min_points": settings["min_points"], "weights": options.weights,
                   "window_ratios": settings["window_ratios"], "normal_radii": settings["normal_radii"],
                   "space_time_ratio": settings["space_time_ratio"], "sigma_ratio": settings["sigma_ratio"],
-                  "confidence": confidence, "lod": settings["lod"], "time_unit": "days since the reference"}
+                  "confidence": confidence, "lod": settings["lod"], "time_unit": "days since the reference",
+                  "fallback": options.fallback, "breaks": options.breaks,
+                  **({k: settings[k] for k in ("break_width", "break_min_size", "break_penalty")}
+                     if options.breaks != "none" else {})}
+        needs_epochwise = options.fallback != "none" or options.breaks != "none"
         integrity.make_staging(folder)
         out = _staged_all(folder, group, common)
         fault_hook.checkpoint("store-write")
-        computed = 0
+        computed = from_epoch = 0
         blocks = _block_rows(group, n)
         spill = held.enter_context(private_folder(store.resolve().parent, store))
         crops = _crops(store, files, core, blocks, reach, Path(spill.path))
         for k, (begin, end) in enumerate(blocks):
             pool = facade.tam3c2_pool(crops.block(k), times[order].tolist())
-            r = facade.tam3c2(pool, core[begin:end], int(position[0]), position[1:].tolist(), settings,
-                              orientations=towards[begin:end], threads=threads)
             rows = slice(begin, end)
+            epochwise = _epochwise(store, group, rows, n, order) if needs_epochwise else None
+            r = facade.tam3c2(pool, core[begin:end], int(position[0]), position[1:].tolist(), settings,
+                              orientations=towards[begin:end], epochwise=epochwise, threads=threads)
             out[DISTANCE][rows, :n] = r["distance"]
             computed += int(np.isfinite(r["distance"]).sum())
             out[LOD][rows, :n] = r["lod"]
-            with np.errstate(invalid="ignore"):
-                out[SIGNIFICANT][rows, :n] = np.where(np.isnan(r["distance"]), -1,
-                                                      np.abs(r["distance"]) > r["lod"]).astype(np.int8)
-            out[WINDOW][rows, :n] = (r["epochs1"] + r["epochs2"]).astype(np.int32)
+            out[SIGNIFICANT][rows, :n] = r["significant"]
+            own = r["source"] == facade.TAM3C2_SOURCE_EPOCH
+            from_epoch += int(own.sum())
+            out[WINDOW][rows, :n] = np.where(own, FROM_EPOCH, np.where(
+                r["source"] == facade.TAM3C2_SOURCE_WINDOWS, r["epochs1"] + r["epochs2"], -1)).astype(np.int32)
             out[N1][rows, :n] = r["n1"]
             out[N2][rows, :n] = r["n2"]
         analysis.publish_many(folder, list(st.TAM3C2_VARIABLES))
     return {"epochs": n, "variables": list(st.TAM3C2_VARIABLES), "confidence": confidence, "lod": settings["lod"],
-            "computed": computed,
-            "cells": n * len(core)}
+            "computed": computed, "from_epoch": from_epoch, "cells": n * len(core)}
 
 
 def _staged_all(folder: Path, group, common: dict) -> dict:
     _, zarr = st.require_extra()
-    spec = [(DISTANCE, np.float64, np.nan, "TAM3C2 distance (reference side to the epoch's side)"),
+    spec = [(DISTANCE, np.float64, np.nan, "TAM3C2 distance (reference side to the epoch's side); where tam3c2_window is 0, the "
+                                            "epoch's own M3C2 distance, LOD, significant, n1, n2"),
             (LOD, np.float64, np.nan, "TAM3C2 level of detection: z or Welch's t (attribute lod) x sqrt(s1^2/n1 + s2^2/n2) + registration error"),
-            (SIGNIFICANT, np.int8, -1, "|tam3c2_distance| > tam3c2_lod (1 yes, 0 no, -1 no distance)"),
-            (WINDOW, np.int32, -1, "epochs aggregated, the reference's side and the epoch's side together"),
+            (SIGNIFICANT, np.int8, -1, "|tam3c2_distance| > tam3c2_lod (1 yes, 0 no, -1 no distance); where tam3c2_window "
+                                            "is 0, the epoch's own M3C2 significant"),
+            (WINDOW, np.int32, -1, "epochs aggregated, the reference's side and the epoch's side together; "
+                                   "0: the epoch's own M3C2 (fallback); -1: no distance"),
             (N1, np.float64, np.nan, "points of the reference's side (Kish's effective n when weighted)"),
             (N2, np.float64, np.nan, "points of the epoch's side (Kish's effective n when weighted)")]
     out = {}

@@ -110,6 +110,26 @@ def test_the_paragraph_states_the_options_and_counts_completeness_and_significan
     assert "computed over the first" not in page
 
 
+def test_the_report_names_the_fallback_cells(computed, tmp_path, monkeypatch):
+    """--fallback m3c2 (the default): the paragraph counts the cells holding the epoch's own M3C2
+    (tam3c2_window 0), each block lists them, and the row draws them apart."""
+    store = copy(computed, tmp_path)
+    figures = []
+    monkeypatch.setattr(report, "png", lambda fig: figures.append(fig) or b"")
+    page = page_of(store, tmp_path)
+    window = raw(store, "tam3c2_window")
+    tam = int(np.isfinite(xr.open_zarr(store)["tam3c2_distance"].values).sum())
+    own = int((window == 0).sum())
+    assert 0 < own < tam
+    assert (f"Fallback: {own} of the {tam} distances ({100 * own / tam:.1f} %) are the epoch's own M3C2 (its "
+            f"windows fell short of 5 points; tam3c2_window 0") in page
+    for (core, data), fig in zip(sorted(embedded(page, "tam3c2").items()), figures):
+        assert data["fallback"] == "m3c2" and data["tam3c2_from_epoch"] == (window[core] == 0).tolist()
+        drawn = [ln for ln in fig.axes[1].get_lines() if ln.get_label().startswith("the epoch's own M3C2")]
+        assert len(drawn) == int((window[core] == 0).any())
+    assert any((window[c] == 0).any() for c in (0, 33, 69))  # a figure draws some
+
+
 def test_a_run_older_than_the_last_epochs_is_shown_over_its_epochs_and_said(computed, tmp_path, monkeypatch):
     store = copy(computed, tmp_path)
     figures = []

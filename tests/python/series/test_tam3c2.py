@@ -2,8 +2,9 @@
 implementation written here from the paper's definitions (tam3c2_readme.md of xyuhuang/py4dgeo:
 nearest-in-time aggregation within W = gap x ratio until min_points, the most planar sphere's
 normal, (weighted) means and spreads, Kish's effective n, the LOD), on tiny seeded series: the
-same distances and LODs to 1e-9, for every weighting and several scales; the same bits for any
-thread count."""
+same distances and LODs to 1e-9, for every weighting and several scales, and with our two
+extensions (the fallback to the epoch's own M3C2, the window breaks at change points); the same
+bits for any thread count."""
 from __future__ import annotations
 
 import numpy as np
@@ -13,19 +14,42 @@ from scipy import stats
 from m3c2kit import engine as facade
 
 
-def brute_force(clouds, times, core, ref, targets, s):
+def segments(row, times, s):
+    """The breaks' segment of each pool epoch (tam3c2.hpp, Tam3c2Breaks): the change points of the
+    finite values of `row` in time order (the engine's change_points, tested on its own against
+    ruptures), a NaN epoch in the segment of the finite epoch before it."""
+    by_time = sorted(range(len(times)), key=lambda e: (times[e], e))
+    finite = np.array([row[e] for e in by_time if np.isfinite(row[e])])
+    starts = set()
+    if len(finite) > s["break_width"]:
+        starts = set(int(k) for k in facade.change_points(finite, s["break_width"], s["break_min_size"], 1,
+                                                          s["break_penalty"]))
+    out, current, k = np.zeros(len(times), dtype=int), 0, 0
+    for e in by_time:
+        if np.isfinite(row[e]):
+            current += k in starts
+            k += 1
+        out[e] = current
+    return out
+
+
+def brute_force(clouds, times, core, ref, targets, s, epochwise=None):
     """TAM3C2 by exhaustive search: every point of every epoch tested (no spatial index)."""
     times = np.asarray(times, dtype=float)
     span = times.max() - times.min() or 1.0
     o = np.asarray(s["orientation"], dtype=float)
+    segment = None
 
-    def aggregate(c, centre, window, inside):
+    def aggregate(c, centre_epoch, window, inside):
+        centre = times[centre_epoch]
         order = sorted(range(len(times)), key=lambda e: (abs(times[e] - centre), e))
         pts, dts, epochs = [], [], 0
         for e in order:
             dt = times[e] - centre
             if abs(dt) > window:
                 break
+            if segment is not None and segment[e] != segment[centre_epoch]:
+                continue  # the breaks: only the centre's segment
             found = clouds[e][inside(clouds[e] - c)]
             if len(found) == 0:
                 continue
@@ -58,11 +82,13 @@ def brute_force(clouds, times, core, ref, targets, s):
         return m, np.sqrt((w * (p - m) ** 2).sum() / w.sum()), max(w.sum() ** 2 / (w * w).sum(), 1.0)
 
     combos = [(r, q) for r in s["normal_radii"] for q in s["window_ratios"]]
-    out = {k: np.full((len(core), len(targets)), np.nan) for k in ("distance", "lod", "n1", "n2")}
+    out = {k: np.full((len(core), len(targets)), np.nan) for k in ("distance", "lod", "n1", "n2", "significant")}
     for i, c in enumerate(core):
+        if s.get("breaks", "none") == "changepoints":
+            segment = segments(epochwise["distance"][i], times, s)
         best, normal, ratio = -np.inf, o, combos[0][1]
         for r, q in combos:
-            pts, _, _ = aggregate(c, times[ref], span * q, lambda v: (v * v).sum(1) <= r * r)
+            pts, _, _ = aggregate(c, ref, span * q, lambda v: (v * v).sum(1) <= r * r)
             if len(pts) < 3:
                 continue
             lam, vec = np.linalg.eigh(np.cov(pts.T, bias=True))
@@ -73,8 +99,13 @@ def brute_force(clouds, times, core, ref, targets, s):
             np.abs(v @ normal) <= s["max_distance"])
         for j, t in enumerate(targets):
             window = (abs(times[t] - times[ref]) or span) * ratio
-            p1, d1, _ = aggregate(c, times[ref], window, cyl)
-            p2, d2, _ = aggregate(c, times[t], window, cyl)
+            p1, d1, _ = aggregate(c, ref, window, cyl)
+            p2, d2, _ = aggregate(c, t, window, cyl)
+            short = min(len(p1), len(p2)) < max(s["min_points"], 2)
+            if s.get("fallback", "none") == "m3c2" and short and np.isfinite(epochwise["distance"][i, t]):
+                for k in out:  # the epoch's own M3C2
+                    out[k][i, j] = epochwise[k][i, t]
+                continue
             if len(p1) < 2 or len(p2) < 2:
                 continue
             w1, w2 = weights(p1 - c, d1, normal, window), weights(p2 - c, d2, normal, window)
@@ -83,6 +114,7 @@ def brute_force(clouds, times, core, ref, targets, s):
             out["distance"][i, j] = m2 - m1
             out["lod"][i, j] = lod(s, s1, n1, w1 is not None, s2, n2, w2 is not None)
             out["n1"][i, j], out["n2"][i, j] = n1, n2
+            out["significant"][i, j] = abs(m2 - m1) > out["lod"][i, j]
     return out
 
 
@@ -143,6 +175,47 @@ def test_the_engine_equals_a_brute_force_tam3c2(seed, weights, statistic):
     assert np.isfinite(got["distance"]).sum() > 0.3 * got["distance"].size  # a test that compares numbers
 
 
+def _epochwise(times, ref, cores: int, seed: int):
+    """Stand-in per-epoch M3C2 (the engine only reads it): the rise, a step of 8 cm from the 7th
+    epoch on, noise, and 15 % of the cells without a distance; the reference's own 0."""
+    rng = np.random.default_rng(seed + 100)
+    n = len(times)
+    d = 0.03 * (times - times[ref]) + np.where(np.arange(n) >= 6, 0.08, 0.0) + rng.normal(0, 0.005, (cores, n))
+    d[rng.random((cores, n)) < 0.15] = np.nan
+    d[:, ref] = 0.0
+    none = np.isnan(d)
+    m = {"distance": d, "lod": rng.uniform(0.01, 0.05, (cores, n)), "significant": rng.integers(0, 2, (cores, n)) * 1.0,
+         "n1": rng.integers(10, 40, (cores, n)) * 1.0, "n2": rng.integers(2, 20, (cores, n)) * 1.0}
+    for k in ("lod", "significant", "n1", "n2"):
+        m[k][none] = np.nan
+    return m
+
+
+@pytest.mark.parametrize("fallback", ["none", "m3c2"])
+@pytest.mark.parametrize("breaks", ["none", "changepoints"])
+@pytest.mark.parametrize("seed", [1, 2])
+def test_the_extensions_equal_a_brute_force_tam3c2(seed, breaks, fallback):
+    """The fallback (a cell short of min_points takes the epoch's own M3C2 where it has one) and
+    the breaks (each side only in its centre's segment) against the brute force; each changes
+    cells (else this test could not fail)."""
+    clouds, times, core = tiny_series(seed, epochs=10)
+    ref, targets = 2, [0, 1, 3, 4, 5, 6, 7, 8, 9]
+    m = _epochwise(times, ref, len(core), seed)
+    s = settings(fallback=fallback, breaks=breaks, break_width=4, break_min_size=2, break_penalty=0.05, lod="t")
+    pool = facade.tam3c2_pool(clouds, times)
+    got = facade.tam3c2(pool, core, ref, targets, s, epochwise=m, threads=1)
+    want = brute_force(clouds, times, core, ref, targets, s, epochwise=m)
+    for key in ("distance", "lod", "n1", "n2", "significant"):
+        assert np.array_equal(np.isnan(got[key] if key != "significant" else np.where(got[key] < 0, np.nan, 0)),
+                              np.isnan(want[key])), key
+        w = want[key] if key != "significant" else np.where(np.isnan(want[key]), -1, want[key])
+        np.testing.assert_allclose(got[key], w, rtol=1e-9 if key == "lod" else 0, atol=1e-9, err_msg=key)
+    assert (got["source"] == facade.TAM3C2_SOURCE_EPOCH).any() == (fallback == "m3c2")
+    if breaks == "changepoints":
+        unbroken = facade.tam3c2(pool, core, ref, targets, dict(s, breaks="none"), epochwise=m, threads=1)
+        assert not np.array_equal(got["distance"], unbroken["distance"], equal_nan=True)
+
+
 def test_the_window_cap_and_min_points_change_the_result():
     """Sensitivity: a smaller cap borrows fewer epochs (more NaN), a larger min_points borrows more."""
     clouds, times, core = tiny_series(3)
@@ -155,12 +228,17 @@ def test_the_window_cap_and_min_points_change_the_result():
     assert more["points2"].sum() > wide["points2"].sum()  # (min_points also moves the normal's contest)
 
 
-def test_the_same_bits_for_any_thread_count():
+@pytest.mark.parametrize("extended", [False, True])
+def test_the_same_bits_for_any_thread_count(extended):
     clouds, times, core = tiny_series(4, epochs=9)
     pool = facade.tam3c2_pool(clouds, times)
     s = settings(weights="gaussian")
-    a = facade.tam3c2(pool, core, 0, range(9), s, threads=1)
-    b = facade.tam3c2(pool, core, 0, range(9), s, threads=3)
+    m = None
+    if extended:  # the fallback and the breaks
+        s.update(fallback="m3c2", breaks="changepoints", break_width=4, break_min_size=2)
+        m = _epochwise(times, 0, len(core), 4)
+    a = facade.tam3c2(pool, core, 0, range(9), s, epochwise=m, threads=1)
+    b = facade.tam3c2(pool, core, 0, range(9), s, epochwise=m, threads=3)
     for key in a:
         assert a[key].tobytes() == b[key].tobytes(), key
 

@@ -1,7 +1,8 @@
 """`m3c2 series tam3c2` on a store (series/tam3c2.py; docs/series.md, "TAM3C2"): the variables
 equal the engine's TAM3C2 on the store's recorded files and times, more core points get a distance
-than plain per-epoch M3C2 on sparse epochs (the paper's completeness gain, seeded simulation), the
-store stays sound, bad input is refused naming it, and a kill at every write phase keeps the
+than plain per-epoch M3C2 on sparse epochs (the paper's completeness gain, seeded simulation) and,
+with the fallback, never fewer in any epoch, the window breaks keep a step out of the epoch before
+it, the store stays sound, bad input is refused naming it, and a kill at every write phase keeps the
 previous variables or marks all of them half-written (never a mix)."""
 from __future__ import annotations
 
@@ -64,16 +65,34 @@ def test_the_variables_are_the_engines_tam3c2_on_the_recorded_files(base, tmp_pa
              weights="gaussian", sigma_ratio=1.0, space_time_ratio=1.0, registration_error=0.0,
              critical_value=NormalDist().inv_cdf(0.975), orientation=[0.0, 0.0, 1.0], lod="z", confidence=0.95)
     towards = np.column_stack([ds["nx"].values, ds["ny"].values, ds["nz"].values])
-    want = facade.tam3c2(pool, core, 0, range(1, 11), s, orientations=towards)
+    # the store's own M3C2 as the engine's pool columns (the reference's: distance 0)
+    own = {k: np.column_stack([np.zeros(len(core)) if k == "distance" else np.full(len(core), np.nan),
+                               ds[k].values.astype(float)]) for k in facade.TAM3C2_EPOCHWISE}
+    want = facade.tam3c2(pool, core, 0, range(1, 11), dict(s, fallback="m3c2"), orientations=towards, epochwise=own)
     np.testing.assert_array_equal(ds["tam3c2_distance"].values, want["distance"])
     np.testing.assert_array_equal(ds["tam3c2_lod"].values, want["lod"])
     np.testing.assert_array_equal(ds["tam3c2_n2"].values, want["n2"])
-    np.testing.assert_array_equal(ds["tam3c2_window"].values, (want["epochs1"] + want["epochs2"]).astype(np.int32))
+    from_epoch = want["source"] == facade.TAM3C2_SOURCE_EPOCH
+    assert from_epoch.any() and (want["source"] == facade.TAM3C2_SOURCE_WINDOWS).any()
+    window = np.where(from_epoch, 0, want["epochs1"] + want["epochs2"]).astype(np.int32)
+    window[np.isnan(want["distance"])] = -1
+    np.testing.assert_array_equal(np.nan_to_num(ds["tam3c2_window"].values, nan=-1), window)  # xarray: -1 is NaN
+    np.testing.assert_array_equal(ds["tam3c2_distance"].values[from_epoch], ds["distance"].values[from_epoch])
     sig = ds["tam3c2_significant"].values
-    # xarray decodes the fill (-1, no distance) to NaN
-    assert np.array_equal(np.isnan(sig), np.isnan(want["distance"]))
+    # xarray decodes the fill (-1: no distance, or the epoch's own M3C2 without a significance: its
+    # LOD NaN at one point on a side) to NaN
+    untested = from_epoch & np.isnan(ds["significant"].values)
+    assert untested.any() and np.array_equal(np.isnan(sig), np.isnan(want["distance"]) | untested)
     ok = ~np.isnan(sig)
-    assert np.array_equal(sig[ok] == 1, np.abs(want["distance"][ok]) > want["lod"][ok]) and (sig == 1).any()
+    np.testing.assert_array_equal(sig[ok], want["significant"][ok])
+    assert np.array_equal(sig[ok & ~from_epoch] == 1, (np.abs(want["distance"]) > want["lod"])[ok & ~from_epoch])
+    np.testing.assert_array_equal(sig[from_epoch], ds["significant"].values[from_epoch])
+    assert (sig == 1).any()
+    # --fallback none: the authors' rule, the engine without the epochs' own M3C2
+    assert run(capsys, "series", "tam3c2", store, "--reference-time", REF_TIME, "--required-points", "6",
+               "--window-ratio", "0.5,1", "--weights", "gaussian", "--fallback", "none")[0] == 0
+    authors = facade.tam3c2(pool, core, 0, range(1, 11), s, orientations=towards)
+    np.testing.assert_array_equal(xr.open_zarr(store)["tam3c2_distance"].values, authors["distance"])
     assert ds["tam3c2_distance"].attrs["weights"] == "gaussian"
     assert ds["tam3c2_distance"].attrs["lod"] == "z"  # the store's (PARAMS: --lod z)
     assert run(capsys, "series", "check", store)[0] == 0
@@ -110,6 +129,88 @@ def test_more_core_points_get_a_distance_than_with_plain_m3c2_on_sparse_epochs(b
     assert np.median(error) < 0.02
 
 
+def make_store(folder: Path, hours, z_of_hour, seed: int, density: float = 5.5) -> Path:
+    """A store of a dense reference at hour 0 and sparse epochs (`density` points per m²: about
+    1.5 per cylinder at 5.5) at `hours`, the surface at height z_of_hour(h) plus a slope
+    (validation/tam3c2_fallback.py uses it too)."""
+    rng = np.random.default_rng(seed)
+
+    def cloud(n, h):
+        x, y = rng.uniform(0, 6, n), rng.uniform(0, 6, n)
+        return np.column_stack([x, y, 0.1 * x + 0.05 * np.sin(2 * y) + z_of_hour(h) + rng.normal(0, 0.005, n)])
+
+    np.save(folder / "ref.npy", cloud(36 * 60, 0.0))
+    lines = []
+    for k, h in enumerate(hours):
+        np.save(folder / f"e{k:02d}.npy", cloud(int(36 * density), h))
+        lines.append(f"e{k:02d}.npy, {np.datetime64(REF_TIME) + np.timedelta64(int(round(h * 60)), 'm')}\n")
+    (folder / "epochs.txt").write_text("".join(lines))
+    out = folder / "store.zarr"
+    assert main(["series", str(folder / "ref.npy"), str(folder / "epochs.txt"), "-o", str(out), *PARAMS,
+                 "--quiet", "--core-chunk", "40", "--epoch-chunk", "4"]) == 0
+    return out
+
+
+#: The scenes of the fallback and breaks tests (and of validation/tam3c2_fallback.py): epochs close
+#: to the reference's time, whose windows (|t - t_r| x 0.2) hold no other epoch; and no change,
+#: then a 5 cm step from hour 7 on, epochs every hour, so that --required-points 10 borrows about
+#: 6 epochs.
+NEAR_HOURS = [0.25, 0.5, 1, 2, 4, 6, 9, 12, 18, 24]
+STEP_HOURS, STEP_AT, STEP = list(range(1, 13)), 7, 0.05
+
+
+def step_height(h):
+    return STEP * (h >= STEP_AT)
+
+
+@pytest.fixture(scope="module")
+def near_reference(tmp_path_factory):
+    return make_store(tmp_path_factory.mktemp("tam_near"), NEAR_HOURS, lambda h: RISE * h, 41)
+
+
+def test_with_the_fallback_no_epoch_has_fewer_distances_than_plain_m3c2(near_reference, tmp_path, capsys):
+    """Issue 41: near the reference's time W is tiny, a side cannot reach --required-points, and
+    the authors' rule leaves cells NaN where the epoch's own M3C2 has a distance; the fallback
+    gives those the epoch's own, so TAM3C2 >= M3C2 in every epoch (and the authors' rule is
+    below it in some epoch here: this test can fail)."""
+    counts = {}
+    for fallback in ("none", "m3c2"):
+        store = copy(near_reference, tmp_path / fallback)
+        code, out, _ = run(capsys, "series", "tam3c2", store, "--reference-time", REF_TIME, "--fallback", fallback)
+        assert code == 0
+        ds = xr.open_zarr(store).load()
+        counts[fallback] = np.isfinite(ds["tam3c2_distance"].values).sum(axis=0)
+        plain = np.isfinite(ds["distance"].values).sum(axis=0)
+        assert ds["tam3c2_distance"].attrs["fallback"] == fallback
+        window = ds["tam3c2_window"].values
+        assert ((window == 0).any()) == (fallback == "m3c2")
+    assert (counts["m3c2"] >= plain).all(), (counts, plain)
+    assert (counts["none"] < plain).any(), (counts, plain)
+
+
+@pytest.fixture(scope="module")
+def step(tmp_path_factory):
+    return make_store(tmp_path_factory.mktemp("tam_step"), STEP_HOURS, step_height, 43)
+
+
+def test_the_window_breaks_keep_a_step_out_of_the_epoch_before_it(step, tmp_path, capsys):
+    """With --window-breaks none, the epoch before the step (hour 6, truth 0) borrows epochs after
+    it: its median error is over 1 cm; with changepoints the windows stop at the step detected in
+    each core point's per-epoch M3C2 series: under 0.5 cm."""
+    errors = {}
+    for breaks in ("none", "changepoints"):
+        store = copy(step, tmp_path / breaks)
+        assert run(capsys, "series", "tam3c2", store, "--reference-time", REF_TIME, "--window-ratio", "1",
+                   "--window-breaks", breaks)[0] == 0
+        d = xr.open_zarr(store)["tam3c2_distance"].values
+        k = STEP_HOURS.index(STEP_AT)
+        before, after = d[:, k - 1], d[:, k]  # hours 6 and 7
+        errors[breaks] = (float(np.nanmedian(np.abs(before))), float(np.nanmedian(np.abs(after - STEP))))
+        assert np.isfinite(before).mean() > 0.9
+    assert errors["none"][0] > 0.01 and errors["changepoints"][0] < 0.005, errors
+    assert errors["changepoints"][1] < 0.005, errors  # and the epoch after it: its own side of the step
+
+
 def test_bad_input_is_refused_naming_it(base, tmp_path, capsys):
     store = copy(base[0], tmp_path)
     code, _, err = run(capsys, "series", "tam3c2", store)
@@ -118,6 +219,10 @@ def test_bad_input_is_refused_naming_it(base, tmp_path, capsys):
     assert code == 2 and "--window-ratio" in err
     code, _, err = run(capsys, "series", "tam3c2", store, "--reference-time", "yesterday")
     assert code == 2 and "--reference-time" in err
+    code, _, err = run(capsys, "series", "tam3c2", store, "--reference-time", REF_TIME, "--window-breaks", "steps")
+    assert code == 2 and "--window-breaks" in err
+    code, _, err = run(capsys, "series", "tam3c2", store, "--reference-time", REF_TIME, "--break-width", "1")
+    assert code == 2 and "--break-width" in err
     assert not any(name in st.open_group(store) for name in st.TAM3C2_VARIABLES)
 
 
@@ -218,9 +323,9 @@ def test_a_full_disk_while_spilling_is_named_and_publishes_nothing(base, tmp_pat
 
 def test_the_lod_follows_the_stores_statistic_unless_given(base, tmp_path, capsys):
     """The store says --lod z: TAM3C2's LOD is z; --lod t gives Welch's t (wider at these few
-    points); a bootstrap is refused naming --lod."""
+    points); a bootstrap is refused naming --lod. (--fallback none: a fallback cell holds the store's LOD.)"""
     store = copy(base[0], tmp_path)
-    options = ["--reference-time", REF_TIME, "--required-points", "6"]
+    options = ["--reference-time", REF_TIME, "--required-points", "6", "--fallback", "none"]
     assert run(capsys, "series", "tam3c2", store, *options)[0] == 0
     z = xr.open_zarr(store)["tam3c2_lod"].values
     code, out, _ = run(capsys, "series", "tam3c2", store, *options, "--lod", "t")
