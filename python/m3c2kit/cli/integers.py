@@ -29,6 +29,7 @@ def integer(low: int, high: int):
             raise argparse.ArgumentTypeError(f"must be an integer from {low} to {high}, got {text}")
         return value
     parse.__name__ = "integer"  # argparse names the type in its messages
+    parse.bounds = (low, high)  # for a dialog built from the parser (settings.export)
     return parse
 
 
@@ -38,6 +39,7 @@ def positive_real(flag: str):
     def parse(text: str) -> float:
         return positive(flag, text)
     parse.__name__ = "positive"
+    parse.bounds = (0.0, None)  # > 0 (settings.export)
     return parse
 
 

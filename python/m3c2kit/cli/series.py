@@ -169,7 +169,10 @@ def tam3c2_parser():
                    help=f"a break is kept when it lowers the series' L1 cost by more than this, in the "
                         f"distance's unit (default {defaults.break_penalty:g})")
     add_table_option(p, "confidence")  # of tam3c2_lod; default: the store's
-    add_table_option(p, "lod")  # its statistic: z, t or auto; default: the store's (docs/series.md, "TAM3C2")
+    # The table's --lod offers the bootstrap, which TAM3C2 cannot resample (issue 42): its own choices.
+    p.add_argument("--lod", choices=engine.TAM3C2_CHOICES["lod"], default=None,
+                   help="the LOD's statistic: z, Welch's t, or auto (t when a side has under 30 points); TAM3C2 "
+                        "has no bootstrap (default: the store's; docs/series.md, \"TAM3C2\")")
     add_table_option(p, "threads", filled=True)
     add(p, "quiet")
     return p

@@ -69,6 +69,8 @@ SEVERAL_MEANINGS = {
     "--model": (2, "c2c's local model (none, plane); m3c2 series kalman's state (velocity, acceleration)"),
     "--confidence": (2, "the table's LOD confidence (compare, series); m3c2 aggregate's intervals (the row's range)"),
     "--error-model": (2, "the table's LOD under correlated errors (compare, series); m3c2 aggregate's intervals"),
+    "--lod": (2, "the table's LOD statistic (compare, series); series tam3c2's, without the bootstrap it cannot "
+                 "resample (issue 42: its help offered it)"),
 }
 #: Each command's output is its own.
 PER_COMMAND = {"-o", "--output"}
@@ -250,3 +252,12 @@ def test_a_library_warning_is_one_line_without_source(capsys):
     err = capsys.readouterr().err
     assert err == "m3c2: warning: RuntimeWarning: invalid value encountered in divide\n"
     assert warnings.showwarning is not cli_main._show_warning  # installed only while main runs
+
+
+def test_tam3c2_offers_only_the_lods_it_computes():
+    """Issue 42: tam3c2's help offered the bootstrap LOD, which it then refused."""
+    parser = PARSERS["m3c2 series tam3c2"]
+    action = parser._option_string_actions["--lod"]
+    assert tuple(action.choices) == ("z", "t", "auto") and "bootstrap" not in " ".join(action.choices)
+    with pytest.raises(UsageError, match="invalid choice: 'bootstrap'"):
+        parser.parse_args(["s.zarr", "--lod", "bootstrap"])
