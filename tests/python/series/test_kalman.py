@@ -187,7 +187,7 @@ def test_simulation_with_known_truth():
     r = rng.uniform(0.02, 0.04, (n_core, n)) ** 2
     truth, z, moving = simulate(rng, n_core, t, q, r)
     z[rng.random(z.shape) < 0.1] = np.nan
-    q_hat, note = km.fit_process_noise(z, r, t, "velocity", "continuous")
+    q_hat, note = km.fit_process_noise(km.Inputs(z, r), t, km._kalman_params("velocity", "continuous", 0.0))
     assert not note and 0.6 * q < q_hat < 1.6 * q, q_hat
     out = engine_smoother(z, r, t, "velocity", q, "continuous", threads=2)
     d, s = out["mean"][:, :, 0], out["sd"][:, :, 0]

@@ -65,7 +65,7 @@ def base(epochs, tmp_path_factory):
 
 def test_the_variables_are_the_engines_filter_of_the_stores_series(base, tmp_path, capsys):
     store = copy(base, tmp_path)
-    code, out, err = run(capsys, "series", "kalman", store, "--process-noise", "0.5")
+    code, out, err = run(capsys, "series", "kalman", store, "--process-noise", "0.5", "--observation", "independent")
     assert code == 0, err
     assert "from the first epoch" in out and "q = 0.5 (given)" in out
     ds = xr.open_zarr(store).load()
@@ -83,7 +83,8 @@ def test_the_variables_are_the_engines_filter_of_the_stores_series(base, tmp_pat
     assert "kalman_acceleration" not in ds
     assert run(capsys, "series", "check", store)[0] == 0
     # Another confidence: nothing to filter (resumed at the end), the flags at z_0.8.
-    code, out, err = run(capsys, "series", "kalman", store, "--process-noise", "0.5", "--confidence", "0.8")
+    code, out, err = run(capsys, "series", "kalman", store, "--process-noise", "0.5", "--confidence", "0.8",
+                         "--observation", "independent")
     assert code == 0 and "resumed after epoch 6" in out and "significant at 0.8" in out, (out, err)
     again = xr.open_zarr(store).load()
     assert again["kalman_distance"].values.tobytes() == ds["kalman_distance"].values.tobytes()
@@ -98,8 +99,9 @@ def test_the_acceleration_model_replaces_the_velocity_variables_and_back(base, t
     assert run(capsys, "series", "kalman", store, "--model", "acceleration", "--process-noise", "0.1")[0] == 0
     ds = xr.open_zarr(store)
     assert {"kalman_acceleration", "kalman_acceleration_sigma"} <= set(ds)
-    assert ds["kalman_moments"].shape[2] == 9
-    assert run(capsys, "series", "kalman", store, "--process-noise", "0.1")[0] == 0
+    assert ds["kalman_moments"].shape[2] == 14  # [d, d', d'', b]: 4 means, 10 covariances
+    assert ds["kalman_moments"].attrs["observation"] == "shared"
+    assert run(capsys, "series", "kalman", store, "--process-noise", "0.1", "--observation", "independent")[0] == 0
     ds = xr.open_zarr(store)
     assert "kalman_acceleration" not in ds and ds["kalman_moments"].shape[2] == 5
     assert run(capsys, "series", "check", store)[0] == 0
@@ -108,7 +110,7 @@ def test_the_acceleration_model_replaces_the_velocity_variables_and_back(base, t
 def test_auto_and_a_rerun_after_add_resumes_equal_to_from_scratch(base, epochs, tmp_path, capsys):
     _, _, second = epochs
     store = copy(base, tmp_path)
-    code, out, err = run(capsys, "series", "kalman", store)
+    code, out, err = run(capsys, "series", "kalman", store, "--observation", "independent")
     assert code == 0 and "maximum likelihood" in out, err
     q = float(xr.open_zarr(store)["kalman_moments"].attrs["process_noise"])
     assert run(capsys, "series", "add", store, second, "--quiet")[0] == 0
@@ -116,9 +118,11 @@ def test_auto_and_a_rerun_after_add_resumes_equal_to_from_scratch(base, epochs, 
     assert ds["kalman_distance"].shape[1] == 12 and np.isnan(ds["kalman_distance"].values[:, 7:]).all()
     assert run(capsys, "series", "check", store)[0] == 0  # kept the length of the series by add
     scratch = copy(store, tmp_path, "scratch.zarr")
-    code, out, err = run(capsys, "series", "kalman", store)
+    # a shared run in between is not resumed from (another model), nor does it resume
+    code, out, err = run(capsys, "series", "kalman", store, "--observation", "independent")
     assert code == 0 and "resumed after epoch 6" in out, (out, err)
-    assert run(capsys, "series", "kalman", scratch, "--from-scratch", "--process-noise", repr(q))[0] == 0
+    assert run(capsys, "series", "kalman", scratch, "--from-scratch", "--process-noise", repr(q),
+               "--observation", "independent")[0] == 0
     a, b = xr.open_zarr(store).load(), xr.open_zarr(scratch).load()
     for name in km.variables("velocity"):
         np.testing.assert_allclose(a[name].values, b[name].values, rtol=0, atol=1e-12, err_msg=name)
@@ -183,7 +187,7 @@ def test_an_imported_py4dgeo_store_is_filtered_with_its_lod_as_z(tmp_path, capsy
     store = tmp_path / "imp.zarr"
     assert main(["series", "import", str(archive), "-o", str(store)]) == 0
     capsys.readouterr()
-    code, out, err = run(capsys, "series", "kalman", store, "--process-noise", "0.01")
+    code, out, err = run(capsys, "series", "kalman", store, "--process-noise", "0.01", "--observation", "independent")
     assert code == 0, err
     ds = xr.open_zarr(store).load()
     days = (ds["time"].values - ds["time"].values[0]) / np.timedelta64(1, "D")
