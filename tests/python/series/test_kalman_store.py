@@ -14,6 +14,7 @@ import pytest
 xr = pytest.importorskip("xarray")
 pytest.importorskip("zarr")
 
+from m3c2kit import engine  # noqa: E402
 from m3c2kit.base import fault_hook  # noqa: E402
 from m3c2kit.cli.main import main  # noqa: E402
 from m3c2kit.series import kalman as km  # noqa: E402
@@ -195,3 +196,37 @@ def test_an_imported_py4dgeo_store_is_filtered_with_its_lod_as_z(tmp_path, capsy
                              "continuous")
     np.testing.assert_allclose(ds["kalman_distance"].values, expect["mean"][:, :, 0], rtol=0, atol=1e-12)
     assert np.isfinite(ds["kalman_distance"].values).any()
+
+
+def test_the_shared_run_is_the_engines_on_the_stores_spreads_and_always_from_scratch(base, epochs, tmp_path, capsys):
+    """The default model: the engine's shared filter on the store's distance, sigma1, n1, sigma2, n2
+    (pooled there), anchored at the reference's recorded time; after `add` the rerun filters from
+    the first epoch (the pooled scatter changed) and equals a --from-scratch run bit for bit."""
+    _, _, second = epochs
+    store = copy(base, tmp_path)
+    code, out, err = run(capsys, "series", "kalman", store, "--process-noise", "0.5")
+    assert code == 0 and "shared observation" in out and "from the first epoch" in out, (out, err)
+    ds = xr.open_zarr(store).load()
+    assert ds["kalman_distance"].attrs["observation"] == "shared" and ds["kalman_moments"].shape[2] == 9
+    days = (ds["time"].values - ds["time"].values[0]) / np.timedelta64(1, "D")
+    text = ds.attrs["reference_time"]
+    ref_time = (np.datetime64(text) - ds["time"].values[0]) / np.timedelta64(1, "D") if text else None
+    counts = lambda a: np.where(np.isfinite(a), a, np.nan).astype(np.float64)  # noqa: E731  (NaN: fill)
+    spread = tuple(np.ascontiguousarray(a) for a in (ds["sigma1"].values, counts(ds["n1"].values),
+                                                       ds["sigma2"].values, counts(ds["n2"].values)))
+    p = engine.kalman_params(order=2, discrete_noise=False, process_noise=0.5, reference=(ref_time, None))
+    z = np.ascontiguousarray(ds["distance"].values)
+    expect = engine.kalman_smooth(z, None, days, np.full((*z.shape, 9), np.nan), p, spread=spread)
+    np.testing.assert_allclose(ds["kalman_distance"].values, expect["mean"][:, :, 0], rtol=0, atol=1e-12)
+    np.testing.assert_allclose(ds["kalman_distance_sigma"].values, expect["sd"][:, :, 0], rtol=0, atol=1e-12)
+    # every core point with a distance has an estimate at every epoch from the first one
+    assert np.isfinite(ds["kalman_distance"].values).sum() >= np.isfinite(z).sum()
+    assert run(capsys, "series", "add", store, second, "--quiet")[0] == 0
+    scratch = copy(store, tmp_path, "scratch.zarr")
+    code, out, err = run(capsys, "series", "kalman", store, "--process-noise", "0.5")
+    assert code == 0 and "from the first epoch" in out, (out, err)
+    assert run(capsys, "series", "kalman", scratch, "--from-scratch", "--process-noise", "0.5")[0] == 0
+    a, b = xr.open_zarr(store).load(), xr.open_zarr(scratch).load()
+    for name in km.variables("velocity"):
+        assert a[name].values.tobytes() == b[name].values.tobytes(), name
+    assert run(capsys, "series", "check", store)[0] == 0
