@@ -150,8 +150,10 @@ def main() -> int:
         sim = simulate(scene, 100 + i)
         for observation in ("shared", "independent"):
             m = metrics(sim, run(sim, observation))
-            print(f"| {scene.name} | {observation} | {100 * m['coverage']:.1f} % | {100 * m['flagged']:.1f} % | "
-                  f"{m['error']:.2f} | {m['estimated']:.2f} |")
+            pct = lambda v: "no estimate" if np.isnan(v) else f"{100 * v:.1f} %"  # noqa: E731
+            error = "no estimate" if np.isnan(m["error"]) else f"{m['error']:.2f}"
+            print(f"| {scene.name} | {observation} | {pct(m['coverage'])} | {pct(m['flagged'])} | {error} | "
+                  f"{m['estimated']:.2f} |")
     return 0
 
 
