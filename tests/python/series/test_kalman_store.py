@@ -230,3 +230,22 @@ def test_the_shared_run_is_the_engines_on_the_stores_spreads_and_always_from_scr
     for name in km.variables("velocity"):
         assert a[name].values.tobytes() == b[name].values.tobytes(), name
     assert run(capsys, "series", "check", store)[0] == 0
+
+
+def test_the_reference_file_as_an_epoch_is_the_anchor_not_an_observation(epochs, tmp_path, capsys):
+    """Permanent laser scanning: the reference file is also epoch 0 (the same SHA-256). Its
+    distance is the reference against itself; the shared run anchors d = 0 there (sigma 0, never
+    significant) and estimates every later epoch with a positive sigma."""
+    paths, _, _ = epochs
+    lines = [f"{p.name}, {np.datetime64('2024-01-01T00:00') + np.timedelta64(h, 'h')}\n"
+             for p, h in zip(paths[:4], (0, 1, 2, 4))]
+    listing = list_file(paths[0].parent, "with_reference.txt", lines)
+    store = tmp_path / "pls.zarr"
+    assert main(["series", str(paths[0]), str(listing), "-o", str(store), *PARAMS, "--quiet"]) == 0
+    capsys.readouterr()
+    assert run(capsys, "series", "kalman", store, "--process-noise", "0.5")[0] == 0
+    ds = xr.open_zarr(store).load()
+    d, s = ds["kalman_distance"].values, ds["kalman_distance_sigma"].values
+    has = np.isfinite(d[:, 0])
+    assert has.mean() > 0.9 and (d[has, 0] == 0).all() and (s[has, 0] == 0).all()
+    assert (s[has, 1:] > 0).all() and (ds["kalman_significant"].values[has, 0] == 0).all()
