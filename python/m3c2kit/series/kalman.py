@@ -170,7 +170,9 @@ def _reference(store: Path, group, n: int) -> tuple[float | None, int | None]:
 def _kalman_params(model: str, noise: str, q: float, observation: str = "independent", *, reference=None,
                    params=None):
     """The engine's KalmanParams; the rate's (acceleration's) initial variance the engine's, 1
-    (unit / day)^2 (kalman.hpp). `reference`: (time, epoch) of the store's reference (_reference);
+    (unit / day)^2 (kalman.hpp). `observation` defaults to independent here, the model that needs
+    only each observation's variance (the tests' and the figure's series); the command's default,
+    shared, is KalmanOptions'. `reference`: (time, epoch) of the store's reference (_reference);
     `params`: the store's engine Params, whose registration error and spread the shared model uses."""
     reg = 0.0 if params is None else params.registration_error
     population = params is not None and params.variance.name == "population"
