@@ -59,7 +59,8 @@ struct KalmanParams {
   KalmanModel model = KalmanModel::kVelocity;
   KalmanNoise noise = KalmanNoise::kContinuous;
   double process_noise = 0.0;  ///< q >= 0 (see KalmanNoise), in the distances' unit and the times' unit
-  /// Where a row's filter starts. false (the default): at its first observed epoch, with
+  /// Where a row's filter starts (the independent model; the shared one starts at its anchor,
+  /// below). false (the default): at its first observed epoch, with
   /// d = that observation, var(d) = its variance, the derivatives 0 with the variances of
   /// `initial_variance` [1] and [2]. true: at time `prior_time` (before every epoch) with mean
   /// `prior_mean` (per row, or 0 when none is given) and covariance diag(initial_variance),
@@ -84,7 +85,7 @@ struct KalmanParams {
 
 /// One block of core points. `values`, `variance`: rows x epochs (observation and its variance;
 /// NaN in either: no observation). `times`: the epochs' times, non-decreasing, finite.
-/// `moments`: rows x epochs x kalman_moments(model), the filtered state at each epoch (NaN
+/// `moments`: rows x epochs x kalman_moments(model, observation), the filtered state at each epoch (NaN
 /// before a row's start): the epochs before `resume_from` are read (kept from an earlier run on
 /// the same epochs, parameters and observations; the independent model only: the shared one's
 /// pooled scatter changes with every epoch), the others written. `prior_mean`: rows x k or null.
