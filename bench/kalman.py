@@ -7,7 +7,11 @@
    count. The reference runs on a sample of core points in its own Python (--python, with filterpy)
    and its time is scaled to 100k core points, divided by the thread count (its best case:
    perfect scaling over processes).
-2. 1,000 epochs x 100k core points on 2 threads, block by block, with progress.
+2. The same series under the shared observation model (the default of `m3c2 series kalman`:
+   the state also holds the reference's error, each epoch's variance from the pooled scatter),
+   beside the independent model's time (its 2-state filter, as above but started at the first
+   observation).
+3. 1,000 epochs x 100k core points on 2 threads, block by block, with progress.
 
     .venv/bin/python bench/kalman.py --python /tmp/kalman_ref_venv/bin/python \\
         --tum-rsa py4dgeo-kalmanfiltering/src/py4dgeo/m3c2_kalman.py [--threads 2] [--skip-long]"""
@@ -51,7 +55,8 @@ def ours(days, z, var, threads: int, *, prior: bool, progress=False) -> float:
     """Wall seconds of the engine over every block (moments, outputs: one block at a time)."""
     from m3c2kit import engine
     p = engine.kalman_params(order=2, discrete_noise=True, process_noise=1e-4, initial_variance=(1.0, 1.0, 1.0),
-                             prior_time=(days[0] - (days[1] - days[0])) if prior else None)
+                             prior_time=(days[0] - (days[1] - days[0])) if prior else None,
+                             observation="independent")
     start = time.perf_counter()
     for b in range(0, len(z), BLOCK):
         zb = np.ascontiguousarray(z[b:b + BLOCK])
@@ -65,6 +70,21 @@ def ours(days, z, var, threads: int, *, prior: bool, progress=False) -> float:
         if progress:
             print(f"  {min(len(z), b + BLOCK):>7,} / {len(z):,} core points, {time.perf_counter() - start:.1f} s",
                   flush=True)
+    return time.perf_counter() - start
+
+
+def ours_shared(days, z, threads: int) -> float:
+    """Wall seconds of the shared model over every block, spreads as a store holds them (sigma 0.01
+    for 10 points a side), anchored a step before the first epoch."""
+    from m3c2kit import engine
+    p = engine.kalman_params(order=2, discrete_noise=True, process_noise=1e-4, initial_variance=(1.0, 1.0, 1.0),
+                             reference=(days[0] - (days[1] - days[0]), None))
+    start = time.perf_counter()
+    for b in range(0, len(z), BLOCK):
+        zb = np.ascontiguousarray(z[b:b + BLOCK])
+        sigma, count = np.full(zb.shape, 0.01 * np.sqrt(10 / 2)), np.full(zb.shape, 10.0)
+        moments = np.empty((len(zb), z.shape[1], 9))
+        engine.kalman_smooth(zb, None, days, moments, p, spread=(sigma, count, sigma, count), threads=threads)
     return time.perf_counter() - start
 
 
@@ -85,6 +105,9 @@ def main() -> int:
     days, z, sd = series(rng, args.cores, 100)
     wall = ours(days, z, sd ** 2, args.threads, prior=True)
     print(f"ours, 100 epochs x {args.cores:,} core points, {args.threads} thread(s): {wall:.2f} s")
+    plain = ours(days, z, sd ** 2, args.threads, prior=False)
+    shared = ours_shared(days, z, args.threads)
+    print(f"ours, --observation independent / shared, the same series: {plain:.2f} s / {shared:.2f} s")
     if args.python and args.tum_rsa:
         with tempfile.TemporaryDirectory() as tmp:  # py4dgeo writes its py4dgeo.log into the working directory
             out = subprocess.run([args.python, os.path.abspath(__file__), "--reference-side",

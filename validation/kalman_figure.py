@@ -33,7 +33,8 @@ def main(out: Path) -> None:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
     days, truth, z, sd = simulation()
-    q, _ = km.fit_process_noise(z[None, :], sd[None, :] ** 2, days, "velocity", "continuous")
+    p = km._kalman_params("velocity", "continuous", 0.0)  # each epoch's sd independent: the figure's model
+    q, _ = km.fit_process_noise(km.Inputs(z[None, :].copy(), (sd ** 2)[None, :].copy()), days, p)
     p = km._kalman_params("velocity", "continuous", q)
     moments = np.full((1, len(days), 5), np.nan)
     r = engine.kalman_smooth(z[None, :].copy(), (sd ** 2)[None, :].copy(), days, moments, p, threads=1)

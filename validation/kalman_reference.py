@@ -103,8 +103,9 @@ def reference_side(args) -> None:
 def _ours(z, var, times, *, order, q, prior_time, prior_mean, initial_variance):
     from m3c2kit import engine
     k = order
+    # the references' model: each epoch's observation independent (`m3c2 series kalman --observation independent`)
     p = engine.kalman_params(order=k, discrete_noise=True, process_noise=q, initial_variance=initial_variance,
-                             prior_time=prior_time)
+                             prior_time=prior_time, observation="independent")
     moments = np.full((*z.shape, k + k * (k + 1) // 2), np.nan)
     return engine.kalman_smooth(np.ascontiguousarray(z), np.ascontiguousarray(var), np.asarray(times, float),
                                 moments, p, prior_mean=np.ascontiguousarray(prior_mean), threads=1)

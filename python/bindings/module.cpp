@@ -15,7 +15,9 @@
 #include <nanobind/stl/array.h>
 #include <nanobind/stl/function.h>
 #include <nanobind/stl/optional.h>
+#include <nanobind/stl/pair.h>
 #include <nanobind/stl/string.h>
+#include <nanobind/stl/tuple.h>
 #include <nanobind/stl/vector.h>
 
 #include <algorithm>
@@ -707,28 +709,54 @@ NB_MODULE(_core, m) {
       .def_rw("process_noise", &m3c2::KalmanParams::process_noise)
       .def_rw("prior_given", &m3c2::KalmanParams::prior_given)
       .def_rw("prior_time", &m3c2::KalmanParams::prior_time)
-      .def_rw("initial_variance", &m3c2::KalmanParams::initial_variance);
-  const auto kalman_block = [](const Series2D& values, const Series2D& variance, const Series1D& times,
-                               std::size_t resume_from, const std::optional<Series2D>& prior_mean) {
+      .def_rw("initial_variance", &m3c2::KalmanParams::initial_variance)
+      .def_prop_rw(
+          "observation",
+          [](const m3c2::KalmanParams& p) {
+            return p.observation == m3c2::KalmanObservation::kShared ? "shared" : "independent";
+          },
+          [](m3c2::KalmanParams& p, const std::string& v) {
+            if (v != "shared" && v != "independent")
+              throw m3c2::InvalidArgument("the observation model must be shared or independent, got " + v);
+            p.observation = v == "shared" ? m3c2::KalmanObservation::kShared : m3c2::KalmanObservation::kIndependent;
+          })
+      .def_rw("reference_time", &m3c2::KalmanParams::reference_time)
+      .def_rw("reference_epoch", &m3c2::KalmanParams::reference_epoch)
+      .def_rw("registration_error", &m3c2::KalmanParams::registration_error)
+      .def_prop_rw(
+          "population_spread", [](const m3c2::KalmanParams& p) { return p.spread == m3c2::Variance::kPopulation; },
+          [](m3c2::KalmanParams& p, bool v) { p.spread = v ? m3c2::Variance::kPopulation : m3c2::Variance::kSample; });
+  // The shared model's inputs (core x epoch each): sigma1, n1, sigma2, n2, as the store keeps them.
+  using Spread = std::optional<std::tuple<Series2D, Series2D, Series2D, Series2D>>;
+  const auto kalman_block = [](const Series2D& values, const std::optional<Series2D>& variance, const Series1D& times,
+                               std::size_t resume_from, const std::optional<Series2D>& prior_mean,
+                               const Spread& spread) {
     const std::size_t rows = values.shape(0), epochs = values.shape(1);
-    if (variance.shape(0) != rows || variance.shape(1) != epochs || times.shape(0) != epochs)
+    const auto agrees = [&](const Series2D& a) { return a.shape(0) == rows && a.shape(1) == epochs; };
+    if ((variance && !agrees(*variance)) || times.shape(0) != epochs)
       throw m3c2::InvalidArgument("values, variances (core x epoch) and times (epoch) must agree in shape");
     m3c2::KalmanBlock b;
-    b.values = values.data(), b.variance = variance.data(), b.times = times.data();
+    b.values = values.data(), b.variance = variance ? variance->data() : nullptr, b.times = times.data();
     b.rows = rows, b.epochs = epochs, b.resume_from = resume_from;
     if (prior_mean) {
       if (prior_mean->shape(0) != rows) throw m3c2::InvalidArgument("prior_mean must have a row per core point");
       b.prior_mean = prior_mean->data();
     }
+    if (spread) {
+      const auto& [s1, n1, s2, n2] = *spread;
+      if (!agrees(s1) || !agrees(n1) || !agrees(s2) || !agrees(n2))
+        throw m3c2::InvalidArgument("sigma1, n1, sigma2 and n2 must be core x epoch, as the values");
+      b.sigma1 = s1.data(), b.n1 = n1.data(), b.sigma2 = s2.data(), b.n2 = n2.data();
+    }
     return b;
   };
   m.def(
       "kalman_smooth",
-      [kalman_block](const Series2D& values, const Series2D& variance, const Series1D& times, Moments moments,
-                     const m3c2::KalmanParams& params, std::size_t resume_from,
-                     const std::optional<Series2D>& prior_mean, int threads) {
-        m3c2::KalmanBlock b = kalman_block(values, variance, times, resume_from, prior_mean);
-        const std::size_t k = std::size_t(params.model), m_ = m3c2::kalman_moments(params.model);
+      [kalman_block](const Series2D& values, const std::optional<Series2D>& variance, const Series1D& times,
+                     Moments moments, const m3c2::KalmanParams& params, std::size_t resume_from,
+                     const std::optional<Series2D>& prior_mean, const Spread& spread, int threads) {
+        m3c2::KalmanBlock b = kalman_block(values, variance, times, resume_from, prior_mean, spread);
+        const std::size_t k = std::size_t(params.model), m_ = m3c2::kalman_moments(params.model, params.observation);
         if (prior_mean && prior_mean->shape(1) != k)
           throw m3c2::InvalidArgument("prior_mean must have a column per state");
         if (moments.shape(0) != b.rows || moments.shape(1) != b.epochs || moments.shape(2) != m_)
@@ -742,19 +770,32 @@ NB_MODULE(_core, m) {
         d["log_likelihood"] = to_numpy(std::move(r.log_likelihood));
         return d;
       },
-      "values"_a, "variance"_a, "times"_a, "moments"_a, "params"_a, "resume_from"_a = 0, "prior_mean"_a = nb::none(),
-      "threads"_a = 0);
+      "values"_a, "variance"_a.none(), "times"_a, "moments"_a, "params"_a, "resume_from"_a = 0,
+      "prior_mean"_a = nb::none(), "spread"_a = nb::none(), "threads"_a = 0);
   m.def(
       "kalman_log_likelihood",
-      [kalman_block](const Series2D& values, const Series2D& variance, const Series1D& times,
-                     const m3c2::KalmanParams& params, const std::optional<Series2D>& prior_mean, int threads) {
-        const m3c2::KalmanBlock b = kalman_block(values, variance, times, 0, prior_mean);
+      [kalman_block](const Series2D& values, const std::optional<Series2D>& variance, const Series1D& times,
+                     const m3c2::KalmanParams& params, const std::optional<Series2D>& prior_mean, const Spread& spread,
+                     int threads) {
+        const m3c2::KalmanBlock b = kalman_block(values, variance, times, 0, prior_mean, spread);
         if (prior_mean && prior_mean->shape(1) != std::size_t(params.model))
           throw m3c2::InvalidArgument("prior_mean must have a column per state");
         return run_engine(nb::none(), threads,
                           [&](const m3c2::RunOptions& run) { return m3c2::kalman_log_likelihood(params, b, run); });
       },
-      "values"_a, "variance"_a, "times"_a, "params"_a, "prior_mean"_a = nb::none(), "threads"_a = 0);
+      "values"_a, "variance"_a.none(), "times"_a, "params"_a, "prior_mean"_a = nb::none(), "spread"_a = nb::none(),
+      "threads"_a = 0);
+  m.def(
+      "kalman_fit_process_noise",
+      [kalman_block](const Series2D& values, const std::optional<Series2D>& variance, const Series1D& times,
+                     const m3c2::KalmanParams& params, const Spread& spread, int threads) {
+        const m3c2::KalmanBlock b = kalman_block(values, variance, times, 0, std::nullopt, spread);
+        const auto fit = run_engine(nb::none(), threads, [&](const m3c2::RunOptions& run) {
+          return m3c2::kalman_fit_process_noise(params, b, run);
+        });
+        return std::make_pair(fit.process_noise, fit.edge);
+      },
+      "values"_a, "variance"_a.none(), "times"_a, "params"_a, "spread"_a = nb::none(), "threads"_a = 0);
   m.def(
       "lod_observation_variance",
       [](const m3c2::Params& params, const Series1D& lod, const Series1D& sigma1, const Series1D& n1,

@@ -1,196 +1,35 @@
-// The Kalman filter and RTS smoother of a core point's distance series (include/m3c2/kalman.hpp;
-// Winiwarter et al. 2023, Earth Surf. Dynam. 11: 593, section 3.3). Textbook equations (Rauch,
-// Tung & Striebel 1965; Bar-Shalom, Li & Kirubarajan 2001, ch. 6 and 8 for the noise models):
-//   predict  x- = F x,  P- = F P F^T + Q                 F = [[1, dt(, dt^2/2)], [0, 1(, dt)](, [0, 0, 1])]
-//   update   S = P-00 + R,  K = P- H^T / S,  x = x- + K (z - x-0),  P = (I - K H) P- (I - K H)^T + K R K^T
-//   smooth   C = P F^T (P-next)^-1,  xs = x + C (xs_next - F x),  Ps = P + C (Ps_next - P-next) C^T
-// The update is Joseph's form (symmetric and positive semi-definite in floating point); the
-// log-likelihood sums -(log(2 pi S) + v^2 / S) / 2 over the innovations v (Harvey 1989, 3.4).
+// The public Kalman API (include/m3c2/kalman.hpp): input checks, the choice of the templates
+// (series/kalman_filter.hpp, the equations and their references), the observation variances and
+// the maximum-likelihood fit of q. The independent observation model is instantiated here, the
+// shared one in kalman_shared.cpp (why apart: kalman_filter.hpp).
+
+#include "series/kalman_filter.hpp"
 
 #include <m3c2/errors.hpp>
-#include <m3c2/kalman.hpp>
-
-#include "support/parallel_for.hpp"
-#include "uncertainty/confidence.hpp"
-
-#include <Eigen/Dense>
 
 #include <algorithm>
 #include <cmath>
-#include <limits>
-#include <numbers>
 #include <string>
+#include <utility>
+#include <vector>
 
 namespace m3c2 {
 namespace {
 
-constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
-
-template <int K>
-using Vec = Eigen::Matrix<double, K, 1>;
-template <int K>
-using Mat = Eigen::Matrix<double, K, K>;
-
-template <int K>
-Mat<K> transition(double dt) {
-  Mat<K> f = Mat<K>::Identity();
-  f(0, 1) = dt;
-  if constexpr (K == 3) f(0, 2) = 0.5 * dt * dt, f(1, 2) = dt;
-  return f;
-}
-
-/// Q = q M(dt) (KalmanNoise).
-template <int K>
-Mat<K> process_noise(const KalmanParams& p, double dt) {
-  Mat<K> m;
-  const double q = p.process_noise, d2 = dt * dt, d3 = d2 * dt;
-  if (p.noise == KalmanNoise::kDiscrete) {
-    Vec<K> g;
-    if constexpr (K == 2)
-      g << 0.5 * d2, dt;
-    else
-      g << 0.5 * d2, dt, 1.0;
-    m = g * g.transpose();
-  } else if constexpr (K == 2) {
-    m << d3 / 3.0, d2 / 2.0, d2 / 2.0, dt;
-  } else {
-    const double d4 = d3 * dt, d5 = d4 * dt;
-    m << d5 / 20.0, d4 / 8.0, d3 / 6.0, d4 / 8.0, d3 / 3.0, d2 / 2.0, d3 / 6.0, d2 / 2.0, dt;
-  }
-  return q * m;
-}
-
-/// M made exactly symmetric, (M + M^T) / 2 element by element: the moments keep the upper
-/// triangle only, so a resumed run must find the very matrix the filter held (the same bits).
-/// (`M = (M + M.transpose()) / 2` would alias: Eigen reads M(j, i) after writing M(i, j).)
-template <int K>
-void symmetrize(Mat<K>& m) {
-  for (int i = 0; i < K; ++i)
-    for (int j = i + 1; j < K; ++j) m(i, j) = m(j, i) = 0.5 * (m(i, j) + m(j, i));
-}
-
-template <int K>
-void store(const Vec<K>& x, const Mat<K>& P, double* out) {
-  for (int i = 0; i < K; ++i) out[i] = x(i);
-  double* tri = out + K;
-  for (int i = 0; i < K; ++i)
-    for (int j = i; j < K; ++j) *tri++ = P(i, j);
-}
-
-template <int K>
-void load(const double* in, Vec<K>& x, Mat<K>& P) {
-  for (int i = 0; i < K; ++i) x(i) = in[i];
-  const double* tri = in + K;
-  for (int i = 0; i < K; ++i)
-    for (int j = i; j < K; ++j) P(i, j) = P(j, i) = *tri++;
-}
-
-bool observed(const KalmanBlock& b, std::size_t r, std::size_t t) {
-  const double z = b.values[r * b.epochs + t], v = b.variance[r * b.epochs + t];
-  return std::isfinite(z) && std::isfinite(v) && v >= 0.0;
-}
-
-template <int K>
-void predict(const KalmanParams& p, double dt, Vec<K>& x, Mat<K>& P) {
-  const Mat<K> f = transition<K>(dt);
-  x = f * x;
-  P = f * P * f.transpose() + process_noise<K>(p, dt);
-  symmetrize<K>(P);
-}
-
-/// The update with observation z of variance r; returns the innovation's log-likelihood term.
-template <int K>
-double update(double z, double r, Vec<K>& x, Mat<K>& P) {
-  const double s = P(0, 0) + r, v = z - x(0);
-  const Vec<K> gain = P.col(0) / s;
-  Mat<K> a = Mat<K>::Identity();
-  a.col(0) -= gain;
-  x += gain * v;
-  P = a * P * a.transpose() + (r * gain) * gain.transpose();
-  symmetrize<K>(P);
-  return -0.5 * (std::log(2.0 * std::numbers::pi * s) + v * v / s);
-}
-
-/// The forward filter of row r from epoch `from` (the moments before it kept), writing the
-/// moments of every later epoch (NaN before the row's start); returns the log-likelihood.
-template <int K>
-double forward(const KalmanParams& p, const KalmanBlock& b, std::size_t r, double* moments) {
-  constexpr std::size_t m = std::size_t(K) + std::size_t(K) * (K + 1) / 2;
-  Vec<K> x;
-  Mat<K> P;
-  bool started = false;
-  double t_last = 0.0, ll = 0.0;
-  if (b.resume_from > 0 && std::isfinite(moments[(b.resume_from - 1) * m])) {
-    load<K>(moments + (b.resume_from - 1) * m, x, P);
-    started = true, t_last = b.times[b.resume_from - 1];
-  } else if (b.resume_from == 0 && p.prior_given) {
-    x.setZero();
-    if (b.prior_mean)
-      for (int i = 0; i < K; ++i) x(i) = b.prior_mean[r * K + i];
-    P.setZero();
-    for (int i = 0; i < K; ++i) P(i, i) = p.initial_variance[std::size_t(i)];
-    started = true, t_last = p.prior_time;
-  }
-  for (std::size_t t = b.resume_from; t < b.epochs; ++t) {
-    const bool obs = observed(b, r, t);
-    const double z = b.values[r * b.epochs + t], var = b.variance[r * b.epochs + t];
-    if (!started) {
-      if (!obs) {
-        std::fill_n(moments + t * m, m, kNaN);
-        continue;
-      }
-      x.setZero(), P.setZero();
-      x(0) = z, P(0, 0) = var;
-      for (int i = 1; i < K; ++i) P(i, i) = p.initial_variance[std::size_t(i)];
-      started = true, t_last = b.times[t];
-    } else {
-      predict<K>(p, b.times[t] - t_last, x, P);
-      t_last = b.times[t];
-      if (obs) ll += update<K>(z, var, x, P);
-    }
-    store<K>(x, P, moments + t * m);
-  }
-  return ll;
-}
-
-/// The RTS smoother of a row (its `moments`) over all its filtered epochs.
-template <int K>
-void backward(const KalmanParams& p, const KalmanBlock& b, const double* moments, double* mean, double* sd) {
-  constexpr std::size_t m = std::size_t(K) + std::size_t(K) * (K + 1) / 2;
-  std::fill_n(mean, b.epochs * K, kNaN);
-  std::fill_n(sd, b.epochs * K, kNaN);
-  if (b.epochs == 0 || !std::isfinite(moments[(b.epochs - 1) * m])) return;  // never started
-  Vec<K> xs, x;
-  Mat<K> Ps, P;
-  load<K>(moments + (b.epochs - 1) * m, xs, Ps);
-  for (std::size_t t = b.epochs; t-- > 0;) {
-    if (t + 1 < b.epochs) {
-      if (!std::isfinite(moments[t * m])) break;  // before the row's start
-      load<K>(moments + t * m, x, P);
-      const double dt = b.times[t + 1] - b.times[t];
-      const Mat<K> f = transition<K>(dt);
-      Mat<K> pp = f * P * f.transpose() + process_noise<K>(p, dt);
-      symmetrize<K>(pp);
-      // C = P F^T pp^-1, solved (pp symmetric): C^T = pp^-1 F P.
-      const Mat<K> c = pp.ldlt().solve(f * P).transpose();
-      xs = x + c * (xs - f * x);
-      Ps = P + c * (Ps - pp) * c.transpose();
-      symmetrize<K>(Ps);
-    }
-    for (int i = 0; i < K; ++i) {
-      mean[t * K + i] = xs(i);
-      sd[t * K + i] = std::sqrt(std::max(0.0, Ps(i, i)));
-    }
-  }
-}
+using namespace detail::kalman;
 
 void check(const KalmanParams& p, const KalmanBlock& b) {
   if (!(p.process_noise >= 0.0) || !std::isfinite(p.process_noise))
     throw InvalidArgument("the process noise must be finite and >= 0, got " + std::to_string(p.process_noise));
   for (double v : p.initial_variance)
     if (!(v >= 0.0) || !std::isfinite(v)) throw InvalidArgument("the initial variances must be finite and >= 0");
-  if (b.rows > 0 && b.epochs > 0 && (!b.values || !b.variance || !b.times || !b.moments))
-    throw InvalidArgument("a Kalman block needs values, variances, times and moments");
+  const bool shared = p.observation == KalmanObservation::kShared;
+  if (b.rows > 0 && b.epochs > 0 && (!b.values || !b.times || !b.moments))
+    throw InvalidArgument("a Kalman block needs values, times and moments");
+  if (b.rows > 0 && b.epochs > 0 && !shared && !b.variance)
+    throw InvalidArgument("the independent observation model needs each observation's variance");
+  if (b.rows > 0 && b.epochs > 0 && shared && (!b.sigma1 || !b.n1 || !b.sigma2 || !b.n2))
+    throw InvalidArgument("the shared observation model needs sigma1, n1, sigma2 and n2");
   if (b.resume_from > b.epochs) throw InvalidArgument("resume_from is past the last epoch");
   for (std::size_t t = 0; t < b.epochs; ++t) {
     if (!std::isfinite(b.times[t])) throw InvalidArgument("every epoch needs a time (epoch " + std::to_string(t) + ")");
@@ -199,47 +38,38 @@ void check(const KalmanParams& p, const KalmanBlock& b) {
   }
   if (p.prior_given && b.epochs > 0 && !(p.prior_time <= b.times[0]))
     throw InvalidArgument("the prior's time must not be after the first epoch");
+  if (!shared) return;
+  // The pooled scatter changes with every epoch added: a shared run is always from scratch.
+  if (b.resume_from != 0) throw InvalidArgument("the shared observation model does not resume (resume_from must be 0)");
+  if (p.prior_given) throw InvalidArgument("the shared observation model starts at the reference: give no prior");
+  if (!(p.registration_error >= 0.0) || !std::isfinite(p.registration_error))
+    throw InvalidArgument("the registration error must be finite and >= 0");
+  if (p.reference_epoch < -1 || (p.reference_epoch >= 0 && std::size_t(p.reference_epoch) >= b.epochs))
+    throw InvalidArgument("reference_epoch must be -1 or an epoch of the block");
+  if (std::isinf(p.reference_time)) throw InvalidArgument("the reference's time must be finite or NaN (unknown)");
 }
 
-template <int K>
-KalmanSmoothed smooth_k(const KalmanParams& p, const KalmanBlock& b, const RunOptions& run) {
-  constexpr std::size_t m = std::size_t(K) + std::size_t(K) * (K + 1) / 2;
-  KalmanSmoothed out;
-  out.mean.assign(b.rows * b.epochs * K, kNaN);
-  out.sd.assign(b.rows * b.epochs * K, kNaN);
-  out.log_likelihood.assign(b.rows, 0.0);
-  detail::parallel_blocks<int>(b.rows, run, [&](std::size_t begin, std::size_t end, int&) {
-    for (std::size_t r = begin; r < end; ++r) {
-      double* moments = b.moments + r * b.epochs * m;
-      out.log_likelihood[r] = forward<K>(p, b, r, moments);
-      backward<K>(p, b, moments, out.mean.data() + r * b.epochs * K, out.sd.data() + r * b.epochs * K);
-    }
-  });
-  return out;
+double median(std::vector<double> v) {
+  const std::size_t n = v.size(), h = n / 2;
+  std::nth_element(v.begin(), v.begin() + std::ptrdiff_t(h), v.end());
+  const double upper = v[h];
+  if (n % 2) return upper;
+  return 0.5 * (*std::max_element(v.begin(), v.begin() + std::ptrdiff_t(h)) + upper);
 }
 
-template <int K>
-double likelihood_k(const KalmanParams& p, const KalmanBlock& b, const RunOptions& run) {
-  std::vector<double> ll(b.rows, 0.0);
-  detail::parallel_blocks<std::vector<double>>(
-      b.rows, run, [&](std::size_t begin, std::size_t end, std::vector<double>& work) {
-        constexpr std::size_t m = std::size_t(K) + std::size_t(K) * (K + 1) / 2;
-        work.resize(b.epochs * m);
-        KalmanBlock one = b;
-        one.moments = work.data();
-        one.resume_from = 0;
-        for (std::size_t r = begin; r < end; ++r) ll[r] = forward<K>(p, one, r, work.data());
-      });
-  double total = 0.0;
-  for (double v : ll) total += v;  // row order: the same bits for any thread count
-  return total;
+/// M(dt)[0, 0] of Q = q M(dt): the variance q = 1 adds to d over dt.
+double unit_m00(const KalmanParams& p, double dt) {
+  if (p.noise == KalmanNoise::kDiscrete) return 0.25 * std::pow(dt, 4);
+  return p.model == KalmanModel::kVelocity ? dt * dt * dt / 3.0 : std::pow(dt, 5) / 20.0;
 }
 
 }  // namespace
 
 KalmanSmoothed kalman_smooth(const KalmanParams& params, const KalmanBlock& block, const RunOptions& run) {
   check(params, block);
-  return params.model == KalmanModel::kAcceleration ? smooth_k<3>(params, block, run) : smooth_k<2>(params, block, run);
+  if (params.observation == KalmanObservation::kShared) return smooth_shared(params, block, run);
+  return params.model == KalmanModel::kAcceleration ? smooth_k<3, 3>(params, block, run)
+                                                    : smooth_k<2, 2>(params, block, run);
 }
 
 double kalman_log_likelihood(const KalmanParams& params, const KalmanBlock& block, const RunOptions& run) {
@@ -247,7 +77,78 @@ double kalman_log_likelihood(const KalmanParams& params, const KalmanBlock& bloc
   std::vector<double> none(1);
   if (!b.moments) b.moments = none.data();  // checked for presence only; each thread uses its own
   check(params, b);
-  return params.model == KalmanModel::kAcceleration ? likelihood_k<3>(params, b, run) : likelihood_k<2>(params, b, run);
+  if (params.observation == KalmanObservation::kShared) return likelihood_shared(params, b, run);
+  return params.model == KalmanModel::kAcceleration ? likelihood_k<3, 3>(params, b, run)
+                                                    : likelihood_k<2, 2>(params, b, run);
+}
+
+std::vector<double> kalman_observation_variance(const KalmanParams& params, const KalmanBlock& block,
+                                                const RunOptions& run) {
+  KalmanBlock b = block;
+  std::vector<double> none(1);
+  if (!b.moments) b.moments = none.data();
+  check(params, b);
+  std::vector<double> out(b.rows * b.epochs, kNaN);
+  const bool shared = params.observation == KalmanObservation::kShared;
+  detail::parallel_blocks<int>(b.rows, run, [&](std::size_t begin, std::size_t end, int&) {
+    for (std::size_t r = begin; r < end; ++r) {
+      const SharedRow row = shared ? shared_row(params, b, r) : SharedRow{};
+      for (std::size_t t = 0; t < b.epochs; ++t) out[r * b.epochs + t] = observation_variance(params, b, row, r, t);
+    }
+  });
+  return out;
+}
+
+KalmanFit kalman_fit_process_noise(const KalmanParams& params, const KalmanBlock& block, const RunOptions& run) {
+  std::vector<double> dts;
+  for (std::size_t t = 1; t < block.epochs; ++t)
+    if (block.times[t] - block.times[t - 1] > 0.0) dts.push_back(block.times[t] - block.times[t - 1]);
+  std::vector<double> r;
+  for (double v : kalman_observation_variance(params, block, run))
+    if (std::isfinite(v)) r.push_back(v);
+  if (dts.empty() || r.empty())
+    throw InvalidArgument(
+        "--process-noise auto needs at least two epochs at distinct times and observations "
+        "with a variance; give --process-noise Q");
+  const double u0 = std::log10(std::max(median(r), 1e-300) / unit_m00(params, median(dts)));
+  const auto loglik = [&](double u) {
+    KalmanParams p = params;
+    p.process_noise = std::pow(10.0, u);
+    return kalman_log_likelihood(p, block, run);
+  };
+  constexpr double kFrom = -8.0, kTo = 4.0, kStep = 0.5, kTolerance = 1e-3;  // decades of q around q0
+  std::vector<double> grid, scores;
+  for (std::size_t i = 0;; ++i) {
+    const double u = (u0 + kFrom) + double(i) * kStep;
+    if (u > u0 + kTo + 1e-9) break;
+    grid.push_back(u), scores.push_back(loglik(u));
+  }
+  std::size_t best = grid.size();
+  for (std::size_t i = 0; i < grid.size(); ++i)
+    if (!std::isnan(scores[i]) && (best == grid.size() || scores[i] > scores[best])) best = i;
+  if (best == grid.size()) throw InvalidArgument("--process-noise auto: the likelihood is NaN at every q tried");
+  KalmanFit fit;
+  fit.edge = best == 0 ? -1 : best + 1 == grid.size() ? 1 : 0;
+  double lo = grid[best > 0 ? best - 1 : 0], hi = grid[std::min(grid.size() - 1, best + 1)];
+  const double g = (std::sqrt(5.0) - 1.0) / 2.0;
+  double a = hi - g * (hi - lo), c = lo + g * (hi - lo);
+  double fa = loglik(a), fc = loglik(c);
+  while (hi - lo > kTolerance) {
+    if (fa > fc) {
+      hi = c, c = a, fc = fa;
+      a = hi - g * (hi - lo);
+      fa = loglik(a);
+    } else {
+      lo = a, a = c, fa = fc;
+      c = lo + g * (hi - lo);
+      fc = loglik(c);
+    }
+  }
+  // The best of the grid's and the section's ends (on a tie the larger q, as before).
+  std::pair<double, double> top{scores[best], grid[best]};
+  for (const auto& e : {std::pair{fa, a}, std::pair{fc, c}}) top = std::max(top, e);
+  fit.process_noise = std::pow(10.0, top.second);
+  return fit;
 }
 
 std::vector<double> lod_observation_variance(const Params& params, const double* lod, const double* sigma1,

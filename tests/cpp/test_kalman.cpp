@@ -1,8 +1,10 @@
 // The Kalman filter and RTS smoother (include/m3c2/kalman.hpp) against hand-derived values, the
 // closed-form weighted least-squares line (the smoother's limit with no process noise and a
 // diffuse rate), the same bits for any thread count and a resumed run, and the observation
-// variance against the critical values it must invert. The GLS oracle for q > 0 and the numpy
-// filter are in tests/python/series/test_kalman.py.
+// variance against the critical values it must invert; the shared observation model by hand (its
+// anchor, pooled scatter and reference epoch), its thread invariance and the ML fit of q. The GLS
+// oracles for q > 0 (both models) and the numpy filter are in tests/python/series/test_kalman.py
+// and test_kalman_shared.py.
 
 #include <m3c2/kalman.hpp>
 
@@ -16,9 +18,11 @@
 namespace m3c2::test {
 namespace {
 
-KalmanSmoothed run(const KalmanParams& p, const std::vector<double>& z, const std::vector<double>& var,
+/// Runs the independent observation model (the references'; the tests below written for it).
+KalmanSmoothed run(KalmanParams p, const std::vector<double>& z, const std::vector<double>& var,
                    const std::vector<double>& t, std::size_t rows, std::vector<double>& moments, int threads = 1,
                    std::size_t resume_from = 0) {
+  p.observation = KalmanObservation::kIndependent;
   KalmanBlock b;
   b.values = z.data(), b.variance = var.data(), b.times = t.data();
   b.rows = rows, b.epochs = t.size(), b.moments = moments.data(), b.resume_from = resume_from;
@@ -104,7 +108,7 @@ TEST(Kalman, SameBitsForAnyThreadCountAndResumed) {
     KalmanParams p;
     p.model = model;
     p.process_noise = 0.01;
-    const std::size_t m = kalman_moments(model);
+    const std::size_t m = kalman_moments(model, KalmanObservation::kIndependent);
     std::vector<double> m1(rows * n * m), m4(rows * n * m);
     const KalmanSmoothed a = run(p, z, var, t, rows, m1, 1), b = run(p, z, var, t, rows, m4, 4);
     EXPECT_TRUE(BitIdentical(a.mean, b.mean));
@@ -153,6 +157,143 @@ TEST(Kalman, ObservationVarianceInvertsTheLod) {
   const double dof = std::pow(se1 * se1 + se2 * se2, 2) / (std::pow(se1, 4) / 3.0 + std::pow(se2, 4) / 4.0);
   EXPECT_NEAR(v[2], std::pow(0.3 / detail::t_critical(0.95, dof), 2), 1e-15);
   EXPECT_GT(detail::t_critical(0.95, dof), 2.3);  // a t, not z
+}
+
+/// One row of the shared model: distances z, the reference's (sigma1, n1), each epoch's (sigma2, n2).
+struct SharedRow {
+  std::vector<double> z, s1, n1, s2, n2;
+};
+
+KalmanSmoothed run_shared(const KalmanParams& p, const SharedRow& row, const std::vector<double>& t,
+                          std::size_t rows = 1, int threads = 1) {
+  KalmanBlock b;
+  b.values = row.z.data(), b.times = t.data(), b.rows = rows, b.epochs = t.size();
+  b.sigma1 = row.s1.data(), b.n1 = row.n1.data(), b.sigma2 = row.s2.data(), b.n2 = row.n2.data();
+  std::vector<double> moments(rows * t.size() * kalman_moments(p.model, p.observation));
+  b.moments = moments.data();
+  RunOptions opts;
+  opts.threads = threads;
+  return kalman_smooth(p, b, opts);
+}
+
+TEST(KalmanShared, OneEpochAnchoredAtTheReferenceByHand) {
+  // q = 0, a zero rate variance: d stays 0 from the reference's time, so one epoch observes
+  // z = 0 + b + e with b ~ N(0, s^2/n1), e ~ N(0, s^2/n2 + reg^2): the smoothed d is 0, sd 0.
+  // With a rate of prior variance V and dt: d = v dt, var(d) = V dt^2 a priori, and the update
+  // gives E[d | z] = V dt^2 / S z, var = V dt^2 - (V dt^2)^2 / S, S = V dt^2 + s^2/n1 + r.
+  // The pooled scatter: ((n1 - 1) sigma1^2 + (n2 - 1) sigma2^2) / (n1 + n2 - 2).
+  KalmanParams p;
+  p.process_noise = 0.0;
+  p.initial_variance = {0.0, 4.0, 0.0};
+  p.reference_time = -0.5;
+  p.registration_error = 0.1;
+  const SharedRow row{{0.3}, {0.2}, {5.0}, {0.4}, {3.0}};
+  const KalmanSmoothed s = run_shared(p, row, {0.0});
+  const double s2 = (4.0 * 0.04 + 2.0 * 0.16) / 6.0, vb = s2 / 5.0, r = s2 / 3.0 + 0.01;
+  const double vd = 4.0 * 0.25, S = vd + vb + r;
+  EXPECT_NEAR(s.mean[0], vd / S * 0.3, 1e-15);
+  EXPECT_NEAR(s.sd[0], std::sqrt(vd - vd * vd / S), 1e-15);
+  EXPECT_NEAR(s.mean[1], 4.0 * 0.5 / S * 0.3, 1e-15);  // the rate: cov(v, z) = V dt
+  EXPECT_NEAR(s.log_likelihood[0], -0.5 * (std::log(2.0 * M_PI * S) + 0.09 / S), 1e-15);
+}
+
+TEST(KalmanShared, WithoutAnAnchorTheChangeKeepsTheReferencesError) {
+  // No reference time: d diffuse, so one epoch gives d = z with var(d) = s^2/n1 + r (b unknown).
+  KalmanParams p;
+  p.process_noise = 0.0;
+  const SharedRow row{{0.3}, {0.2}, {5.0}, {0.4}, {3.0}};
+  const KalmanSmoothed s = run_shared(p, row, {2.0});
+  const double s2 = (4.0 * 0.04 + 2.0 * 0.16) / 6.0;
+  EXPECT_NEAR(s.mean[0], 0.3, 1e-15);
+  EXPECT_NEAR(s.sd[0], std::sqrt(s2 / 5.0 + s2 / 3.0), 1e-15);
+  // A reference time after the first epoch is no anchor either.
+  p.reference_time = 3.0;
+  EXPECT_NEAR(run_shared(p, row, {2.0}).sd[0], std::sqrt(s2 / 5.0 + s2 / 3.0), 1e-15);
+}
+
+TEST(KalmanShared, TheReferenceEpochIsNoObservationButGivesTheAnchor) {
+  KalmanParams p;
+  p.process_noise = 0.01;
+  p.reference_epoch = 0;
+  const std::vector<double> t{0.0, 1.0, 2.5, 3.0};
+  SharedRow row{
+      {0.0, 0.1, 0.25, std::nan("")}, {0.2, 0.2, 0.2, 0.2}, {6, 6, 6, 6}, {0.2, 0.3, std::nan(""), 0.1}, {6, 4, 1, 5}};
+  const KalmanSmoothed a = run_shared(p, row, t);
+  EXPECT_EQ(a.mean[0], 0.0);  // d = 0 exactly at the reference
+  EXPECT_EQ(a.sd[0], 0.0);
+  EXPECT_TRUE(std::isfinite(a.mean[3 * 2]));  // epoch 3 (no distance): predicted
+  // Epoch 0's distance and spread (the reference against itself) change nothing.
+  row.z[0] = 5.0, row.s2[0] = 9.0;
+  const KalmanSmoothed b = run_shared(p, row, t);
+  EXPECT_TRUE(BitIdentical(a.mean, b.mean));
+  EXPECT_TRUE(BitIdentical(a.sd, b.sd));
+  // An epoch with one point (no sigma2, n2 = 1) still observes: its distance moves the estimate.
+  row.z[2] = 0.5;
+  EXPECT_GT(run_shared(p, row, t).mean[2 * 2], a.mean[2 * 2] + 0.01);
+  // No side with two points: no scatter, no estimate.
+  const SharedRow none{{0.1, 0.2}, {std::nan(""), std::nan("")}, {1, 1}, {std::nan(""), std::nan("")}, {1, 1}};
+  KalmanParams q;
+  EXPECT_TRUE(std::isnan(run_shared(q, none, {0.0, 1.0}).mean[0]));
+}
+
+TEST(KalmanShared, SameBitsForAnyThreadCountAndTheFitFindsTheSimulatedNoise) {
+  // Truth: a random walk of the rate (continuous white acceleration, q = 1e-4) from d = 0 at the
+  // reference; the ML q of 300 rows must be within a factor 2 of it, the same for 1 and 4 threads.
+  std::mt19937_64 rng(5);
+  std::normal_distribution<double> g(0.0, 1.0);
+  const std::size_t rows = 300, n = 30;
+  const double q = 1e-4, sigma = 0.02;
+  std::vector<double> t(n);
+  for (std::size_t k = 0; k < n; ++k) t[k] = 1.0 + double(k) + 0.3 * double(k % 3);
+  SharedRow all;
+  for (std::size_t r = 0; r < rows; ++r) {
+    const int n1 = 8;
+    double b = 0.0, ss = 0.0;
+    std::vector<double> x(n1);
+    for (double& v : x) v = sigma * g(rng), b += v / n1;
+    for (double v : x) ss += (v - b) * (v - b);
+    double d = 0.0, rate = 0.0, t_last = 0.0;
+    for (std::size_t k = 0; k < n; ++k) {
+      const double dt = t[k] - t_last;  // exact discretisation of the continuous model
+      const double a = std::sqrt(q * dt * dt * dt / 12.0) * g(rng), c = std::sqrt(q * dt) * g(rng);
+      d += rate * dt + c * dt / 2.0 + a, rate += c, t_last = t[k];
+      const int n2 = 3 + int(k % 5);
+      double e = 0.0, s2 = 0.0;
+      std::vector<double> y(static_cast<std::size_t>(n2));
+      for (double& v : y) v = sigma * g(rng), e += v / n2;
+      for (double v : y) s2 += (v - e) * (v - e);
+      all.z.push_back(d + e - b), all.n2.push_back(n2), all.s2.push_back(std::sqrt(s2 / (n2 - 1)));
+      all.n1.push_back(n1), all.s1.push_back(std::sqrt(ss / (n1 - 1)));
+    }
+  }
+  KalmanParams p;
+  p.reference_time = 0.0;
+  KalmanBlock b;
+  b.values = all.z.data(), b.times = t.data(), b.rows = rows, b.epochs = n;
+  b.sigma1 = all.s1.data(), b.n1 = all.n1.data(), b.sigma2 = all.s2.data(), b.n2 = all.n2.data();
+  RunOptions one, four;
+  one.threads = 1, four.threads = 4;
+  const KalmanFit f1 = kalman_fit_process_noise(p, b, one), f4 = kalman_fit_process_noise(p, b, four);
+  EXPECT_EQ(f1.process_noise, f4.process_noise);
+  EXPECT_EQ(f1.edge, 0);
+  EXPECT_GT(f1.process_noise, q / 2);
+  EXPECT_LT(f1.process_noise, q * 2);
+  p.process_noise = f1.process_noise;
+  const KalmanSmoothed a = run_shared(p, all, t, rows, 1), c = run_shared(p, all, t, rows, 4);
+  EXPECT_TRUE(BitIdentical(a.mean, c.mean));
+  EXPECT_TRUE(BitIdentical(a.sd, c.sd));
+}
+
+TEST(KalmanShared, RefusesToResumeAndMissingSpreads) {
+  KalmanParams p;
+  const std::vector<double> z{1.0, 2.0}, t{0.0, 1.0};
+  std::vector<double> moments(2 * kalman_moments(p.model, p.observation));
+  KalmanBlock b;
+  b.values = z.data(), b.times = t.data(), b.rows = 1, b.epochs = 2, b.moments = moments.data();
+  EXPECT_THROW(kalman_smooth(p, b), InvalidArgument);  // no sigma / n
+  b.sigma1 = b.n1 = b.sigma2 = b.n2 = z.data();
+  b.resume_from = 1;
+  EXPECT_THROW(kalman_smooth(p, b), InvalidArgument);
 }
 
 }  // namespace

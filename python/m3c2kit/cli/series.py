@@ -193,6 +193,12 @@ def kalman_parser():
     p.add_argument("--noise", choices=("continuous", "discrete"), default="continuous",
                    help="continuous white noise on the highest derivative, or the piecewise-constant (discrete) "
                         "noise of kalman4d and filterpy (default continuous)")
+    p.add_argument("--observation", choices=("shared", "independent"), default="shared",
+                   help="shared: the state holds the reference cylinder's error, which every epoch's distance "
+                        "shares, and each core point's scatter pooled over its epochs weighs every epoch with a "
+                        "distance (calibrated bands); independent: each epoch's LOD as independent noise, the model "
+                        "of kalman4d and the tum-rsa fork, over-confident where the reference is no denser than the "
+                        "epochs (default shared)")
     add_table_option(p, "confidence")  # of kalman_significant; default: the store's
     p.add_argument("--from-scratch", action="store_true",
                    help="filter every epoch again (and estimate q again with auto) instead of resuming")
@@ -406,13 +412,15 @@ def _run_smooth(args) -> int:
 def _run_kalman(args) -> int:
     from ..series.kalman import KalmanOptions, kalman
     options = KalmanOptions(model=args.model, process_noise=args.process_noise, noise=args.noise,
-                            confidence=args.confidence, from_scratch=args.from_scratch, threads=args.threads or 0)
+                            confidence=args.confidence, from_scratch=args.from_scratch, threads=args.threads or 0,
+                            observation=args.observation)
     out = kalman(args.store, options)
     if not args.quiet:
         how = (f"resumed after epoch {out['resumed_from'] - 1}" if out["resumed_from"]
                else "from the first epoch")
         q = f"q = {out['process_noise']:.6g} ({'maximum likelihood' if out['source'] == 'auto' else 'given'})"
-        print(f"{args.store}: Kalman {args.model} model over {out['epochs']} epochs, {how}, {q}"
+        print(f"{args.store}: Kalman {args.model} model ({args.observation} observation) over {out['epochs']} epochs, "
+              f"{how}, {q}"
               f"{'; ' + out['note'] if out['note'] else ''}; significant at {out['confidence']:g}")
     return 0
 

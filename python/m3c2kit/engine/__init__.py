@@ -13,6 +13,7 @@ enum fields take the enum member's name (``"two_pass"``). See docs/architecture.
 from __future__ import annotations
 
 import enum
+import math
 from contextlib import contextmanager
 from typing import Callable, Iterator
 
@@ -334,11 +335,21 @@ def change_points(series: np.ndarray, width: int, min_size: int, jump: int, pena
 
 
 def kalman_params(*, order: int, discrete_noise: bool, process_noise: float, initial_variance=None,
-                  prior_time: float | None = None) -> "_core.KalmanParams":
+                  prior_time: float | None = None, observation: str = "shared", reference=None,
+                  registration_error: float = 0.0, population_spread: bool = False) -> "_core.KalmanParams":
     """The engine's KalmanParams (include/m3c2/kalman.hpp; initial_variance: the engine's default
-    when None); `prior_time`: start every row there (its prior mean given to kalman_smooth)
-    instead of at its first observation."""
+    when None); `prior_time` (independent model): start every row there (its prior mean given to
+    kalman_smooth) instead of at its first observation. `observation`: shared (the reference's
+    error in the state; kalman_smooth then needs `spread`) or independent; `reference` (shared):
+    (its time or None, the epoch that is the reference file or None)."""
     p = _core.KalmanParams()
+    with translated("--observation"):
+        p.observation = observation
+    ref_time, ref_epoch = reference if reference is not None else (None, None)
+    p.reference_time = math.nan if ref_time is None else float(ref_time)
+    p.reference_epoch = -1 if ref_epoch is None else int(ref_epoch)
+    p.registration_error = float(registration_error)
+    p.population_spread = bool(population_spread)
     with translated("--model"):
         p.order = int(order)
     p.discrete_noise = bool(discrete_noise)
@@ -351,21 +362,31 @@ def kalman_params(*, order: int, discrete_noise: bool, process_noise: float, ini
 
 
 def kalman_smooth(values, variance, times, moments, params, *, resume_from: int = 0, prior_mean=None,
-                  threads: int = 0) -> dict:
+                  spread=None, threads: int = 0) -> dict:
     """Forward filter and RTS smoother; `moments` (core x epoch x moments) is read before
-    `resume_from` and written after. Returns mean and sd (core x epoch x order) and log_likelihood."""
+    `resume_from` and written after; `variance` for the independent observation model, `spread`
+    = (sigma1, n1, sigma2, n2), core x epoch each, for the shared one. Returns mean and sd (core x
+    epoch x order) and log_likelihood."""
     rows, epochs = values.shape
     with translated("--process-noise"):
         out = _core.kalman_smooth(values, variance, times, moments, params, resume_from=resume_from,
-                                  prior_mean=prior_mean, threads=threads)
+                                  prior_mean=prior_mean, spread=spread, threads=threads)
     k = params.order
     return {"mean": out["mean"].reshape(rows, epochs, k), "sd": out["sd"].reshape(rows, epochs, k),
             "log_likelihood": out["log_likelihood"]}
 
 
-def kalman_log_likelihood(values, variance, times, params, *, prior_mean=None, threads: int = 0) -> float:
+def kalman_log_likelihood(values, variance, times, params, *, prior_mean=None, spread=None, threads: int = 0) -> float:
     with translated("--process-noise"):
-        return _core.kalman_log_likelihood(values, variance, times, params, prior_mean=prior_mean, threads=threads)
+        return _core.kalman_log_likelihood(values, variance, times, params, prior_mean=prior_mean, spread=spread,
+                                           threads=threads)
+
+
+def kalman_fit_process_noise(values, variance, times, params, *, spread=None, threads: int = 0) -> tuple[float, int]:
+    """`--process-noise auto` (include/m3c2/kalman.hpp): the q of maximum likelihood and where it
+    fell on the searched grid (-1 / +1: its smallest / largest q, else 0)."""
+    with translated("--process-noise"):
+        return _core.kalman_fit_process_noise(values, variance, times, params, spread=spread, threads=threads)
 
 
 def lod_observation_variance(params, lod, sigma1, n1, sigma2, n2, *, threads: int = 0) -> np.ndarray:

@@ -2,17 +2,22 @@
 distance series (docs/series.md, "Kalman filter"; Winiwarter et al. 2023, Earth Surf. Dynam. 11:
 593), the engine's (include/m3c2/kalman.hpp), run one block of core points at a time.
 
-Each epoch observes the distance with the variance (LOD / c)^2, c the critical value its LOD was
-made with (the engine's own rule, kalman.hpp: lod_observation_variance); times are the epochs'
-(in days). The step writes the smoothed distance, rate (and acceleration) with their standard
+`--observation shared` (the default) hands the engine each block's distances with the store's
+sigma1, n1, sigma2, n2: the engine pools each core point's scatter and holds the reference's error,
+shared by every epoch, in the state (kalman.hpp: KalmanObservation). `independent`, the references'
+model, observes each distance with the variance (LOD / c)^2, c the critical value its LOD was made
+with (the engine's own rule, kalman.hpp: lod_observation_variance). Times are the epochs' (in days
+since the first epoch). The step writes the smoothed distance, rate (and acceleration) with their standard
 deviations, `kalman_significant` (|d| > z_C sigma) and `kalman_moments`, the filtered state at
 every epoch, in the staging folder and publishes them together (analysis.publish_many): a kill
 leaves the previous variables, or all of them marked half-written, never a mix.
 
-Incremental: after `add`, a rerun with the same model, noise and process noise filters only the
-new epochs, from the kept moments of the last computed one, then smooths backward over every
-epoch (the RTS pass needs all of them); the result is the from-scratch run's, bit for bit
-(tests/python/series/test_kalman.py)."""
+Incremental (independent only): after `add`, a rerun with the same model, noise, process noise
+and observation model filters only the new epochs, from the kept moments of the last computed
+one, then smooths backward over every epoch (the RTS pass needs all of them); the result is the
+from-scratch run's, bit for bit (tests/python/series/test_kalman_store.py). The shared model's
+pooled scatter changes with each epoch added, so every shared run filters from scratch (its
+moments are kept for inspection, never resumed from)."""
 from __future__ import annotations
 
 import json
@@ -27,6 +32,7 @@ from ..base.errors import UsageError
 from .. import engine as facade
 from ..run.checks import threads_count
 from ..base.quantiles import z_critical
+from .tam3c2 import _microseconds
 from . import analysis
 from . import integrity
 from . import parameters
@@ -35,6 +41,7 @@ from . import store as st
 
 MODELS = {"velocity": 2, "acceleration": 3}
 NOISES = ("continuous", "discrete")
+OBSERVATIONS = ("shared", "independent")
 #: The smoothed state's variables, (mean, standard deviation) per state component (d, d', d''),
 #: then the flag and the filtered moments: the store's names (store.KALMAN_VARIABLES, in that order).
 STATE_VARIABLES = tuple(zip(st.KALMAN_VARIABLES[0:6:2], st.KALMAN_VARIABLES[1:6:2]))
@@ -46,9 +53,6 @@ BLOCK_BYTES = 256 << 20
 #: `auto`: the core points whose likelihood is maximised, evenly spread, at most this many
 #: observations (core points x epochs) in memory.
 AUTO_SAMPLE = 2_000_000
-#: `auto`: the search in log10 q around q0 = (median observation variance) / M00(median dt).
-AUTO_DECADES = (-8.0, 4.0)
-AUTO_TOLERANCE = 1e-3  # in log10 q
 
 
 @dataclass(frozen=True)
@@ -59,6 +63,7 @@ class KalmanOptions:
     confidence: float | None = None  # the store's when None
     from_scratch: bool = False
     threads: int = 0
+    observation: str = "shared"  # or "independent" (kalman4d's and the tum-rsa fork's, over-confident)
 
 
 def _check(options: KalmanOptions) -> None:
@@ -66,6 +71,8 @@ def _check(options: KalmanOptions) -> None:
         raise UsageError(f"--model must be one of {', '.join(MODELS)}, got {options.model!r}")
     if options.noise not in NOISES:
         raise UsageError(f"--noise must be one of {', '.join(NOISES)}, got {options.noise!r}")
+    if options.observation not in OBSERVATIONS:
+        raise UsageError(f"--observation must be one of {', '.join(OBSERVATIONS)}, got {options.observation!r}")
     q = options.process_noise
     if q != "auto" and not (isinstance(q, (int, float)) and math.isfinite(q) and q >= 0):
         raise UsageError(f"--process-noise must be 'auto' or a finite number >= 0, got {q!r}")
@@ -107,89 +114,101 @@ def _counts(values: np.ndarray) -> np.ndarray:
     return out
 
 
-def _observations(store: Path, group, params, rows: slice, n: int, threads: int) -> tuple[np.ndarray, np.ndarray]:
-    """(distance, observation variance) of core points `rows` over the first n epochs."""
+@dataclass(frozen=True)
+class Inputs:
+    """One block's observations (core x epoch): the distances, and their variance (independent)
+    or the store's (sigma1, n1, sigma2, n2) from which the engine pools the scatter (shared)."""
+    values: np.ndarray
+    variance: np.ndarray | None = None
+    spread: tuple | None = None
+
+    def rows(self, sel) -> "Inputs":
+        pick = lambda a: np.ascontiguousarray(a[sel])  # noqa: E731
+        return Inputs(pick(self.values), None if self.variance is None else pick(self.variance),
+                      None if self.spread is None else tuple(pick(a) for a in self.spread))
+
+    @staticmethod
+    def stacked(parts: list["Inputs"]) -> "Inputs":
+        cat = lambda arrays: np.ascontiguousarray(np.concatenate(arrays))  # noqa: E731
+        first = parts[0]
+        return Inputs(cat([p.values for p in parts]),
+                      None if first.variance is None else cat([p.variance for p in parts]),
+                      None if first.spread is None else tuple(cat([p.spread[i] for p in parts]) for i in range(4)))
+
+
+def _observations(store: Path, group, params, rows: slice, n: int, observation: str, threads: int) -> Inputs:
+    """The observations of core points `rows` over the first n epochs."""
     sel = (rows, slice(0, n))
-    read = lambda name: st.read(store, group, name, sel)
-    z = np.ascontiguousarray(read("distance"), dtype=np.float64)
-    arrays = [np.ascontiguousarray(a, dtype=np.float64).ravel()
-              for a in (read("lod"), read("sigma1"), _counts(read("n1")), read("sigma2"), _counts(read("n2")))]
+    read = lambda name: st.read(store, group, name, sel)  # noqa: E731
+    contiguous = lambda a: np.ascontiguousarray(a, dtype=np.float64)  # noqa: E731
+    z = contiguous(read("distance"))
+    spread = tuple(contiguous(a) for a in (read("sigma1"), _counts(read("n1")), read("sigma2"), _counts(read("n2"))))
+    if observation == "shared":
+        return Inputs(z, spread=spread)
+    arrays = [np.ascontiguousarray(read("lod"), dtype=np.float64).ravel(), *(a.ravel() for a in spread)]
     var = facade.lod_observation_variance(params, *arrays, threads=threads).reshape(z.shape)
-    return z, var
+    return Inputs(z, variance=var)
 
 
-def _kalman_params(model: str, noise: str, q: float):
-    # The rate's (acceleration's) initial variance: the engine's, 1 (unit / day)^2 (kalman.hpp).
-    return facade.kalman_params(order=MODELS[model], discrete_noise=noise == "discrete", process_noise=q)
+def _reference(store: Path, group, n: int) -> tuple[float | None, int | None]:
+    """(the reference's time in days since the first epoch, the epoch that is the reference file):
+    each None when the store does not know it (docs/series.md, "Kalman filter", the anchor)."""
+    epoch = None
+    sha = str(group.attrs.get("reference_sha256", "") or "")
+    if sha and "source_sha256" in group:
+        hashes = st.read(store, group, "source_sha256", slice(0, n))
+        same = [e for e in range(n) if str(hashes[e]) == sha]
+        epoch = same[0] if same else None
+    text = str(group.attrs.get("reference_time", "") or "")
+    if not text:
+        return None, epoch
+    first = st.read(store, group, "time", slice(0, 1)).astype(np.int64)[0]
+    ref = _microseconds(text, f"{store}: reference_time")
+    return (ref - int(first)) / MICROSECONDS_PER_DAY, epoch
 
 
-def unit_m00(model: str, noise: str, dt: float) -> float:
-    """M(dt)[0, 0] of Q = q M(dt) (kalman.hpp): the variance q = 1 adds to d over dt."""
-    k = MODELS[model]
-    if noise == "discrete":
-        return 0.25 * dt ** 4
-    return dt ** 3 / 3.0 if k == 2 else dt ** 5 / 20.0
+def _kalman_params(model: str, noise: str, q: float, observation: str = "independent", *, reference=None,
+                   params=None):
+    """The engine's KalmanParams; the rate's (acceleration's) initial variance the engine's, 1
+    (unit / day)^2 (kalman.hpp). `observation` defaults to independent here, the model that needs
+    only each observation's variance (the tests' and the figure's series); the command's default,
+    shared, is KalmanOptions'. `reference`: (time, epoch) of the store's reference (_reference);
+    `params`: the store's engine Params, whose registration error and spread the shared model uses."""
+    reg = 0.0 if params is None else params.registration_error
+    population = params is not None and params.variance.name == "population"
+    return facade.kalman_params(order=MODELS[model], discrete_noise=noise == "discrete", process_noise=q,
+                                observation=observation, reference=reference, registration_error=reg,
+                                population_spread=population)
 
 
-def _sample(store: Path, group, params, n: int, threads: int):
+def _sample(store: Path, group, params, n: int, observation: str, threads: int) -> Inputs:
     """Evenly spread core points (at most AUTO_SAMPLE observations) for `auto`, read block by block."""
     n_core = group["distance"].shape[0]
     stride = max(1, -(-n_core * n // AUTO_SAMPLE))
-    zs, vs = [], []
+    parts = []
     for begin, end in _block_rows(group, n, 3):
         first = -begin % stride  # rows begin + first, + stride, ... are the sample's
-        z, v = _observations(store, group, params, slice(begin, end), n, threads)
-        zs.append(z[first::stride]), vs.append(v[first::stride])
-    return np.ascontiguousarray(np.concatenate(zs)), np.ascontiguousarray(np.concatenate(vs))
+        block = _observations(store, group, params, slice(begin, end), n, observation, threads)
+        parts.append(block.rows(slice(first, None, stride)))
+    return Inputs.stacked(parts)
 
 
-def fit_process_noise(values: np.ndarray, variance: np.ndarray, days: np.ndarray, model: str, noise: str,
-                      threads: int = 0) -> tuple[float, str]:
-    """`--process-noise auto`: the q maximising the likelihood of the observations (the
-    prediction error decomposition, Harvey 1989, 3.4; one q for every core point, as the papers
-    use one for a scene), over log10 q: a grid of half decades around q0 (the median
-    observation variance over M00 of the median epoch spacing), refined by golden section.
-    Returns q and a note when the maximum is at the grid's edge."""
-    dts = np.diff(days)
-    dts = dts[dts > 0]
-    finite = variance[np.isfinite(variance) & np.isfinite(values)]
-    if len(dts) == 0 or len(finite) == 0:
-        raise UsageError("--process-noise auto needs at least two epochs at distinct times and observations "
-                         "with a LOD; give --process-noise Q")
-    q0 = max(float(np.median(finite)), 1e-300) / unit_m00(model, noise, float(np.median(dts)))
-    u0 = math.log10(q0)
-
-    def loglik(u: float) -> float:
-        p = _kalman_params(model, noise, 10.0 ** u)
-        return facade.kalman_log_likelihood(values, variance, days, p, threads=threads)
-
-    grid = np.arange(u0 + AUTO_DECADES[0], u0 + AUTO_DECADES[1] + 1e-9, 0.5)
-    scores = [loglik(float(u)) for u in grid]
-    best = int(np.nanargmax(scores))
+def fit_process_noise(inputs: Inputs, days: np.ndarray, kalman_params, threads: int = 0) -> tuple[float, str]:
+    """`--process-noise auto`: the engine's maximum-likelihood q (kalman.hpp:
+    kalman_fit_process_noise, the one owner of the search) and a note when it fell at the searched
+    grid's edge."""
+    q, edge = facade.kalman_fit_process_noise(inputs.values, inputs.variance, np.asarray(days, np.float64),
+                                              kalman_params, spread=inputs.spread, threads=threads)
     note = ""
-    if best in (0, len(grid) - 1):
-        note = (f"the likelihood is highest at the edge of the searched range ({'smallest' if best == 0 else 'largest'}"
-                f" q tried, {10.0 ** grid[best]:.3g})")
-    lo, hi = grid[max(0, best - 1)], grid[min(len(grid) - 1, best + 1)]
-    g = (math.sqrt(5.0) - 1.0) / 2.0
-    a, b = hi - g * (hi - lo), lo + g * (hi - lo)
-    fa, fb = loglik(a), loglik(b)
-    while hi - lo > AUTO_TOLERANCE:
-        if fa > fb:
-            hi, b, fb = b, a, fa
-            a = hi - g * (hi - lo)
-            fa = loglik(a)
-        else:
-            lo, a, fa = a, b, fb
-            b = lo + g * (hi - lo)
-            fb = loglik(b)
-    u = max([(scores[best], float(grid[best])), (fa, a), (fb, b)])[1]
-    return 10.0 ** u, note
+    if edge:
+        note = (f"the likelihood is highest at the edge of the searched range ({'smallest' if edge < 0 else 'largest'}"
+                f" q tried, {q:.3g})")
+    return q, note
 
 
 def _block_rows(group, n: int, k: int) -> list[tuple[int, int]]:
     """Core-point blocks: the store's core chunks, split so that one holds at most BLOCK_BYTES."""
-    per_row = max(1, n) * 8 * (8 + 3 * k + k * (k + 1) // 2)
+    per_row = max(1, n) * 8 * (10 + 3 * k + (k + 1) * (k + 2) // 2)  # the shared state's moments at most
     most = max(1, BLOCK_BYTES // per_row)
     out = []
     for begin, end in analysis._core_chunks(group):
@@ -202,7 +221,11 @@ def _resumable(group, options: KalmanOptions, n: int) -> tuple[int, float | None
     if options.from_scratch or MOMENTS not in group:
         return 0, None
     attrs = group[MOMENTS].attrs
+    if options.observation != "independent":  # the shared model's pooled scatter changes with the epochs
+        return 0, None
     same = attrs.get("model") == options.model and attrs.get("noise") == options.noise
+    # a run from before the option was the independent model
+    same = same and attrs.get("observation", "independent") == options.observation
     kept_q = attrs.get("process_noise")
     if options.process_noise == "auto":
         same = same and attrs.get("process_noise_source") == "auto"
@@ -230,16 +253,20 @@ def kalman(store: Path, options: KalmanOptions = KalmanOptions()) -> dict:
         days = _days(store, group, n)
         params = _engine_params(store, group)
         confidence = params.confidence if options.confidence is None else options.confidence
+        reference = _reference(store, group, n)
         resume, q = _resumable(group, options, n)
         note = ""
         if q is None:
             if options.process_noise == "auto":
-                z, v = _sample(store, group, params, n, threads)
-                q, note = fit_process_noise(z, v, days, options.model, options.noise, threads)
+                sample = _sample(store, group, params, n, options.observation, threads)
+                fit = _kalman_params(options.model, options.noise, 0.0, options.observation, reference=reference,
+                                     params=params)
+                q, note = fit_process_noise(sample, days, fit, threads)
             else:
                 q = float(options.process_noise)
         source = "auto" if options.process_noise == "auto" else "given"
-        done = _write(store, folder, group, _Run(options, q, source, confidence, params, days, resume, threads))
+        run = _Run(options, q, source, confidence, params, days, resume, threads, reference)
+        done = _write(store, folder, group, run)
         removed = [name for name in st.KALMAN_VARIABLES if name in group and name not in done]
         analysis.publish_many(folder, done, removed)
     return {"epochs": n, "resumed_from": resume, "process_noise": q, "source": source, "note": note,
@@ -256,14 +283,17 @@ class _Run:
     days: np.ndarray
     resume: int
     threads: int
+    reference: tuple
+
 
 
 def _write(store: Path, folder: Path, group, run: _Run) -> list[str]:
     """The run's variables in the staging folder, block by block of core points."""
-    model, k = run.options.model, MODELS[run.options.model]
-    n, m = len(run.days), k + k * (k + 1) // 2
+    model, k, observation = run.options.model, MODELS[run.options.model], run.options.observation
+    size = k + (observation == "shared")  # the state: d, d' (d'') and, shared, b
+    n, m = len(run.days), size + size * (size + 1) // 2
     names = variables(model)
-    common = {"model": model, "noise": run.options.noise, "process_noise": run.q,
+    common = {"model": model, "noise": run.options.noise, "observation": observation, "process_noise": run.q,
               "process_noise_source": run.source, "epochs": int(n), "time_unit": "days since the first epoch"}
     integrity.make_staging(folder)  # once: every variable of the run is staged in it
     out = {}
@@ -278,15 +308,16 @@ def _write(store: Path, folder: Path, group, run: _Run) -> list[str]:
              long_name="|kalman_distance| > z_C kalman_distance_sigma (1 yes, 0 no, -1 no estimate)"))
     out[MOMENTS] = _staged_moments(folder, group, m, common)
     z_c = z_critical(run.confidence)
-    p = _kalman_params(model, run.options.noise, run.q)
+    p = _kalman_params(model, run.options.noise, run.q, observation, reference=run.reference, params=run.params)
     kept = group[MOMENTS] if run.resume else None
     fault_hook.checkpoint("store-write")
     for begin, end in _block_rows(group, n, k):
-        z, v = _observations(store, group, run.params, slice(begin, end), n, run.threads)
+        block = _observations(store, group, run.params, slice(begin, end), n, observation, run.threads)
         moments = np.full((end - begin, n, m), np.nan)
         if kept is not None:
             moments[:, :run.resume] = st.read(store, group, MOMENTS, (slice(begin, end), slice(0, run.resume)))
-        r = facade.kalman_smooth(z, v, run.days, moments, p, resume_from=run.resume, threads=run.threads)
+        r = facade.kalman_smooth(block.values, block.variance, run.days, moments, p, resume_from=run.resume,
+                                 spread=block.spread, threads=run.threads)
         for j, (mean, sd) in enumerate(STATE_VARIABLES[:k]):
             out[mean][begin:end, :n] = r["mean"][:, :, j]
             out[sd][begin:end, :n] = r["sd"][:, :, j]

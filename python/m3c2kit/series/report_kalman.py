@@ -25,6 +25,12 @@ MEAN, SIGMA = st.KALMAN_VARIABLES[0:2]
 SIGNIFICANT = st.KALMAN_VARIABLES[6]
 #: The state each model carries (series/kalman.py's MODELS), as the report names it.
 STATES = {"velocity": "[d, d']", "acceleration": "[d, d', d'']"}
+#: What each observation model (series/kalman.py's OBSERVATIONS) means, in the paragraph.
+OBSERVATION_TEXT = {
+    "shared": "shared observation: the state also holds b, the reference cylinder's error that every distance "
+              "shares, and each epoch is weighted by the core point's scatter pooled over its epochs (calibrated band)",
+    "independent": "independent observation: each epoch weighted by its own LOD as independent noise, the model of "
+                   "kalman4d and the tum-rsa fork (over-confident where the reference is no denser than the epochs)"}
 
 
 @dataclass(frozen=True)
@@ -36,6 +42,7 @@ class KalmanRun:
     source: str  # "auto" (maximum likelihood) or "given"
     confidence: float
     epochs: int  # the epochs the run covered; later ones were added since (NaN, flag -1)
+    observation: str = "independent"  # a run from before --observation was independent
 
     @property
     def z(self) -> float:
@@ -57,10 +64,16 @@ def kalman_run(store: Path, group) -> KalmanRun | None:
     attrs, flags = group[MEAN].attrs, group[SIGNIFICANT].attrs
     try:
         return KalmanRun(str(attrs["model"]), str(attrs["noise"]), float(attrs["process_noise"]),
-                         str(attrs["process_noise_source"]), float(flags["confidence"]), int(attrs["epochs"]))
+                         str(attrs["process_noise_source"]), float(flags["confidence"]), int(attrs["epochs"]),
+                         str(attrs.get("observation", "independent")))
     except (KeyError, TypeError, ValueError) as e:
         raise M3C2Error(f"{store}: the Kalman variables lack their run's record ({e}); rerun m3c2 series kalman "
                         f"{store} --from-scratch") from None
+
+
+def _state(run: KalmanRun) -> str:
+    state = STATES.get(run.model, "?")
+    return state[:-1] + ", b]" if run.observation == "shared" and state != "?" else state
 
 
 def _percent(confidence: float) -> str:
@@ -71,7 +84,8 @@ def summary(store: Path, group, run: KalmanRun, n: int) -> list[str]:
     """The paragraph on the run: model, process noise, band, and the share flagged at the last epoch."""
     source = "chosen by maximum likelihood" if run.source == "auto" else "given"
     text = (f"Smoothed by <code>m3c2 series kalman</code> (Kalman filter and Rauch-Tung-Striebel smoother, "
-            f"docs/series.md): model {html.escape(run.model)} (state {STATES.get(run.model, '?')}), "
+            f"docs/series.md): model {html.escape(run.model)} (state {_state(run)}), "
+            f"{html.escape(OBSERVATION_TEXT.get(run.observation, run.observation))}, "
             f"{html.escape(run.noise)} process noise q = {run.process_noise:.6g} ({source}); bands "
             f"kalman_distance ± {run.z:.4f} σ, the {_percent(run.confidence)} level of kalman_significant.")
     if n:

@@ -187,7 +187,7 @@ def test_simulation_with_known_truth():
     r = rng.uniform(0.02, 0.04, (n_core, n)) ** 2
     truth, z, moving = simulate(rng, n_core, t, q, r)
     z[rng.random(z.shape) < 0.1] = np.nan
-    q_hat, note = km.fit_process_noise(z, r, t, "velocity", "continuous")
+    q_hat, note = km.fit_process_noise(km.Inputs(z, r), t, km._kalman_params("velocity", "continuous", 0.0))
     assert not note and 0.6 * q < q_hat < 1.6 * q, q_hat
     out = engine_smoother(z, r, t, "velocity", q, "continuous", threads=2)
     d, s = out["mean"][:, :, 0], out["sd"][:, :, 0]
@@ -226,3 +226,30 @@ def test_bad_input_is_a_clear_error():
         engine_smoother(z, r, [0.0, 1.0, 2.0], "velocity", -1.0, "continuous")
     with pytest.raises(Exception, match="process-noise"):
         km._check(km.KalmanOptions(process_noise=-1.0))
+
+
+#: SHA-256 of the independent model's outputs below (mean, sd, log-likelihood, moments, rounded to
+#: 1e-12) as the engine gave them before issue 41 added the shared model (main's build, 7746409):
+#: `--observation independent` must stay the references' filter, number for number.
+INDEPENDENT_BEFORE_ISSUE_41 = "458f6d3813ade8b0a7a8069ca419ea426bd3c45a575ac38afc16ca21e8f177cc"
+
+
+def test_the_independent_model_gives_the_numbers_it_gave_before_the_shared_one():
+    import hashlib
+    rng = np.random.default_rng(41)
+    rows, n = 50, 30
+    t = np.cumsum(rng.uniform(0.2, 2, n))
+    z = rng.normal(0, 0.05, (rows, n)) + 0.01 * t
+    z[rng.random(z.shape) < 0.1] = np.nan
+    v = rng.uniform(1e-4, 4e-3, (rows, n))
+    h = hashlib.sha256()
+    for order in (2, 3):
+        for discrete in (False, True):
+            for prior in (None, t[0] - 1):
+                p = engine.kalman_params(order=order, discrete_noise=discrete, process_noise=1e-3, prior_time=prior,
+                                         observation="independent")
+                moments = np.full((rows, n, order + order * (order + 1) // 2), np.nan)
+                r = engine.kalman_smooth(z, v, t, moments, p, threads=1)
+                for a in (r["mean"], r["sd"], r["log_likelihood"], moments):
+                    h.update(np.round(a, 12).tobytes())
+    assert h.hexdigest() == INDEPENDENT_BEFORE_ISSUE_41

@@ -14,6 +14,7 @@ import pytest
 xr = pytest.importorskip("xarray")
 pytest.importorskip("zarr")
 
+from m3c2kit import engine  # noqa: E402
 from m3c2kit.base import fault_hook  # noqa: E402
 from m3c2kit.cli.main import main  # noqa: E402
 from m3c2kit.series import kalman as km  # noqa: E402
@@ -65,7 +66,7 @@ def base(epochs, tmp_path_factory):
 
 def test_the_variables_are_the_engines_filter_of_the_stores_series(base, tmp_path, capsys):
     store = copy(base, tmp_path)
-    code, out, err = run(capsys, "series", "kalman", store, "--process-noise", "0.5")
+    code, out, err = run(capsys, "series", "kalman", store, "--process-noise", "0.5", "--observation", "independent")
     assert code == 0, err
     assert "from the first epoch" in out and "q = 0.5 (given)" in out
     ds = xr.open_zarr(store).load()
@@ -83,7 +84,8 @@ def test_the_variables_are_the_engines_filter_of_the_stores_series(base, tmp_pat
     assert "kalman_acceleration" not in ds
     assert run(capsys, "series", "check", store)[0] == 0
     # Another confidence: nothing to filter (resumed at the end), the flags at z_0.8.
-    code, out, err = run(capsys, "series", "kalman", store, "--process-noise", "0.5", "--confidence", "0.8")
+    code, out, err = run(capsys, "series", "kalman", store, "--process-noise", "0.5", "--confidence", "0.8",
+                         "--observation", "independent")
     assert code == 0 and "resumed after epoch 6" in out and "significant at 0.8" in out, (out, err)
     again = xr.open_zarr(store).load()
     assert again["kalman_distance"].values.tobytes() == ds["kalman_distance"].values.tobytes()
@@ -98,8 +100,9 @@ def test_the_acceleration_model_replaces_the_velocity_variables_and_back(base, t
     assert run(capsys, "series", "kalman", store, "--model", "acceleration", "--process-noise", "0.1")[0] == 0
     ds = xr.open_zarr(store)
     assert {"kalman_acceleration", "kalman_acceleration_sigma"} <= set(ds)
-    assert ds["kalman_moments"].shape[2] == 9
-    assert run(capsys, "series", "kalman", store, "--process-noise", "0.1")[0] == 0
+    assert ds["kalman_moments"].shape[2] == 14  # [d, d', d'', b]: 4 means, 10 covariances
+    assert ds["kalman_moments"].attrs["observation"] == "shared"
+    assert run(capsys, "series", "kalman", store, "--process-noise", "0.1", "--observation", "independent")[0] == 0
     ds = xr.open_zarr(store)
     assert "kalman_acceleration" not in ds and ds["kalman_moments"].shape[2] == 5
     assert run(capsys, "series", "check", store)[0] == 0
@@ -108,7 +111,7 @@ def test_the_acceleration_model_replaces_the_velocity_variables_and_back(base, t
 def test_auto_and_a_rerun_after_add_resumes_equal_to_from_scratch(base, epochs, tmp_path, capsys):
     _, _, second = epochs
     store = copy(base, tmp_path)
-    code, out, err = run(capsys, "series", "kalman", store)
+    code, out, err = run(capsys, "series", "kalman", store, "--observation", "independent")
     assert code == 0 and "maximum likelihood" in out, err
     q = float(xr.open_zarr(store)["kalman_moments"].attrs["process_noise"])
     assert run(capsys, "series", "add", store, second, "--quiet")[0] == 0
@@ -116,9 +119,11 @@ def test_auto_and_a_rerun_after_add_resumes_equal_to_from_scratch(base, epochs, 
     assert ds["kalman_distance"].shape[1] == 12 and np.isnan(ds["kalman_distance"].values[:, 7:]).all()
     assert run(capsys, "series", "check", store)[0] == 0  # kept the length of the series by add
     scratch = copy(store, tmp_path, "scratch.zarr")
-    code, out, err = run(capsys, "series", "kalman", store)
+    # a shared run in between is not resumed from (another model), nor does it resume
+    code, out, err = run(capsys, "series", "kalman", store, "--observation", "independent")
     assert code == 0 and "resumed after epoch 6" in out, (out, err)
-    assert run(capsys, "series", "kalman", scratch, "--from-scratch", "--process-noise", repr(q))[0] == 0
+    assert run(capsys, "series", "kalman", scratch, "--from-scratch", "--process-noise", repr(q),
+               "--observation", "independent")[0] == 0
     a, b = xr.open_zarr(store).load(), xr.open_zarr(scratch).load()
     for name in km.variables("velocity"):
         np.testing.assert_allclose(a[name].values, b[name].values, rtol=0, atol=1e-12, err_msg=name)
@@ -183,7 +188,7 @@ def test_an_imported_py4dgeo_store_is_filtered_with_its_lod_as_z(tmp_path, capsy
     store = tmp_path / "imp.zarr"
     assert main(["series", "import", str(archive), "-o", str(store)]) == 0
     capsys.readouterr()
-    code, out, err = run(capsys, "series", "kalman", store, "--process-noise", "0.01")
+    code, out, err = run(capsys, "series", "kalman", store, "--process-noise", "0.01", "--observation", "independent")
     assert code == 0, err
     ds = xr.open_zarr(store).load()
     days = (ds["time"].values - ds["time"].values[0]) / np.timedelta64(1, "D")
@@ -191,3 +196,56 @@ def test_an_imported_py4dgeo_store_is_filtered_with_its_lod_as_z(tmp_path, capsy
                              "continuous")
     np.testing.assert_allclose(ds["kalman_distance"].values, expect["mean"][:, :, 0], rtol=0, atol=1e-12)
     assert np.isfinite(ds["kalman_distance"].values).any()
+
+
+def test_the_shared_run_is_the_engines_on_the_stores_spreads_and_always_from_scratch(base, epochs, tmp_path, capsys):
+    """The default model: the engine's shared filter on the store's distance, sigma1, n1, sigma2, n2
+    (pooled there), anchored at the reference's recorded time; after `add` the rerun filters from
+    the first epoch (the pooled scatter changed) and equals a --from-scratch run bit for bit."""
+    _, _, second = epochs
+    store = copy(base, tmp_path)
+    code, out, err = run(capsys, "series", "kalman", store, "--process-noise", "0.5")
+    assert code == 0 and "shared observation" in out and "from the first epoch" in out, (out, err)
+    ds = xr.open_zarr(store).load()
+    assert ds["kalman_distance"].attrs["observation"] == "shared" and ds["kalman_moments"].shape[2] == 9
+    days = (ds["time"].values - ds["time"].values[0]) / np.timedelta64(1, "D")
+    text = ds.attrs["reference_time"]
+    ref_time = (np.datetime64(text) - ds["time"].values[0]) / np.timedelta64(1, "D") if text else None
+    counts = lambda a: np.where(np.isfinite(a), a, np.nan).astype(np.float64)  # noqa: E731  (NaN: fill)
+    spread = tuple(np.ascontiguousarray(a) for a in (ds["sigma1"].values, counts(ds["n1"].values),
+                                                       ds["sigma2"].values, counts(ds["n2"].values)))
+    p = engine.kalman_params(order=2, discrete_noise=False, process_noise=0.5, reference=(ref_time, None))
+    z = np.ascontiguousarray(ds["distance"].values)
+    expect = engine.kalman_smooth(z, None, days, np.full((*z.shape, 9), np.nan), p, spread=spread)
+    np.testing.assert_allclose(ds["kalman_distance"].values, expect["mean"][:, :, 0], rtol=0, atol=1e-12)
+    np.testing.assert_allclose(ds["kalman_distance_sigma"].values, expect["sd"][:, :, 0], rtol=0, atol=1e-12)
+    # every core point with a distance has an estimate at every epoch from the first one
+    assert np.isfinite(ds["kalman_distance"].values).sum() >= np.isfinite(z).sum()
+    assert run(capsys, "series", "add", store, second, "--quiet")[0] == 0
+    scratch = copy(store, tmp_path, "scratch.zarr")
+    code, out, err = run(capsys, "series", "kalman", store, "--process-noise", "0.5")
+    assert code == 0 and "from the first epoch" in out, (out, err)
+    assert run(capsys, "series", "kalman", scratch, "--from-scratch", "--process-noise", "0.5")[0] == 0
+    a, b = xr.open_zarr(store).load(), xr.open_zarr(scratch).load()
+    for name in km.variables("velocity"):
+        assert a[name].values.tobytes() == b[name].values.tobytes(), name
+    assert run(capsys, "series", "check", store)[0] == 0
+
+
+def test_the_reference_file_as_an_epoch_is_the_anchor_not_an_observation(epochs, tmp_path, capsys):
+    """Permanent laser scanning: the reference file is also epoch 0 (the same SHA-256). Its
+    distance is the reference against itself; the shared run anchors d = 0 there (sigma 0, never
+    significant) and estimates every later epoch with a positive sigma."""
+    paths, _, _ = epochs
+    lines = [f"{p.name}, {np.datetime64('2024-01-01T00:00') + np.timedelta64(h, 'h')}\n"
+             for p, h in zip(paths[:4], (0, 1, 2, 4))]
+    listing = list_file(paths[0].parent, "with_reference.txt", lines)
+    store = tmp_path / "pls.zarr"
+    assert main(["series", str(paths[0]), str(listing), "-o", str(store), *PARAMS, "--quiet"]) == 0
+    capsys.readouterr()
+    assert run(capsys, "series", "kalman", store, "--process-noise", "0.5")[0] == 0
+    ds = xr.open_zarr(store).load()
+    d, s = ds["kalman_distance"].values, ds["kalman_distance_sigma"].values
+    has = np.isfinite(d[:, 0])
+    assert has.mean() > 0.9 and (d[has, 0] == 0).all() and (s[has, 0] == 0).all()
+    assert (s[has, 1:] > 0).all() and (ds["kalman_significant"].values[has, 0] == 0).all()

@@ -98,6 +98,7 @@ def test_the_report_embeds_each_core_points_smoothed_series_and_states_the_run(p
     estimated, flagged = int((flags >= 0).sum()), int((flags == 1).sum())
     assert 0 < flagged < estimated
     assert "model velocity" in page and "continuous process noise q = 0.5 (given)" in page
+    assert "(state [d, d', b]), shared observation" in page  # the default model, named
     assert f"{flagged} of the {estimated} core points with an estimate ({100 * flagged / estimated:.1f} %)" in page
     assert "the 95 % level" in page and "95 % band" not in page  # the legend is in the figure, not the text
 
