@@ -33,7 +33,9 @@ class Epoch:
     time_source: str = "order"          # list | las-gps-time | las-creation-date | e57 | order
 
 
-def _parse_time(text: str, where: str) -> np.datetime64:
+def parse_time(text: str, where: str) -> np.datetime64:
+    """An ISO 8601 time (UTC unless it says otherwise) as datetime64[us]; a UsageError naming `where`.
+    The one reader of a time a user or a store gives (epoch lists, reference_time, --reference-time)."""
     try:
         value = dt.datetime.fromisoformat(text.strip().replace("Z", "+00:00"))
     except ValueError:
@@ -41,6 +43,11 @@ def _parse_time(text: str, where: str) -> np.datetime64:
     if value.tzinfo is not None:
         value = value.astimezone(dt.timezone.utc).replace(tzinfo=None)
     return np.datetime64(value, "us")
+
+
+def microseconds(text: str, where: str) -> int:
+    """parse_time() as microseconds since 1970-01-01 (the store's time unit)."""
+    return int(parse_time(text, where).astype(np.int64))
 
 
 def _list_text(path: Path) -> str:
@@ -84,7 +91,7 @@ def read_list_file(path: Path) -> list[Epoch]:
         if not (file.exists() or file.is_symlink()):
             raise UsageError(f"{path}:{number}: the epoch {parts[0]} does not exist ({file})")
         check_input_file(file, label=f"{path}:{number}: the epoch {parts[0]}")  # a FIFO or folder: never read
-        time = _parse_time(parts[1], f"{path}:{number}") if len(parts) > 1 else None
+        time = parse_time(parts[1], f"{path}:{number}") if len(parts) > 1 else None
         out.append(Epoch(file, time, "list") if time is not None else metadata_epoch(file))
     return out
 

@@ -32,7 +32,7 @@ from ..base.errors import UsageError
 from .. import engine as facade
 from ..run.checks import threads_count
 from ..base.quantiles import z_critical
-from .tam3c2 import _microseconds
+from .epochs import microseconds
 from . import analysis
 from . import integrity
 from . import parameters
@@ -163,7 +163,7 @@ def _reference(store: Path, group, n: int) -> tuple[float | None, int | None]:
     if not text:
         return None, epoch
     first = st.read(store, group, "time", slice(0, 1)).astype(np.int64)[0]
-    ref = _microseconds(text, f"{store}: reference_time")
+    ref = microseconds(text, f"{store}: reference_time")
     return (ref - int(first)) / MICROSECONDS_PER_DAY, epoch
 
 

@@ -35,6 +35,7 @@ from ..base.quantiles import z_critical
 from . import analysis
 from . import epoch_files
 from .epoch_crops import EpochCrops
+from .epochs import microseconds
 from . import integrity
 from . import parameters
 from . import step
@@ -98,22 +99,12 @@ def _check(o: Tam3c2Options) -> None:
         raise UsageError(f"--lod: TAM3C2's LOD is {', '.join(LODS)} (it cannot resample a bootstrap), got {o.lod!r}")
 
 
-def _microseconds(text: str, what: str) -> int:
-    try:
-        value = np.datetime64(text, "us")
-    except ValueError:
-        raise UsageError(f"{what}: not a time (ISO 8601, such as 2024-01-01T12:00): {text!r}") from None
-    if np.isnat(value):
-        raise UsageError(f"{what}: not a time: {text!r}")
-    return int(value.astype(np.int64))
-
-
 def _days(store: Path, group, n: int, reference_time: str | None) -> np.ndarray:
     """The epochs' times in days since the reference's; every one needed."""
     given = reference_time if reference_time is not None else group.attrs.get("reference_time", "")
     if not given:
         raise UsageError(f"{store}: its reference has no recorded time: TAM3C2 needs it; give --reference-time TIME")
-    ref = _microseconds(given, "--reference-time" if reference_time is not None else f"{store}: reference_time")
+    ref = microseconds(given, "--reference-time" if reference_time is not None else f"{store}: reference_time")
     times = st.read(store, group, "time", slice(0, n)).astype(np.int64)
     if (times == st.NAT).any():
         first = int(np.flatnonzero(times == st.NAT)[0])
