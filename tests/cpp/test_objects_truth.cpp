@@ -29,7 +29,7 @@ constexpr double kSpacing = 0.5, kNoise = 0.006;
 
 struct Event {
   std::string name;
-  int first, last;                              // the change's epochs (last: kEpochs - 1 when kept)
+  int first, last;                               // the change's epochs (last: kEpochs - 1 when kept)
   std::vector<std::pair<double, double>> knots;  // (epoch, change), linear between, constant outside
   bool (*inside)(double x, double y);
   double change(double t) const {
@@ -44,14 +44,22 @@ struct Event {
   }
 };
 
-bool disc(double x, double y, double cx, double cy, double r) { return (x - cx) * (x - cx) + (y - cy) * (y - cy) <= r * r; }
+bool disc(double x, double y, double cx, double cy, double r) {
+  return (x - cx) * (x - cx) + (y - cy) * (y - cy) <= r * r;
+}
 
 const std::vector<Event>& events() {
   static const std::vector<Event> e = {
       {"deposit", 30, 99, {{29, 0.0}, {32, 0.10}}, [](double x, double y) { return disc(x, y, 4.0, 4.0, 2.0); }},
-      {"erosion strip", 40, 99, {{39, 0.0}, {44, -0.08}},
+      {"erosion strip",
+       40,
+       99,
+       {{39, 0.0}, {44, -0.08}},
        [](double x, double y) { return x >= 9.0 && x <= 15.0 && y >= 1.0 && y <= 3.0; }},
-      {"bump", 18, 72, {{17, 0.0}, {18, 0.12}, {71, 0.12}, {72, 0.0}},
+      {"bump",
+       18,
+       72,
+       {{17, 0.0}, {18, 0.12}, {71, 0.12}, {72, 0.0}},
        [](double x, double y) { return disc(x, y, 4.0, 11.5, 2.2); }},
       {"subsidence", 45, 99, {{44, 0.0}, {56, -0.04}}, [](double x, double y) { return disc(x, y, 11.5, 8.0, 2.2); }},
       {"rockfall", 50, 99, {{49, 0.0}, {50, -0.12}}, [](double x, double y) { return disc(x, y, 11.5, 13.5, 1.8); }},
@@ -85,8 +93,7 @@ Scene scene(std::uint64_t seed, bool with_events) {
 }
 
 /// IoU of two extents in space and time: (core points, [t0, t1]) each.
-double iou(const std::vector<std::uint32_t>& a, int a0, int a1, const std::vector<std::uint32_t>& b, int b0,
-           int b1) {
+double iou(const std::vector<std::uint32_t>& a, int a0, int a1, const std::vector<std::uint32_t>& b, int b0, int b1) {
   std::vector<std::uint32_t> both;
   std::set_intersection(a.begin(), a.end(), b.begin(), b.end(), std::back_inserter(both));
   const double shared = double(both.size()) * std::max(0, std::min(a1, b1) - std::max(a0, b0) + 1);
