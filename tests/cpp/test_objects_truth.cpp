@@ -6,7 +6,8 @@
 // an object whose extent in space and time (members x [start, end]) has IoU >= 0.5 with the
 // event's (footprint x [first changed epoch - 1, last]), raw and smoothed, on two seeds, and
 // nothing on the noise. The rule before it (kSeedStart) misses the rockfall's step and the raw
-// subsidence: the last test shows it, so that these tests can fail. Each rule's DTW values are
+// subsidence: a test shows it, so that these tests can fail. A one-epoch step has a seed on every
+// core point of it, from the epoch before the step. Each rule's DTW values are
 // checked against a brute-force O(n^2) DTW with the rule's offsets and D_max, and each rule's seed
 // score against its formula (py4dgeo's: raw slices, neighbours closer than the radius).
 
@@ -149,6 +150,31 @@ TEST(ObjectsTruth, TheSeedStartRuleMissesTheStep) {
   for (const std::uint64_t seed : {1u, 2u}) {
     const Scene s = scene(seed, true);
     EXPECT_LT(best_iou(s, run(s, false, ObjectsDtw::kSeedStart))[4], 0.5) << "seed " << seed;
+  }
+}
+
+TEST(ObjectsTruth, AOneEpochStepHasASeedFromTheEpochBeforeIt) {
+  // -12 cm at epoch 50 and kept, 6 mm of noise: the change point is 50; the baseline seed starts
+  // at 49 (the last epoch at the old level) and runs to the end, on every core point of the
+  // rockfall and both seeds. py4dgeo's rule (the volume from x_50, already the new level) gives a
+  // seed only where x_50 happens to be an extreme of the noise after it.
+  for (const std::uint64_t seed : {1u, 2u}) {
+    const Scene s = scene(seed, true);
+    std::vector<double> rows;
+    std::size_t n = 0;
+    for (std::uint32_t c = 0; c < s.rows(); ++c)
+      if (events()[4].inside(s.xyz[3 * c], s.xyz[3 * c + 1]))
+        rows.insert(rows.end(), s.d.begin() + c * kEpochs, s.d.begin() + (c + 1) * kEpochs), ++n;
+    const std::vector<Seed> seeds = find_seeds(rows.data(), n, kEpochs, ObjectsParams{});
+    ASSERT_EQ(seeds.size(), n) << "seed " << seed;
+    for (const Seed& x : seeds) {
+      EXPECT_EQ(x.start, 49u);
+      EXPECT_EQ(x.end, kEpochs - 1);
+      EXPECT_EQ(x.base, 50u - 12u);  // [b - width / 2, b): the half window before the change point
+    }
+    ObjectsParams py4dgeo;
+    py4dgeo.dtw = ObjectsDtw::kPy4dgeo;
+    EXPECT_LT(find_seeds(rows.data(), n, kEpochs, py4dgeo).size(), n / 4) << "seed " << seed;
   }
 }
 
