@@ -56,7 +56,10 @@ enum class ObjectsDtw : std::uint8_t {
   /// each series by its own median over those epochs and D_max = sum |a - baseline_a|. The median
   /// is the level the L1 cost of the detection fitted to that segment (Truong et al. 2020; Anders
   /// et al. 2021, 2.3.1), so steps, reversals and slow ramps are measured from before the change,
-  /// not from one noisy epoch after it.
+  /// not from one noisy epoch after it. A seed ends when the series is back within the baseline
+  /// window's median absolute deviation, or at a later change point by more than half the change.
+  /// The ratio rule starts at the first threshold with min_segments core points, and a seed
+  /// adjacent to an earlier object's core point over shared epochs is skipped.
   kBaseline,
   /// py4dgeo's seeds (a seed starts at its change point); each series offset by its value at the
   /// seed's start, D_max = sum |a - a_start|: the rule before the baseline (eq. 3 of Anders et al.
@@ -117,7 +120,8 @@ std::vector<Seed> find_seeds(const double* distances, std::size_t rows, std::siz
 /// (candidates in ascending DTW, only those under the 95th percentile of the object's DTW values
 /// growing it further), the threshold picked before the object's size doubles, objects with
 /// fewer than min_segments core points or a larger coefficient of variation than max_cv
-/// dropped; a seed inside an earlier object's extent in space and time is skipped.
+/// dropped; a seed inside an earlier object's extent in space and time is skipped (under
+/// ObjectsDtw::kBaseline also one adjacent to such an object's core point).
 ObjectsResult objects_by_change(const double* distances, std::size_t rows, std::size_t epochs, PointsView core,
                                 const ObjectsParams& p, const RunOptions& run = {});
 
