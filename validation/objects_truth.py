@@ -1,6 +1,7 @@
 """4D objects-by-change against a known truth, ours (each `--dtw` rule) beside py4dgeo 1.2.0 on the
 same inputs: the seeded scenes of validation/objects_scenes.py (five events above the noise,
-two seeds), raw and smoothed (our `smooth`, a centred median of 5 epochs, given to both tools).
+two seeds), raw, smoothed (our `smooth`, a centred median of 5 epochs, given to both tools) and raw
+with 5 % of the cells NaN.
 Prints per event the best IoU in space and time of an object (members x [start, end] against
 footprint x [first changed epoch - 1, last]; found: IoU >= 0.5), recall and precision, then
 `--dtw py4dgeo` against py4dgeo's own RegionGrowingAlgorithm: the same seeds in the same order,
@@ -62,6 +63,14 @@ def run_py4dgeo(python: str, core: np.ndarray, d: np.ndarray, folder: Path) -> d
     return json.loads(out.read_text())
 
 
+def gaps(d: np.ndarray, seed: int) -> np.ndarray:
+    """5 % of the (core point, epoch) cells NaN: epochs without a distance (py4dgeo interpolates them
+    in place in its own array, docs/series.md)."""
+    out = d.copy()
+    out[np.random.default_rng(seed + 100).random(d.shape) < 0.05] = np.nan
+    return out
+
+
 def run_ours(rule: str, core: np.ndarray, d: np.ndarray) -> dict:
     from m3c2kit.series import engine
     t0 = time.perf_counter()
@@ -121,8 +130,8 @@ def main() -> None:
     rows, agreement, seconds = [], [], {t: 0.0 for t in tools}
     for seed in SEEDS:
         core, raw = sc.scene(seed)
-        for series in ("raw", "smoothed"):
-            d = raw if series == "raw" else engine.temporal_median(raw, WINDOW)
+        for series in ("raw", "smoothed", "raw, 5 % gaps"):
+            d = {"raw": raw, "smoothed": engine.temporal_median(raw, WINDOW), "raw, 5 % gaps": gaps(raw, seed)}[series]
             results = {f"ours {r}": run_ours(r, core, d) for r in RULES}
             objects = {t: our_objects(out) for t, out in results.items()}
             if have_py4dgeo:

@@ -97,3 +97,18 @@ def test_the_command_line_names_the_rules():
     assert objects_params(objects_parser().parse_args(["st.zarr", "-o", "o.csv"])).dtw == _core.ObjectsDtw.baseline
     with pytest.raises(Exception, match="--whole-series"):  # gone: it claimed py4dgeo's rule, and was not it
         objects_parser().parse_args(["st.zarr", "-o", "o.csv", "--whole-series"])
+
+
+def test_py4dgeo_rule_reads_the_interpolated_epochs():
+    """py4dgeo's seed search interpolates each searched series' NaN epochs (np.interp) in place in
+    its own array, so its scores and growth read them: --dtw py4dgeo on a series with gaps equals
+    it on the series filled by np.interp beforehand, bit for bit."""
+    core, d = sc.scene(1)
+    d[np.random.default_rng(7).random(d.shape) < 0.05] = np.nan
+    filled = d.copy()
+    for row in filled:
+        bad = np.isnan(row)
+        row[bad] = np.interp(np.flatnonzero(bad), np.flatnonzero(~bad), row[~bad])
+    a, b = run(d, core, "py4dgeo"), run(filled, core, "py4dgeo")
+    assert len(a["object_seed"]) >= 3
+    assert all(np.asarray(a[k]).tobytes() == np.asarray(b[k]).tobytes() for k in a)
