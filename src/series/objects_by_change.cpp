@@ -351,28 +351,33 @@ ObjectsResult objects_by_change(const double* distances, std::size_t rows, std::
   ObjectsResult result;
   result.seeds = find_seeds(distances, rows, epochs, p, run);
   // The seed scores and region growing read the series the seeds were found on, NaN epochs
-  // interpolated (a copy; the caller's array is never written). py4dgeo's find_seedpoints
-  // interpolates each series it searches in place, in the analysis' cached distance array, so its
-  // scores and growth read them too; under kPy4dgeo only those rows (every seed_subsampling-th),
-  // as in py4dgeo. With the raw gaps the baseline rule's DTW values were noisier: on
-  // validation/objects_truth.py's scenes with 5 % of the cells NaN, a partial subsidence at the
-  // first threshold and a false object, which the interpolated series do not give.
+  // interpolated: the rows with a gap are copied and interpolated beside the caller's array (never
+  // written), 8 bytes an epoch for each such row. py4dgeo's find_seedpoints interpolates each
+  // series it searches in place, in the analysis' cached distance array, so its scores and growth
+  // read them too; under kPy4dgeo only those rows (every seed_subsampling-th), as in py4dgeo.
+  // With the raw gaps the baseline rule's DTW values were noisier: on validation/objects_truth.py's
+  // scenes with 5 % of the cells NaN, a partial subsidence at the first threshold and a false
+  // object, which the interpolated series do not give.
+  constexpr std::size_t kCallers = std::numeric_limits<std::size_t>::max();
+  std::vector<std::size_t> slot(rows, kCallers);  // row r's place in `filled`, or the caller's row
   std::vector<double> filled;
-  if (std::any_of(distances, distances + rows * epochs, [](double v) { return std::isnan(v); })) {
-    filled.assign(distances, distances + rows * epochs);
+  {
     std::vector<double> ts;
     const std::size_t step = p.dtw == ObjectsDtw::kPy4dgeo ? p.seed_subsampling : 1;
     for (std::size_t r = 0; r < rows; r += step) {
-      ts.assign(filled.begin() + std::ptrdiff_t(r * epochs), filled.begin() + std::ptrdiff_t((r + 1) * epochs));
-      if (std::size_t(std::count_if(ts.begin(), ts.end(), [](double v) { return std::isnan(v); })) + 3 > epochs)
-        continue;  // skipped by the seed search, left as it is
+      const double* v = distances + r * epochs;
+      const std::size_t nans = std::size_t(std::count_if(v, v + epochs, [](double x) { return std::isnan(x); }));
+      if (nans == 0 || nans + 3 > epochs) continue;  // nothing to fill; skipped by the seed search
+      ts.assign(v, v + epochs);
       interpolate_gaps(ts);
-      std::copy(ts.begin(), ts.end(), filled.begin() + std::ptrdiff_t(r * epochs));
+      slot[r] = filled.size() / epochs;
+      filled.insert(filled.end(), ts.begin(), ts.end());
     }
-    distances = filled.data();
   }
   const detail::KdTree tree(core);
-  const auto row = [&](std::size_t r) { return distances + r * epochs; };
+  const auto row = [&](std::size_t r) {
+    return slot[r] == kCallers ? distances + r * epochs : filled.data() + slot[r] * epochs;
+  };
 
   // Seed score: the mean normalised DTW to its neighbours over the seed's epochs (py4dgeo's
   // neighborhood_similarity: the raw slices, no offsets, in py4dgeo's mode; the growth's
