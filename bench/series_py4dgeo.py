@@ -7,7 +7,7 @@ same threads, each tool in its own process (so that its peak resident memory is 
 The epochs are validation/series_synthetic.py's scenario (a rough surface, a landslide,
 accumulation piles, noise, one offset epoch) at the requested size, written once as .npy; the
 core points are every k-th reference point. m3c2: `m3c2 series REF EPOCH... -o STORE --core CORE`
-then `m3c2 series objects`; py4dgeo: SpatiotemporalAnalysis with its M3C2 (the same D, d, L),
+then `m3c2 series objects --dtw py4dgeo` (py4dgeo's rule, the same work); py4dgeo: SpatiotemporalAnalysis with its M3C2 (the same D, d, L),
 each epoch added as it arrives (add_epochs per epoch, as a monitoring system adds them), then
 RegionGrowingAlgorithm with the same 4D-OBC parameters. Printed: per-phase wall and CPU time
 (user + sys of all the process's threads: the figure to compare on a shared machine), the store's
@@ -77,7 +77,7 @@ def run_m3c2(work: Path, threads: int) -> dict:
                  "--normal-scale", str(D), "--projection-scale", str(d), "--max-depth", str(L), "--threads",
                  str(threads), "--quiet"]) == 0
     t1, c1 = time.perf_counter(), cpu()
-    assert main(["series", "objects", str(store), "-o", str(work / "m3c2_objects.csv"), "--whole-series",
+    assert main(["series", "objects", str(store), "-o", str(work / "m3c2_objects.csv"), "--dtw", "py4dgeo",
                  "--neighbourhood-radius", str(OBC["neighborhood_radius"]), "--min-segments",
                  str(OBC["min_segments"]), "--threads", str(threads), "--quiet"]) == 0
     t2, c2 = time.perf_counter(), cpu()

@@ -46,7 +46,33 @@ std::vector<std::uint32_t> change_points(const double* series, std::size_t epoch
 double normalised_dtw(const double* a, const double* b, std::size_t n, double norm_a, double norm_b, double dmax_origin,
                       double at_least = 1.0);
 
-/// Parameters of 4D-OBC; the defaults are py4dgeo's RegionGrowingAlgorithm's.
+/// Where a seed starts and from what level 4D-OBC's DTW measures each series (docs/series.md,
+/// "Analysis"). Every rule compares the seed's epochs [start, end] only; they differ in each
+/// series' offset, in D_max and in the seeds.
+enum class ObjectsDtw : std::uint8_t {
+  /// Ours (the default): a seed starts at the last epoch before its change point and its volume
+  /// is measured from a baseline, the median of the epochs [base, start] (the half window of the
+  /// change-point detection before the change, cut at the previous change point); the DTW offsets
+  /// each series by its own median over those epochs and D_max = sum |a - baseline_a|. The median
+  /// is the level the L1 cost of the detection fitted to that segment (Truong et al. 2020; Anders
+  /// et al. 2021, 2.3.1), so steps, reversals and slow ramps are measured from before the change,
+  /// not from one noisy epoch after it. A seed ends when the series is back within the baseline
+  /// window's median absolute deviation, or at a later change point by more than half the change.
+  /// The ratio rule starts at the first threshold with min_segments core points, and a seed
+  /// adjacent to an earlier object's core point over shared epochs is skipped.
+  kBaseline,
+  /// py4dgeo's seeds (a seed starts at its change point); each series offset by its value at the
+  /// seed's start, D_max = sum |a - a_start|: the rule before the baseline (eq. 3 of Anders et al.
+  /// 2021 with the seed's first epoch as "no change").
+  kSeedStart,
+  /// py4dgeo 1.2.0's RegionGrowingAlgorithm exactly (lib/segmentation.cpp, segmentation.py): its
+  /// seeds; growth: each series offset by its value at the series' first epoch, D_max = sum |a| of
+  /// the raw seed slice; seed score: raw slices, no offsets; min_segments applied only to an object
+  /// chosen by the ratio rule (not to one at max_segments or the largest threshold).
+  kPy4dgeo,
+};
+
+/// Parameters of 4D-OBC; the defaults are py4dgeo's RegionGrowingAlgorithm's but for `dtw`.
 struct ObjectsParams {
   ChangePointParams change_points;
   std::uint32_t min_period = 24;       ///< fewest epochs from a seed's start to its end
@@ -58,9 +84,7 @@ struct ObjectsParams {
   std::uint32_t min_segments = 20;                                              ///< fewest core points of an object
   std::uint64_t max_segments = 0;                                               ///< 0: no limit
   double max_cv = 0.8;  ///< objects whose DTW values have a larger coefficient of variation are dropped
-  /// false (the paper): DTW over the seed's epochs, each series minus its value at the seed's
-  /// start. true (py4dgeo): over the whole series minus its first epoch, D_max of the raw seed.
-  bool whole_series = false;
+  ObjectsDtw dtw = ObjectsDtw::kBaseline;
   /// Memory for the table of every core point's neighbours (4 bytes a pair); a build that would
   /// pass it stops and drops the table, and each neighbourhood is searched when region growing
   /// needs it (same objects, slower).
@@ -69,7 +93,8 @@ struct ObjectsParams {
 
 struct Seed {
   std::uint32_t core = 0, start = 0, end = 0;  ///< epochs [start, end]
-  double score = 0.0;                          ///< mean normalised DTW to its neighbours (ascending = first grown)
+  std::uint32_t base = 0;  ///< the baseline's epochs [base, start] (ObjectsDtw::kBaseline; start otherwise)
+  double score = 0.0;      ///< mean normalised DTW to its neighbours (ascending = first grown)
 };
 
 struct ChangeObject {
@@ -85,8 +110,9 @@ struct ObjectsResult {
 };
 
 /// Seeds of every (subsampled) core point: change points, then the change's volume grown
-/// until it decreases (py4dgeo's rule); NaN epochs interpolated linearly first, series with
-/// fewer than 3 finite epochs skipped. Unsorted: core order, then time.
+/// until it decreases (py4dgeo's rule; from the baseline under ObjectsDtw::kBaseline); NaN epochs
+/// interpolated linearly first, series with fewer than 3 finite epochs skipped. Unsorted: core
+/// order, then time.
 std::vector<Seed> find_seeds(const double* distances, std::size_t rows, std::size_t epochs, const ObjectsParams& p,
                              const RunOptions& run = {});
 
@@ -94,7 +120,8 @@ std::vector<Seed> find_seeds(const double* distances, std::size_t rows, std::siz
 /// (candidates in ascending DTW, only those under the 95th percentile of the object's DTW values
 /// growing it further), the threshold picked before the object's size doubles, objects with
 /// fewer than min_segments core points or a larger coefficient of variation than max_cv
-/// dropped; a seed inside an earlier object's extent in space and time is skipped.
+/// dropped; a seed inside an earlier object's extent in space and time is skipped (under
+/// ObjectsDtw::kBaseline also one adjacent to such an object's core point).
 ObjectsResult objects_by_change(const double* distances, std::size_t rows, std::size_t epochs, PointsView core,
                                 const ObjectsParams& p, const RunOptions& run = {});
 

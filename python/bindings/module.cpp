@@ -609,6 +609,10 @@ NB_MODULE(_core, m) {
   // Analysis of a series (include/m3c2/objects_by_change.hpp): smoothing, change points, 4D-OBC.
   using Series2D = nb::ndarray<const double, nb::ndim<2>, nb::c_contig, nb::device::cpu>;
   using Series1D = nb::ndarray<const double, nb::ndim<1>, nb::c_contig, nb::device::cpu>;
+  nb::enum_<m3c2::ObjectsDtw>(m, "ObjectsDtw")
+      .value("baseline", m3c2::ObjectsDtw::kBaseline)
+      .value("seed_start", m3c2::ObjectsDtw::kSeedStart)
+      .value("py4dgeo", m3c2::ObjectsDtw::kPy4dgeo);
   nb::class_<m3c2::ObjectsParams>(m, "ObjectsParams")
       .def(nb::init<>())
       .def_prop_rw(
@@ -632,7 +636,7 @@ NB_MODULE(_core, m) {
       .def_rw("min_segments", &m3c2::ObjectsParams::min_segments)
       .def_rw("max_segments", &m3c2::ObjectsParams::max_segments)
       .def_rw("max_cv", &m3c2::ObjectsParams::max_cv)
-      .def_rw("whole_series", &m3c2::ObjectsParams::whole_series)
+      .def_rw("dtw", &m3c2::ObjectsParams::dtw)
       .def_rw("neighbour_table_bytes", &m3c2::ObjectsParams::neighbour_table_bytes);
 
   m.def(
@@ -667,14 +671,16 @@ NB_MODULE(_core, m) {
           return m3c2::objects_by_change(distances.data(), distances.shape(0), distances.shape(1), view(core), params,
                                          run);
         });
-        std::vector<std::uint32_t> seed_core, seed_start, seed_end, obj_core, obj_start, obj_end, members;
+        std::vector<std::uint32_t> seed_core, seed_start, seed_end, seed_base, obj_core, obj_start, obj_end, obj_base,
+            members;
         std::vector<std::uint64_t> offsets{0};
         std::vector<double> seed_score, obj_threshold, obj_score, dtw;
         for (const auto& s : r.seeds)
           seed_core.push_back(s.core), seed_start.push_back(s.start), seed_end.push_back(s.end),
-              seed_score.push_back(s.score);
+              seed_base.push_back(s.base), seed_score.push_back(s.score);
         for (const auto& o : r.objects) {
-          obj_core.push_back(o.seed.core), obj_start.push_back(o.seed.start), obj_end.push_back(o.seed.end);
+          obj_core.push_back(o.seed.core), obj_start.push_back(o.seed.start), obj_end.push_back(o.seed.end),
+              obj_base.push_back(o.seed.base);
           obj_threshold.push_back(o.threshold), obj_score.push_back(o.seed.score);
           members.insert(members.end(), o.cores.begin(), o.cores.end());
           dtw.insert(dtw.end(), o.dtw.begin(), o.dtw.end());
@@ -683,6 +689,7 @@ NB_MODULE(_core, m) {
         nb::dict d;
         d["seed_core"] = to_numpy(std::move(seed_core)), d["seed_start"] = to_numpy(std::move(seed_start));
         d["seed_end"] = to_numpy(std::move(seed_end)), d["seed_score"] = to_numpy(std::move(seed_score));
+        d["seed_base"] = to_numpy(std::move(seed_base)), d["object_base"] = to_numpy(std::move(obj_base));
         d["object_seed"] = to_numpy(std::move(obj_core)), d["object_start"] = to_numpy(std::move(obj_start));
         d["object_end"] = to_numpy(std::move(obj_end)), d["object_threshold"] = to_numpy(std::move(obj_threshold));
         d["object_score"] = to_numpy(std::move(obj_score)), d["member_offsets"] = to_numpy(std::move(offsets));

@@ -207,6 +207,10 @@ def kalman_parser():
     return p
 
 
+#: `series objects --dtw`: the engine's ObjectsDtw (include/m3c2/objects_by_change.hpp).
+OBJECTS_DTW = ("baseline", "seed-start", "py4dgeo")
+
+
 def _objects_options(p) -> None:
     g = p.add_argument_group("seeds: change points (Anders et al. 2021, 2.3.1; py4dgeo's defaults)")
     g.add_argument("--window-width", type=integer(2, COUNT_MAX), default=24,
@@ -251,8 +255,10 @@ def objects_parser():
     g.add_argument("--min-segments", type=integer(0, COUNT_MAX), default=20, help="fewest core points of an object")
     g.add_argument("--max-segments", type=integer(0, COUNT_MAX), default=0, help="most core points of an object (0: no limit)")
     g.add_argument("--max-cv", type=float, default=0.8, help="largest coefficient of variation of an object's DTW")
-    g.add_argument("--whole-series", action="store_true",
-                   help="py4dgeo's DTW: whole series from the first epoch (default: the seed's epochs, the paper's)")
+    g.add_argument("--dtw", choices=OBJECTS_DTW, default="baseline",
+                   help="seeds and DTW alignment: baseline (each series from its median before the change), "
+                        "seed-start (from its value at the seed's first epoch), py4dgeo (py4dgeo 1.2.0's rule: from "
+                        "the series' first epoch, D_max of the raw seed slice); docs/series.md, Analysis")
     _use_option(p)  # the series segmented
     add_table_option(p, "threads", filled=True)
     add(p, "quiet")
@@ -446,7 +452,7 @@ def objects_params(args):
     kw = dict(window_width=args.window_width, window_min_size=args.window_min_size, window_jump=args.window_jump,
               window_penalty=args.window_penalty, min_period=args.min_period, height_threshold=args.height_threshold,
               use_unfinished=not args.finished_only, seed_subsampling=args.seed_subsampling)
-    for name in ("neighbourhood_radius", "min_segments", "max_segments", "max_cv", "whole_series"):
+    for name in ("neighbourhood_radius", "min_segments", "max_segments", "max_cv", "dtw"):
         if hasattr(args, name):
             kw[name] = getattr(args, name)
     if hasattr(args, "thresholds"):

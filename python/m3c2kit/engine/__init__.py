@@ -458,6 +458,8 @@ def objects_params(**fields):
     p = _core.ObjectsParams()
     with translated():
         for name, value in fields.items():
+            if name == "dtw" and isinstance(value, str):
+                value = getattr(_core.ObjectsDtw, value.replace("-", "_"))  # the command line's spelling
             if value is not None:
                 setattr(p, name, value)
     return p

@@ -30,7 +30,8 @@ class SeriesObjectsAlgorithm(OptionsAlgorithm):
                Opt("MAX_SEGMENTS", "--max-segments", "integer", "Most core points of an object (0: no limit)",
                    minimum=0),
                Opt("MAX_CV", "--max-cv", "real", "Largest coefficient of variation of an object's DTW"),
-               Opt("WHOLE_SERIES", "--whole-series", "flag", "py4dgeo's DTW: whole series from the first epoch"),
+               Opt("DTW", "--dtw", "choice", "Seeds and DTW alignment: baseline (median before the change), "
+                   "seed-start, or py4dgeo (py4dgeo 1.2.0's rule)", ("baseline", "seed-start", "py4dgeo")),
                Opt("USE", "--use", "choice", "The series: smoothed_distance when present (auto), or distance (raw)",
                    ("auto", "smoothed", "raw")))
 
