@@ -7,6 +7,7 @@ import csv
 import json
 import math
 import os
+import re
 
 from qgis.core import (Qgis, QgsCoordinateReferenceSystem, QgsFeature, QgsField, QgsFields, QgsGeometry, QgsPoint,
                        QgsProcessingContext, QgsProcessingLayerPostProcessorInterface, QgsProcessingUtils,
@@ -38,6 +39,13 @@ def _number(text):
 
 def geopackage_path(output) -> str:
     return f"{output}.gpkg"
+
+
+def layer_name(file_name: str) -> str:
+    """A GeoPackage layer name for the output `file_name`: OGR refuses names with special characters
+    or a leading '-' ('-out.laz' failed after the run: "may not contain special characters")."""
+    stem = re.sub(r"[^0-9A-Za-z_]", "_", os.path.splitext(file_name)[0])
+    return stem if stem[:1].isalpha() else f"m3c2_{stem}"
 
 
 def write_geopackage(output, feedback, context) -> str:
@@ -73,7 +81,7 @@ def write_geopackage(output, feedback, context) -> str:
     path = geopackage_path(output)
     options = QgsVectorFileWriter.SaveVectorOptions()
     options.driverName = "GPKG"
-    options.layerName = os.path.splitext(name)[0]
+    options.layerName = layer_name(name)
     error = QgsVectorFileWriter.writeAsVectorFormatV3(memory, path, context.transformContext(), options)
     if error[0] != QgsVectorFileWriter.NoError:
         raise runner.QgsProcessingException(f"{path}: cannot write the GeoPackage: {error[1]}")

@@ -11,6 +11,9 @@ Training needs scikit-learn (``pip install m3c2kit[classify]``); applying a clas
 docs/algorithm.md ("Multi-scale dimensionality") gives the equations, docs/classify.md the
 command line and the classifier files.
 """
+import sys
+from types import ModuleType
+
 #: Each public name's module, imported on first use (PEP 562): a compare imports
 #: classify.vegetation for its --classifier option, which must not bring the classifier's modules
 #: into every run (issue 45: 0.21 s of each compare's start).
@@ -33,3 +36,18 @@ def __getattr__(name: str):
 
 def __dir__():
     return sorted(set(globals()) | set(_LAZY))
+
+
+class _Package(ModuleType):
+    """`features` and `train` are both submodules and the functions they define. Importing a
+    submodule binds its name on the package to the module (the import system's setattr), which
+    would hide the function once another module had imported it; the names stay the functions'
+    (as when this file imported them eagerly)."""
+
+    def __setattr__(self, name, value):
+        if name in _LAZY and isinstance(value, ModuleType):
+            return
+        super().__setattr__(name, value)
+
+
+sys.modules[__name__].__class__ = _Package

@@ -30,8 +30,10 @@ def _pair(d: Path):
 
 
 def test_version(capsys):
+    # answered before any parser is built (issue 45); within other words, argparse's action answers
+    assert main(["--version"]) == 0 and capsys.readouterr().out.strip() == f"m3c2 (m3c2kit) {m3c2kit.__version__}"
     with pytest.raises(SystemExit) as e:
-        main(["--version"])
+        main(["--version", "--version"])
     assert e.value.code == 0 and capsys.readouterr().out.strip() == f"m3c2 (m3c2kit) {m3c2kit.__version__}"
 
 
