@@ -7,6 +7,7 @@
 
 #include <m3c2/objects_by_change.hpp>
 
+#include "dtw_oracle.hpp"
 #include "series/dtw_bound.hpp"
 #include "series/dtw_many.hpp"
 
@@ -22,23 +23,7 @@
 namespace m3c2::test {
 namespace {
 
-/// The DTW cost of the full (m x m) matrix, row by row, with std::fmin.
-double full_cost(const std::vector<double>& x, const std::vector<double>& y) {
-  const std::size_t m = x.size();
-  std::vector<double> D(m * m);
-  for (std::size_t i = 0; i < m; ++i)
-    for (std::size_t j = 0; j < m; ++j) {
-      double best = 0.0;
-      if (i > 0 && j > 0)
-        best = std::fmin(std::fmin(D[(i - 1) * m + j], D[i * m + j - 1]), D[(i - 1) * m + j - 1]);
-      else if (i > 0)
-        best = D[(i - 1) * m + j];
-      else if (j > 0)
-        best = D[j - 1];
-      D[i * m + j] = std::abs(x[i] - y[j]) + best;
-    }
-  return D[m * m - 1];
-}
+double full_cost(const std::vector<double>& x, const std::vector<double>& y) { return full_dtw_cost(x, y); }
 
 /// normalised_dtw without any early stop: the full matrix, py4dgeo's normalisation.
 double full_normalised(const std::vector<double>& a, const std::vector<double>& b, double norm_a, double norm_b,

@@ -12,6 +12,7 @@
 // score against its formula (py4dgeo's: raw slices, neighbours closer than the radius).
 
 #include <m3c2/objects_by_change.hpp>
+#include "dtw_oracle.hpp"
 
 #include <gtest/gtest.h>
 
@@ -216,24 +217,6 @@ TEST(ObjectsTruth, GapsAreReadInterpolated) {
   for (const double best : best_iou(gaps, run(gaps, false))) EXPECT_GE(best, 0.5);
 }
 
-/// Plain DTW (absolute differences, steps (1,0), (0,1), (1,1)) of the full cost matrix.
-double brute_dtw(const std::vector<double>& x, const std::vector<double>& y) {
-  const std::size_t n = x.size();
-  std::vector<double> D(n * n);
-  for (std::size_t i = 0; i < n; ++i)
-    for (std::size_t j = 0; j < n; ++j) {
-      double prev = 0.0;
-      if (i > 0 && j > 0)
-        prev = std::fmin(std::fmin(D[(i - 1) * n + j], D[i * n + j - 1]), D[(i - 1) * n + j - 1]);
-      else if (i > 0)
-        prev = D[(i - 1) * n];
-      else if (j > 0)
-        prev = D[j - 1];
-      D[i * n + j] = std::abs(x[i] - y[j]) + prev;
-    }
-  return D.back();
-}
-
 double median(std::vector<double> v) {
   std::sort(v.begin(), v.end());
   const std::size_t h = v.size() / 2;
@@ -258,7 +241,7 @@ double expected_dtw(const Scene& s, const Seed& seed, std::uint32_t c, ObjectsDt
     const double a = s.d[seed.core * kEpochs + t];
     x.push_back(a - oa), y.push_back(s.d[c * kEpochs + t] - ob), dmax += std::abs(a - origin);
   }
-  return std::fmin(1.0, brute_dtw(x, y) / dmax);
+  return std::fmin(1.0, full_dtw_cost(x, y) / dmax);
 }
 
 TEST(ObjectsTruth, EachRulesDtwIsTheBruteForceOne) {
