@@ -18,6 +18,18 @@ if importlib.util.find_spec("m3c2kit") is None:
     sys.path.insert(0, str(REPO / "python"))
 
 
+def pytest_collection_finish(session):
+    """A test module that puts another m3c2kit (python/ beside an installed one) first on
+    sys.path makes every process started later (a Dask worker, a spawned child) import that one,
+    which may lack _core: the cluster tests then fail far from the cause."""
+    import m3c2kit
+    tested = Path(m3c2kit.__file__).resolve().parent
+    first = next((Path(p or ".").resolve() / "m3c2kit" for p in sys.path
+                  if (Path(p or ".") / "m3c2kit" / "__init__.py").is_file()), None)
+    if first is not None and first != tested:
+        raise pytest.UsageError(f"a test module put {first.parent} first on sys.path; the tests use {tested}")
+
+
 # A shell starts a background job (`.ci/run &`, a CI runner's job) with SIGINT ignored, and an
 # ignored signal stays ignored in every child: the tests that interrupt `m3c2` runs would then
 # test nothing. A handled signal is reset to the default in a child, whose Python then makes

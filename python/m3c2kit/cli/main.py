@@ -8,11 +8,9 @@ import signal
 import sys
 import warnings
 
+from ..base import interrupt
 from ..base.errors import M3C2Error, M3C2Warning, UsageError, printable
-
-
-class Interrupted(M3C2Error):
-    """SIGINT or SIGTERM during a run."""
+from ..base.interrupt import Interrupted  # noqa: F401 - the stop of a run, for callers of main()
 
 
 def make_parser() -> argparse.ArgumentParser:
@@ -34,11 +32,8 @@ def make_parser() -> argparse.ArgumentParser:
     return parser
 
 
-_CLEAN_EXIT_SIGNALS = tuple(getattr(signal, name) for name in ("SIGHUP", "SIGQUIT", "SIGTERM") if hasattr(signal, name))
-
-
-def _raise_interrupted(signum, frame):
-    raise Interrupted(f"interrupted by {signal.Signals(signum).name}; no output written")
+_CLEAN_EXIT_SIGNALS = tuple(getattr(signal, name) for name in ("SIGINT", "SIGHUP", "SIGQUIT", "SIGTERM")
+                            if hasattr(signal, name))
 
 
 def _show_warning(message, category, filename, lineno, file=None, line=None):
@@ -62,26 +57,26 @@ def main(argv=None) -> int:
     if words == ["--version"]:  # answered before any parser or library is imported
         print(_version_text())
         return 0
-    from ..io import laspy_local
-    if argv is None and laspy_local.names_las_file(sys.argv[1:]):
-        laspy_local.import_laspy_for_local_files()
-    # SIGHUP, SIGQUIT and SIGTERM end the run as SIGINT does: an exception that unwinds through
-    # the atomic writer, which removes its private folders (no partial output, no leftover).
-    previous = {s: signal.signal(s, _raise_interrupted) for s in _CLEAN_EXIT_SIGNALS}
-    with warnings.catch_warnings():
+    # SIGINT, SIGHUP, SIGQUIT and SIGTERM end the run: an exception that unwinds through the atomic
+    # writer, which removes its private folders (no partial output, no leftover); one that Python
+    # swallowed is raised again before anything is published (base/interrupt.py). A signal the
+    # caller ignores (nohup, a shell's background job) stays ignored.
+    stops = [s for s in _CLEAN_EXIT_SIGNALS if signal.getsignal(s) is not signal.SIG_IGN]
+    with interrupt.handled(stops), warnings.catch_warnings():
         warnings.simplefilter("always", M3C2Warning)
         warnings.showwarning = _show_warning
-        try:
-            return _main(argv)
-        finally:
-            for number, handler in previous.items():
-                signal.signal(number, handler)
+        return _main(argv)
 
 
 def _main(argv) -> int:
     try:
         with warnings.catch_warnings():
             warnings.showwarning = _show_warning
+            # The imports a run starts with, inside the handlers: a SIGINT while laspy loads is the
+            # clean "interrupted" of any other moment, not a traceback (issue 42).
+            from ..io import laspy_local
+            if argv is None and laspy_local.names_las_file(sys.argv[1:]):
+                laspy_local.import_laspy_for_local_files()
             # A value starting with "-" (`--orient -z`) is its option's: m3c2kit.cli.parser.ArgumentParser.
             args = make_parser().parse_args([str(a) for a in (sys.argv[1:] if argv is None else argv)])
             # --threads bounds LAZ coding too, as its help says (compare adds its --params file's).

@@ -27,6 +27,7 @@ from contextlib import ExitStack, contextmanager
 from pathlib import Path
 from typing import Iterator
 
+from ..base import interrupt
 from ..base.errors import CloudWriteError, M3C2Error, UsageError
 from ..base.fault_hook import checkpoint as fault_checkpoint
 from .collisions import refuse_special
@@ -127,6 +128,7 @@ def staged_outputs(targets) -> Iterator[dict[Path, Path]]:
                     warnings.warn_explicit(_public(str(w.message), staged, folders), w.category, w.filename,
                                            w.lineno)
             fault_checkpoint("writing")  # a testing aid (docs/errors.md, "Interruption"): temporaries complete
+            interrupt.check()  # a stop Python swallowed while the outputs were made: none is published
             for target, tmp in staged.items():
                 folders[target].check()
                 _seal(folders[target], tmp.name, target)
@@ -175,6 +177,7 @@ def refuse_occupied(target: Path) -> None:
 def _publish(folder: PrivateFolder, target: Path) -> None:
     """Renames the private folder onto `target` (absent or an empty folder: rename(2) replaces
     one atomically), its lock file removed, its mode that of a plain mkdir."""
+    interrupt.check()  # a stop Python swallowed while the folder was filled: it is not published
     os.fchmod(folder.fd, _umask_mode(0o777))
     folder.check()
     folder.unlock()

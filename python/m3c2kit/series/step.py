@@ -7,12 +7,12 @@ and what of it is committed, never "no output written" when something was."""
 from __future__ import annotations
 
 import re
-import sys
 from contextlib import contextmanager
 from pathlib import Path
 from typing import Callable
 
 from ..base.errors import M3C2Error
+from ..base.interrupt import Interrupted
 from . import integrity
 from . import lock as lock_mod
 from . import store as st
@@ -27,16 +27,9 @@ def _signal_name(error: BaseException) -> str:
     return found.group(1) if found else "a signal"
 
 
-def _interrupted_type() -> type:
-    """The command line's Interrupted (raised by its signal handlers), looked up rather than
-    imported: nothing below the command line imports it (tests/python/test_layers.py). Without
-    the command line (the Python API) only Ctrl-C interrupts, reported as an M3C2Error."""
-    return getattr(sys.modules.get("m3c2kit.cli.main"), "Interrupted", M3C2Error)
-
-
 def is_interruption(error: BaseException) -> bool:
-    kind = _interrupted_type()
-    return isinstance(error, KeyboardInterrupt) or (kind is not M3C2Error and isinstance(error, kind))
+    """Ctrl-C, or the command line's stop by SIGTERM, SIGHUP or SIGQUIT (base/interrupt.py)."""
+    return isinstance(error, (KeyboardInterrupt, Interrupted))
 
 
 @contextmanager
@@ -49,7 +42,7 @@ def guarded(shown: Path, kept: Callable[[], str]):
         raise StoreError(f"{shown}: cannot write: {e.strerror or e}; {kept()}") from None
     except BaseException as e:
         if is_interruption(e):
-            raise _interrupted_type()(f"interrupted by {_signal_name(e)}: {kept()}") from None
+            raise Interrupted(f"interrupted by {_signal_name(e)}: {kept()}") from None
         raise
 
 

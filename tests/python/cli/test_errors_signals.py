@@ -144,3 +144,36 @@ def test_the_hook_is_inert_when_unset_or_malformed(tmp_path, monkeypatch):
             monkeypatch.setenv(fault_hook.ENV, value)
         for phase in fault_hook.PHASES:
             fault_hook.checkpoint(phase)  # returns; a signal would end this test
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("delay", [0.15, 0.3, 0.45, 0.6, 0.9])
+def test_a_sigint_while_a_run_starts_is_a_clean_interruption(tmp_path, delay):
+    """Issue 42: a SIGINT early in `convert` was swallowed (exit 0 with the output) or, a little
+    later, a raw KeyboardInterrupt: the imports a run starts with (laspy) were outside the handlers.
+    Whenever it lands, the run ends as interrupted with nothing written, or it had finished and the
+    copy is whole; killed by the signal (before Python's handler, or after the run, while the
+    interpreter ends) it leaves no temporary beside the output."""
+    import time
+    whole = tmp_path / "whole"
+    whole.mkdir()
+    assert _convert(whole).wait(timeout=120) == 0
+    expected = (whole / "copy.csv").read_bytes()
+    child = _convert(tmp_path)
+    time.sleep(delay)
+    child.send_signal(signal.SIGINT)
+    _, err = child.communicate(timeout=120)
+    assert "Traceback" not in err and "KeyboardInterrupt" not in err, err
+    made = sorted(set(left_in(tmp_path)) - {"whole"})
+    if child.returncode == 1:
+        assert "interrupted by SIGINT; no output written" in err and made == [], err
+    else:
+        assert child.returncode in (0, -signal.SIGINT), err
+        assert made == ["copy.csv"] or (made == [] and child.returncode == -signal.SIGINT), made
+        assert made == [] or (tmp_path / "copy.csv").read_bytes() == expected
+
+
+def _convert(folder: Path) -> subprocess.Popen:
+    return subprocess.Popen([sys.executable, "-m", "m3c2kit", "convert", str(DATA / "autzen-bmx-2010.las"), "-o",
+                             str(folder / "copy.csv"), "-q"], cwd=folder, env=child_env(), stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, text=True, preexec_fn=_no_core_dump)

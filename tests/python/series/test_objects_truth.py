@@ -13,7 +13,6 @@ import numpy as np
 import pytest
 
 REPO = Path(__file__).resolve().parents[3]
-sys.path.insert(0, str(REPO / "python"))
 sys.path.insert(0, str(REPO / "validation"))
 
 from m3c2kit import _core  # noqa: E402
