@@ -32,7 +32,7 @@ from typing import Literal
 
 import numpy as np
 
-from .quantised import Quantised, quantised
+from .quantised import Quantised, as_float32, quantised
 
 __all__ = ["Field", "FIELDS", "FIELD_NAME_SETS", "FieldNames", "TableStyle", "output_name", "typed_columns",
            "core_attributes", "carried_columns", "markdown_table", "FLOAT32_RELATIVE_PRECISION"]
@@ -106,7 +106,7 @@ def output_name(name: str, field_names: str = "m3c2", *, spaces: bool = True) ->
     return out if spaces else out.replace(" ", "_")
 
 
-def _stored(name: str, values: np.ndarray, float64: bool, las: bool = False) -> np.ndarray | Quantised:
+def _stored(name: str, values: np.ndarray, float64: bool, las: bool, where: str) -> np.ndarray | Quantised:
     field = _BY_NAME.get(name)
     kind = field.dtype if field is not None else None
     values = np.asarray(values)
@@ -114,20 +114,23 @@ def _stored(name: str, values: np.ndarray, float64: bool, las: bool = False) -> 
         return values.astype(np.uint8)
     if kind == "measure":
         if las and not float64 and field.las is not None:
-            return quantised(values, field.las)
-        return values.astype(np.float64 if float64 else np.float32)
+            return quantised(values, field.las, f"{where}column {name!r}")
+        return values.astype(np.float64) if float64 else as_float32(values, f"{where}column {name!r}")
     return values.astype(np.float64) if values.dtype.kind == "f" else values
 
 
 def typed_columns(table: dict[str, np.ndarray], *, field_names: str = "m3c2", float64: bool = False,
                   spaces: bool = True, las: bool = False,
-                  all_fields: bool = False) -> dict[str, np.ndarray | Quantised]:
+                  all_fields: bool = False, path=None) -> dict[str, np.ndarray | Quantised]:
     """The result table (Result.columns() without x, y, z) renamed and cast for storage; for a
-    LAS file (`las`) quantised, and only the ``compact`` columns unless `all_fields`."""
+    LAS file (`las`) quantised, and only the ``compact`` columns unless `all_fields`. `path`, the
+    file they go to, is named by the error of a value its storage cannot hold."""
+    where = f"{path}: " if path is not None else ""
     _check_names(field_names)
     if las and not all_fields:
         table = {k: v for k, v in table.items() if k not in _BY_NAME or _BY_NAME[k].compact}
-    return {output_name(k, field_names, spaces=spaces): _stored(k, v, float64, las) for k, v in table.items()}
+    return {output_name(k, field_names, spaces=spaces): _stored(k, v, float64, las, where)
+            for k, v in table.items()}
 
 
 @dataclass(frozen=True)
@@ -163,11 +166,11 @@ class TableStyle:
         xyz = np.column_stack([table.pop("x"), table.pop("y"), table.pop("z")])
         return xyz, table
 
-    def stored(self, table: dict[str, np.ndarray], quantises: bool) -> dict[str, np.ndarray | Quantised]:
-        """The columns renamed and typed for a file whose format `quantises` (LAS/LAZ:
+    def stored(self, table: dict[str, np.ndarray], quantises: bool, path) -> dict[str, np.ndarray | Quantised]:
+        """The columns renamed and typed for the file `path`, whose format `quantises` (LAS/LAZ:
         m3c2kit.io.registry.Format.quantises; its names may hold spaces) or not."""
         return typed_columns(table, field_names=self.field_names, float64=self.float64, spaces=quantises,
-                             las=quantises, all_fields=self.all_fields)
+                             las=quantises, all_fields=self.all_fields, path=path)
 
 
 def carried_columns(values: dict[str, np.ndarray], taken) -> dict[str, np.ndarray]:

@@ -13,7 +13,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["Quantised", "quantised", "LENGTH_QUANTUM", "UNIT_QUANTUM", "KINDS"]
+from ..base.errors import CloudWriteError
+
+__all__ = ["Quantised", "quantised", "as_float32", "LENGTH_QUANTUM", "UNIT_QUANTUM", "KINDS"]
 
 #: Lengths (distance, LOD, spreads, D, roughness) are rounded to this many units of the CRS:
 #: at most 0.05 mm off in metres, below the ranging precision of any lidar or photogrammetric
@@ -61,7 +63,7 @@ def _no_data(dtype: np.dtype) -> int:
     return int(info.min) if dtype.kind == "i" else int(info.max)
 
 
-def quantised(values, kind: str) -> Quantised | np.ndarray:
+def quantised(values, kind: str, what: str = "a column") -> Quantised | np.ndarray:
     """`values` as a :class:`Quantised` column of `kind` (:data:`KINDS`), or as float32 when some
     finite value does not fit the integer type (a length beyond 214 km, a count of 2**32 - 1,
     a non-integer count): never clamped, never wrapped."""
@@ -76,5 +78,23 @@ def quantised(values, kind: str) -> Quantised | np.ndarray:
     fits = not len(q) or (bool(np.all(r >= lo)) and bool(np.all(r <= hi))
                           and (scale is not None or bool(np.all(q == r))))
     if not fits or np.isinf(v).any():
-        return v.astype(np.float32)
+        return as_float32(v, what)
     return Quantised(v, dtype, scale, no_data)
+
+
+#: float32's largest finite value and its smallest normal one: a finite value beyond the first
+#: would be stored as infinity, a non-zero one below the second as 0 or with fewer digits.
+_FLOAT32 = np.finfo(np.float32)
+
+
+def as_float32(values, what: str) -> np.ndarray:
+    """`values` as float32, the default storage of measured values; refused (CloudWriteError
+    naming `what`) when a finite value would not survive it (issue 42: a 1e150 alignment
+    covariance gave LODs of 1e71, written as inf with only numpy's overflow warning)."""
+    v = np.asarray(values, dtype=np.float64)
+    magnitude = np.abs(v[np.isfinite(v) & (v != 0)])
+    if len(magnitude) and (magnitude.max() > _FLOAT32.max or magnitude.min() < _FLOAT32.smallest_normal):
+        worst = magnitude.max() if magnitude.max() > _FLOAT32.max else magnitude.min()
+        raise CloudWriteError(f"{what} holds {worst:.6g}, which float32 cannot store (magnitudes "
+                              f"{_FLOAT32.smallest_normal:.3g} to {_FLOAT32.max:.3g}); write with --float64")
+    return v.astype(np.float32)

@@ -40,7 +40,7 @@ def write_table(path, result: Result, style: TableStyle, *, like: Cloud | None =
     if not isinstance(result, Result):  # a str or an array has no .columns: say what write() takes
         raise TypeError(f"result must be an m3c2kit.Result (what m3c2kit.compare returns), got {type(result).__name__}")
     xyz, table = style.rows(result)
-    fields = style.stored(table, quantises(path))
+    fields = style.stored(table, quantises(path), path)
     if attributes is not None:
         fields.update(carried_columns(attributes, set(fields)))
     elif style.attributes and getattr(like, "fields", None) and len(result.core):

@@ -149,7 +149,7 @@ def merge(results: ResultSpills, target: MergeTarget, report: TiledReport, rows:
         attributes = target.attributes.take(len(chunk)) if target.attributes is not None else None
         if writer is not None:
             xyz, table = style.rows(chunk)
-            fields = style.stored(table, las)  # the stored types of m3c2kit.write
+            fields = style.stored(table, las, output)  # the stored types of m3c2kit.write
             if attributes:
                 fields.update(carried_columns(attributes, set(fields)))
             writer.write(xyz, fields)

@@ -31,6 +31,7 @@ import numpy as np
 from .. import engine
 from ..base.errors import CloudWriteError, M3C2Error, UsageError
 from ..io.arrays import bounds
+from ..io.quantised import as_float32
 from ..io.guard import available_memory, format_bytes
 from ..settings.limits import usable_length
 from ..io.crs import looks_like_wkt
@@ -166,8 +167,9 @@ def raster_paths(output: str | os.PathLike, names=tuple(RASTERS)) -> dict[str, P
     return {name: output.with_name(f"{stem}_{name}.tif") for name in names}
 
 
-def rasters(result, grid: Grid) -> dict[str, np.ndarray]:
-    """The raster images (row 0 = top = max y) of a Result computed at `grid.core_points`."""
+def rasters(result, grid: Grid, paths: dict[str, Path] | None = None) -> dict[str, np.ndarray]:
+    """The raster images (row 0 = top = max y) of a Result computed at `grid.core_points`;
+    `paths` (raster_paths) name the files in the error of a value float32 cannot hold."""
     if len(result) != len(grid.row):
         raise ValueError(f"the result has {len(result)} core points, the grid {len(grid.row)}")
     table = result.columns()
@@ -181,7 +183,8 @@ def rasters(result, grid: Grid) -> dict[str, np.ndarray]:
     }
     out = {}
     for name, (dtype, nodata, _) in RASTERS.items():
-        out[name] = grid.image(np.asarray(values[name]).astype(dtype), dtype, nodata)
+        column = as_float32(values[name], f"{paths[name]}: its cells" if paths else f"the {name} raster") if dtype == "float32" else np.asarray(values[name])
+        out[name] = grid.image(column.astype(dtype), dtype, nodata)
     return out
 
 

@@ -102,6 +102,23 @@ def test_ep_from_the_command_line(pair):
     np.testing.assert_allclose(read_csv(out2)[1]["lod"], cols["lod"], rtol=1e-6)
 
 
+@pytest.mark.parametrize("output", ["out.csv", "out.laz", "out.ply"])
+def test_an_lod_float32_cannot_hold_is_an_error_not_infinity(pair, output):
+    """Issue 42: a 1e300 alignment covariance gave LODs of 1e147, written as inf (float32) with
+    numpy's overflow warning and exit 0. Now an error naming the file and the column, nothing
+    written; with --float64 the same run stores them."""
+    d, _, _ = pair
+    np.savetxt(d / "Cxx.csv", np.diag([1e-8] * 9 + [1e-6] * 3) * 1e300, delimiter=",")
+    run = ["compare", str(d / "ref.xyz"), str(d / "cmp.xyz"), "--core", str(d / "core.xyz"), "-o", str(d / output),
+           *BASE, "--uncertainty", "ep", "--scan-positions", str(d / "sps.json"), "--scan-position-field", "scan",
+           "--transform", str(d / "tfM.csv"), "--alignment-covariance", str(d / "Cxx.csv"), "--reduction-point", "1,2,0"]
+    assert main(run) == 1
+    assert not (d / output).exists()
+    assert main([*run, "--float64"]) == 0
+    lod = read_cloud(d / output).fields["lod"]
+    assert np.isfinite(lod).all() and lod.min() > 1e140
+
+
 def test_missing_inputs_are_named(pair):
     d, clouds, core = pair
     run = ["compare", str(d / "ref.xyz"), str(d / "cmp.xyz"), "--core", str(d / "core.xyz"), "-o", str(d / "x.csv"),

@@ -179,3 +179,18 @@ def test_a_length_beyond_int32_stays_float32():
     far = quantised(np.array([1.0, 3e5]), "length")  # 3e5 / 1e-4 > 2**31
     assert not isinstance(far, Quantised) and far.dtype == np.float32
     assert not isinstance(quantised(np.array([1.5]), "count"), Quantised)
+
+
+@pytest.mark.parametrize("value", [1e39, -3.5e38, 1e300, 1e-39, -1e-300])
+def test_a_value_float32_cannot_hold_is_refused_not_stored_as_inf_or_zero(value):
+    """Issue 42: an LOD of 1e71 (a huge alignment covariance) was written as inf, with only numpy's
+    overflow warning; a value below float32's normals loses its digits or becomes 0."""
+    from m3c2kit.base.errors import CloudWriteError
+    from m3c2kit.io.quantised import as_float32, quantised
+    if abs(value) > 1:  # too large for int32 steps of 0.1 mm too (a tiny one is quantised to 0 there, by design)
+        with pytest.raises(CloudWriteError, match=r"^out\.las: column 'lod' holds .*float32 cannot store.*--float64$"):
+            quantised(np.array([1.0, value]), "length", "out.las: column 'lod'")
+    with pytest.raises(CloudWriteError, match="float32 cannot store"):
+        as_float32(np.array([value, np.nan]), "x")
+    edge = np.array([0.0, np.inf, -np.inf, np.nan, 3.4e38, -1.2e-38])  # 0, inf, NaN and the limits are kept
+    np.testing.assert_array_equal(as_float32(edge, "x"), edge.astype(np.float32))

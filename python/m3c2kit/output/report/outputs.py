@@ -87,7 +87,7 @@ def write_compare_outputs(outputs: CompareOutputs, result: Result, reference, *,
         write_points(staged[table])
         images = None
         if grid is not None:
-            images = raster.rasters(result, grid)
+            images = raster.rasters(result, grid, rasters)
             raster.write_rasters({k: staged[p] for k, p in rasters.items()}, images, grid,
                                  getattr(like, "crs", None), targets=rasters)
         if html_path is not None or png_prefix is not None:
