@@ -87,7 +87,7 @@ def quantised(values, kind: str, what: str = "a column") -> Quantised | np.ndarr
 _FLOAT32 = np.finfo(np.float32)
 
 
-def as_float32(values, what: str) -> np.ndarray:
+def as_float32(values, what: str, advice: str = "write with --float64") -> np.ndarray:
     """`values` as float32, the default storage of measured values; refused (CloudWriteError
     naming `what`) when a finite value would not survive it (issue 42: a 1e150 alignment
     covariance gave LODs of 1e71, written as inf with only numpy's overflow warning)."""
@@ -96,5 +96,5 @@ def as_float32(values, what: str) -> np.ndarray:
     if len(magnitude) and (magnitude.max() > _FLOAT32.max or magnitude.min() < _FLOAT32.smallest_normal):
         worst = magnitude.max() if magnitude.max() > _FLOAT32.max else magnitude.min()
         raise CloudWriteError(f"{what} holds {worst:.6g}, which float32 cannot store (magnitudes "
-                              f"{_FLOAT32.smallest_normal:.3g} to {_FLOAT32.max:.3g}); write with --float64")
+                              f"{_FLOAT32.smallest_normal:.3g} to {_FLOAT32.max:.3g}); {advice}")
     return v.astype(np.float32)

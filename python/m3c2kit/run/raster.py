@@ -183,7 +183,10 @@ def rasters(result, grid: Grid, paths: dict[str, Path] | None = None) -> dict[st
     }
     out = {}
     for name, (dtype, nodata, _) in RASTERS.items():
-        column = as_float32(values[name], f"{paths[name]}: its cells" if paths else f"the {name} raster") if dtype == "float32" else np.asarray(values[name])
+        column = np.asarray(values[name])
+        if dtype == "float32":  # a GeoTIFF's cells are float32 whatever --float64 says
+            column = as_float32(column, f"{paths[name]}: its cells" if paths else f"the {name} raster",
+                                "--grid rasters are float32")
         out[name] = grid.image(column.astype(dtype), dtype, nodata)
     return out
 
