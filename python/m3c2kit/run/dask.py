@@ -72,7 +72,10 @@ def _probe_scheduler(address: str, host: str, port: int) -> None:
 
 #: Seconds a run waits while no worker is alive before it gives up, naming the lost workers: the
 #: only worker of a cluster without a nanny died and nothing would ever compute its task (the run
-#: waited for ever). A worker restarted by its nanny, or a new one, joins well within it.
+#: waited for ever). A worker restarted by its nanny, or a new one, joins well within it. A worker
+#: the scheduler has not heard from for as long (stopped, frozen, cut off: its heartbeats, every
+#: 0.5 to a few seconds, stopped) is not alive either: the scheduler itself drops it only after
+#: its worker-ttl (5 minutes), and the run then waited 6 minutes, not 60 s (issue 42).
 DASK_NO_WORKER_TIMEOUT = 60.0
 #: Seconds between two looks at the scheduler's workers while no awaited task finishes.
 DASK_POLL_INTERVAL = 1.0
@@ -89,6 +92,9 @@ class ClusterWatch:
         self.client = client
         self.address = address or getattr(client.scheduler, "address", "?")
         self.seen: set[str] = set()  # the address of every worker seen alive in this run
+        # worker -> (its last heartbeat's time on the scheduler's clock, when this run saw it
+        # change on its own monotonic clock): the two clocks are never compared.
+        self.heard: dict[str, tuple[float, float]] = {}
         self.none_since: float | None = None
         self.workers = len(self._workers(lambda: "the run's tasks"))  # those alive as the run starts
 
@@ -115,15 +121,22 @@ class ClusterWatch:
                          f"became unreachable); {what} not computed")
 
     def _workers(self, what) -> dict:
-        """The scheduler's live workers (remembered in self.seen), asked within DASK_CONNECT_TIMEOUT."""
+        """The scheduler's live workers (remembered in self.seen), asked within DASK_CONNECT_TIMEOUT:
+        those it heard from within DASK_NO_WORKER_TIMEOUT."""
         try:
             identity = self.client.sync(self.client.scheduler.identity, n_workers=-1,
                                         callback_timeout=DASK_CONNECT_TIMEOUT)
             workers = dict(identity.get("workers", {}))
         except Exception:  # noqa: BLE001 - no answer within the bound, or a closed connection
             raise self.scheduler_lost(what()) from None
+        now = time.monotonic()
+        for name, info in workers.items():
+            beat = info.get("last_seen") if isinstance(info, dict) else None
+            if beat is None or name not in self.heard or self.heard[name][0] != beat:  # None: no heartbeat told
+                self.heard[name] = (beat, now)
+        alive = {name: info for name, info in workers.items() if now - self.heard[name][1] < DASK_NO_WORKER_TIMEOUT}
         self.seen.update(workers)
-        return workers
+        return alive
 
     def _check_workers(self, what) -> None:
         if self._workers(what):

@@ -187,6 +187,22 @@ def test_compare_fails_when_its_only_worker_dies(pair, capsys, tmp_path, bounded
 
 @pytest.mark.slow
 @pytest.mark.timeout(120)
+def test_compare_fails_when_its_only_worker_freezes(pair, capsys, tmp_path, bounded):
+    """Issue 42: the worker stops itself in its first tile (SIGSTOP: alive to the scheduler until
+    its 5-minute worker-ttl); the run waited those minutes and 60 s more. A worker silent for
+    DASK_NO_WORKER_TIMEOUT is not alive."""
+    with cluster(tmp_path, "computing:SIGSTOP") as (address, _, worker):
+        code, err, took = run(pair, capsys, address.rsplit(":", 1)[1])
+        assert _stopped(worker.pid)
+    assert code == 1, err
+    assert err.startswith(f"m3c2: error: --dask-scheduler tcp://127.0.0.1:{address.rsplit(':', 1)[1]}: no worker "
+                          f"alive for 2 s (lost workers: tcp://127.0.0.1:"), err
+    assert took < 30 and err.count("\n") == 1, (took, err)
+    assert not (pair / "out.csv").exists()
+
+
+@pytest.mark.slow
+@pytest.mark.timeout(120)
 def test_series_fails_when_its_only_worker_dies_and_says_what_it_kept(pair, capsys, tmp_path, bounded):
     """The worker dies reading the reference: the store keeps its core points and no epoch, and says so."""
     paths = series_files(pair)
