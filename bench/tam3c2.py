@@ -99,7 +99,7 @@ def main() -> int:
         return 0
     from m3c2kit import engine as facade
     hours, clouds, core = series(args.epochs, args.core)
-    s = dict(SETTINGS, weights="gaussian", space_time_ratio=1.0, critical_value=1.96, orientation=[0.0, 0.0, 1.0])
+    s = dict(SETTINGS, weights="gaussian", space_time_ratio=1.0, orientation=[0.0, 0.0, 1.0])
     extended = args.fallback != "none" or args.window_breaks != "none"
     if extended:
         s.update(fallback=args.fallback, breaks=args.window_breaks)

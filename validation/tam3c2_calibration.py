@@ -13,7 +13,6 @@ import sys
 from pathlib import Path
 
 import numpy as np
-from scipy import stats
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests" / "python" / "series"))
 from test_tam3c2 import _stable_series, settings  # noqa: E402  (the test's scene, one definition)
@@ -30,7 +29,7 @@ def main() -> int:
         for weights in ("none", "linear", "gaussian"):
             for ratio in (0.2, 1.0):
                 s = settings(weights=weights, window_ratios=[ratio], min_points=10, cylinder_radius=0.3,
-                             registration_error=0.0, critical_value=stats.norm.ppf(0.975), lod=statistic)
+                             registration_error=0.0, confidence=0.95, lod=statistic)
                 r = facade.tam3c2(pool, core, 0, range(1, len(clouds)), s)
                 ok = np.isfinite(r["distance"])
                 flagged = float((np.abs(r["distance"][ok]) > r["lod"][ok]).mean())

@@ -29,6 +29,7 @@ import tempfile
 from pathlib import Path
 
 import numpy as np
+from statistics import NormalDist
 
 SEED = 20260301
 CASES = {  # name: (weights, space_time_ratio)
@@ -93,8 +94,8 @@ def _ours(name: str) -> dict:
     weights, r_st = CASES[name]
     pool = facade.tam3c2_pool(clouds, seconds / 86400.0)
     # their rule: neither of our extensions (docs/series.md, "Fallback and window breaks")
-    s = dict(COMMON, weights=weights, space_time_ratio=r_st, critical_value=1.96, orientation=[0.0, 0.0, 1.0],
-             fallback="none", breaks="none")
+    s = dict(COMMON, weights=weights, space_time_ratio=r_st, orientation=[0.0, 0.0, 1.0],
+             confidence=2 * NormalDist().cdf(1.96) - 1, fallback="none", breaks="none")  # their fixed z = 1.96
     return facade.tam3c2(pool, core, 2, range(len(clouds)), s)
 
 

@@ -74,9 +74,8 @@ struct Tam3c2Params {
   double sigma_ratio = 1.0;       ///< Gaussian width in units of the radius / window
   double space_time_ratio = 1.0;  ///< r_st > 0: the temporal kernel's window is W r_st
   double registration_error = 0.0;
-  double critical_value = 1.96;     ///< z of the LOD (1.96: the reference's 95 %)
   Tam3c2Lod lod = Tam3c2Lod::kZ;    ///< the LOD's statistic (kZ: the reference's)
-  double confidence = 0.95;         ///< the level of kT's and kAuto's t quantile
+  double confidence = 0.95;         ///< the LOD's level: kZ's normal quantile (1.96 at 0.95), kT's t quantile
   Vec3 orientation{0.0, 0.0, 1.0};  ///< normals point to this side (n . o >= 0), unless `orientations` says
   Tam3c2Fallback fallback = Tam3c2Fallback::kNone;  ///< kM3c2 needs Tam3c2Epochwise
   Tam3c2Breaks breaks = Tam3c2Breaks::kNone;        ///< kChangePoints needs Tam3c2Epochwise

@@ -847,7 +847,6 @@ NB_MODULE(_core, m) {
       .def_rw("sigma_ratio", &m3c2::Tam3c2Params::sigma_ratio)
       .def_rw("space_time_ratio", &m3c2::Tam3c2Params::space_time_ratio)
       .def_rw("registration_error", &m3c2::Tam3c2Params::registration_error)
-      .def_rw("critical_value", &m3c2::Tam3c2Params::critical_value)
       .def_rw("confidence", &m3c2::Tam3c2Params::confidence)
       .def_prop_rw(
           "orientation",

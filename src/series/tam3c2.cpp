@@ -245,13 +245,14 @@ bool fall_back(const Tam3c2Params& p, const Tam3c2Epochwise& m, std::size_t at, 
 /// The LOD of two sides (Tam3c2Lod). kZ keeps the reference's arithmetic; kT and kAuto first make
 /// a weighted side's spread unbiased (x n / (n - 1), Kish's n; +inf at n <= 1: one point's weight
 /// bounds nothing) and take Welch's t at the sides' (effective) n where the rule asks for it.
-double side_lod(const Tam3c2Params& p, Moments& m1, bool weighted1, Moments& m2, bool weighted2) {
+/// `z`: the normal quantile at p.confidence (detail::z_critical, computed once per run).
+double side_lod(const Tam3c2Params& p, double z, Moments& m1, bool weighted1, Moments& m2, bool weighted2) {
   const double inf = std::numeric_limits<double>::infinity();
   if (p.lod != Tam3c2Lod::kZ)
     for (auto [m, weighted] : {std::pair<Moments*, bool>{&m1, weighted1}, {&m2, weighted2}})
       if (weighted) m->spread = m->n > 1.0 ? m->spread * std::sqrt(m->n / (m->n - 1.0)) : inf;
   const double v1 = m1.spread * m1.spread / m1.n, v2 = m2.spread * m2.spread / m2.n;
-  double critical = p.critical_value;
+  double critical = z;
   if (p.lod == Tam3c2Lod::kT || (p.lod == Tam3c2Lod::kAuto && (m1.n < 30.0 || m2.n < 30.0))) {
     if (v1 + v2 == 0.0) return p.registration_error;  // no spread: no quantile is needed
     const double dof = detail::welch_dof(std::sqrt(v1), m1.n, std::sqrt(v2), m2.n);
@@ -280,8 +281,7 @@ void check(const Tam3c2Params& p, const Tam3c2Pool& pool, std::size_t reference,
     throw InvalidArgument("TAM3C2: the orientation must be a finite, non-zero direction");
   if (!(p.space_time_ratio > 0.0 && std::isfinite(p.space_time_ratio)) || !std::isfinite(p.sigma_ratio))
     throw InvalidArgument("TAM3C2: space_time_ratio must be finite and > 0, sigma_ratio finite");
-  if (!(p.registration_error >= 0.0) || !(p.critical_value > 0.0))
-    throw InvalidArgument("TAM3C2: the registration error must be >= 0 and the critical value > 0");
+  if (!(p.registration_error >= 0.0)) throw InvalidArgument("TAM3C2: the registration error must be >= 0");
   if (!(p.confidence > 0.0 && p.confidence < 1.0)) throw InvalidArgument("TAM3C2: the confidence must be in (0, 1)");
   if (reference >= pool.size()) throw InvalidArgument("TAM3C2: the reference is not an epoch of the pool");
   if (epochwise.empty() && (p.fallback != Tam3c2Fallback::kNone || p.breaks != Tam3c2Breaks::kNone))
@@ -320,6 +320,7 @@ Tam3c2Result tam3c2(const Tam3c2Params& p, const Tam3c2Pool& pool, std::size_t r
   if (!(range > 0.0)) range = 1.0;  // one time: any positive window takes only that time
   const double t_ref = pool.times()[reference];
   const double r2 = p.cylinder_radius * p.cylinder_radius;
+  const double z = detail::z_critical(p.confidence);  // the one owner of the LOD's quantile
 
   // The walk of each centre: the reference's, and each target's.
   const std::vector<std::size_t> ref_order = nearest_first(pool.times(), t_ref);
@@ -402,7 +403,7 @@ Tam3c2Result tam3c2(const Tam3c2Params& p, const Tam3c2Pool& pool, std::size_t r
     Moments m1 = side_moments(s.a, s.w1, cp.c, cp.normal, s.proj);
     Moments m2 = side_moments(s.b, s.w2, cp.c, cp.normal, s.proj);
     out.distance[o] = m2.mean - m1.mean;
-    out.lod[o] = side_lod(p, m1, !s.w1.empty(), m2, !s.w2.empty());
+    out.lod[o] = side_lod(p, z, m1, !s.w1.empty(), m2, !s.w2.empty());
     out.spread1[o] = m1.spread, out.spread2[o] = m2.spread, out.n1[o] = m1.n, out.n2[o] = m2.n;
     out.significant[o] = std::int8_t(std::abs(out.distance[o]) > out.lod[o]);
     out.source[o] = std::uint8_t(Tam3c2Source::kWindows);

@@ -414,9 +414,9 @@ TAM3C2_EPOCHWISE = ("distance", "lod", "significant", "n1", "n2")
 def tam3c2_params(**settings) -> "_core.Tam3c2Params":
     """The engine's Tam3c2Params (include/m3c2/tam3c2.hpp) from its fields by name: normal_radii,
     window_ratios, min_points, cylinder_radius, max_distance, weights, sigma_ratio,
-    space_time_ratio, registration_error, critical_value, orientation, lod, confidence, fallback,
-    breaks, break_width, break_min_size, break_jump, break_penalty; the engine's default for the
-    others."""
+    space_time_ratio, registration_error, orientation, lod, confidence (the LOD's level; the
+    engine owns its quantile), fallback, breaks, break_width, break_min_size, break_jump,
+    break_penalty; the engine's default for the others."""
     p = _core.Tam3c2Params()
     with translated():
         for name, value in settings.items():

@@ -31,7 +31,6 @@ from .. import engine as facade
 from ..io import read_cloud
 from ..io.private import private_folder
 from ..run.checks import threads_count
-from ..base.quantiles import z_critical
 from . import analysis
 from . import epoch_files
 from .epoch_crops import EpochCrops
@@ -167,7 +166,7 @@ def _settings(store: Path, group, o: Tam3c2Options) -> tuple[dict, float]:
                     min_points=int(o.min_points), cylinder_radius=params.projection_diameter / 2.0,
                     max_distance=params.max_depth, weights=o.weights, sigma_ratio=float(o.sigma_ratio),
                     space_time_ratio=float(o.space_time_ratio), registration_error=params.registration_error,
-                    critical_value=z_critical(confidence), lod=lod, confidence=float(confidence),
+                    lod=lod, confidence=float(confidence),
                     orientation=[0.0, 0.0, 1.0], fallback=o.fallback, breaks=o.breaks)
     defaults = facade.tam3c2_params()
     for name in ("break_width", "break_min_size", "break_penalty"):

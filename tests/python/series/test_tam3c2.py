@@ -126,7 +126,7 @@ def lod(s, s1, n1, weighted1, s2, n2, weighted2):
         s1 = (s1 * np.sqrt(n1 / (n1 - 1)) if n1 > 1 else np.inf) if weighted1 else s1
         s2 = (s2 * np.sqrt(n2 / (n2 - 1)) if n2 > 1 else np.inf) if weighted2 else s2
     v1, v2 = s1 ** 2 / n1, s2 ** 2 / n2
-    critical = s["critical_value"]
+    critical = stats.norm.ppf(0.5 + s.get("confidence", 0.95) / 2)
     if statistic == "t" or (statistic == "auto" and min(n1, n2) < 30):
         with np.errstate(divide="ignore", invalid="ignore"):
             dof = (v1 + v2) ** 2 / (v1 ** 2 / (n1 - 1) + v2 ** 2 / (n2 - 1))  # Welch-Satterthwaite
@@ -151,7 +151,7 @@ def tiny_series(seed: int, epochs: int = 7):
 def settings(**kw):
     s = dict(normal_radii=[0.5, 1.0], window_ratios=[0.3, 1.0], min_points=12, cylinder_radius=0.35,
              max_distance=1.0, weights="none", sigma_ratio=1.0, space_time_ratio=1.0, registration_error=0.005,
-             critical_value=1.96, orientation=[0.0, 0.0, 1.0])
+             orientation=[0.0, 0.0, 1.0])
     s.update(kw)
     return s
 
@@ -280,7 +280,7 @@ def test_on_unchanged_surfaces_t_and_auto_flag_about_five_percent_and_z_too_many
     rates = {}
     for statistic in ("z", "t", "auto"):
         s = settings(weights=weights, window_ratios=[0.2], min_points=10, cylinder_radius=0.3, registration_error=0.0,
-                     critical_value=stats.norm.ppf(0.975), lod=statistic)
+                     confidence=0.95, lod=statistic)
         r = facade.tam3c2(pool, core, 0, range(1, len(clouds)), s)
         ok = np.isfinite(r["distance"])
         assert ok.sum() > 7000

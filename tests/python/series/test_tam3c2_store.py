@@ -6,7 +6,6 @@ it, the store stays sound, bad input is refused naming it, and a kill at every w
 previous variables or marks all of them half-written (never a mix)."""
 from __future__ import annotations
 
-from statistics import NormalDist
 from pathlib import Path
 
 import numpy as np
@@ -63,7 +62,7 @@ def test_the_variables_are_the_engines_tam3c2_on_the_recorded_files(base, tmp_pa
     pool = facade.tam3c2_pool(clouds, [0.0] + [h / 24.0 for h in hours])
     s = dict(normal_radii=[0.5], window_ratios=[0.5, 1.0], min_points=6, cylinder_radius=0.3, max_distance=1.0,
              weights="gaussian", sigma_ratio=1.0, space_time_ratio=1.0, registration_error=0.0,
-             critical_value=NormalDist().inv_cdf(0.975), orientation=[0.0, 0.0, 1.0], lod="z", confidence=0.95)
+             orientation=[0.0, 0.0, 1.0], lod="z", confidence=0.95)
     towards = np.column_stack([ds["nx"].values, ds["ny"].values, ds["nz"].values])
     # the store's own M3C2 as the engine's pool columns (the reference's: distance 0)
     own = {k: np.column_stack([np.zeros(len(core)) if k == "distance" else np.full(len(core), np.nan),
