@@ -62,6 +62,16 @@ m3c2::CloudUncertainty cloud_uncertainty(const std::optional<Points>& precision,
   return c;
 }
 
+/// compute()'s per-point uncertainty inputs as Python gives them (m3c2kit.run.uncertainty_inputs),
+/// one bound object instead of eleven arguments: the arrays are held, and viewed while compute runs.
+struct UncertaintyArrays {
+  std::optional<Points> precision1, precision2;
+  std::optional<Ids> scan_position1, scan_position2;
+  std::optional<Table> scan_positions1, scan_positions2;
+  std::optional<Flat> transform, alignment_covariance, reduction_point;
+  bool transform_applied = false, covariances = false;
+};
+
 void copy_exact(const char* what, const std::optional<Flat>& a, std::size_t count, double* out) {
   if (!a) return;
   if (a->size() != count)
@@ -308,28 +318,39 @@ NB_MODULE(_core, m) {
         "order_clouds_in_place"_a = false,
         "Bytes compute() allocates beyond its inputs for clouds of these sizes (an upper estimate).");
 
+  nb::class_<UncertaintyArrays>(m, "UncertaintyArrays")
+      .def(nb::init<>())
+      .def_rw("precision1", &UncertaintyArrays::precision1, nb::arg("value").none())
+      .def_rw("precision2", &UncertaintyArrays::precision2, nb::arg("value").none())
+      .def_rw("scan_position1", &UncertaintyArrays::scan_position1, nb::arg("value").none())
+      .def_rw("scan_position2", &UncertaintyArrays::scan_position2, nb::arg("value").none())
+      .def_rw("scan_positions1", &UncertaintyArrays::scan_positions1, nb::arg("value").none())
+      .def_rw("scan_positions2", &UncertaintyArrays::scan_positions2, nb::arg("value").none())
+      .def_rw("transform", &UncertaintyArrays::transform, nb::arg("value").none())
+      .def_rw("alignment_covariance", &UncertaintyArrays::alignment_covariance, nb::arg("value").none())
+      .def_rw("reduction_point", &UncertaintyArrays::reduction_point, nb::arg("value").none())
+      .def_rw("transform_applied", &UncertaintyArrays::transform_applied)
+      .def_rw("covariances", &UncertaintyArrays::covariances);
+
   m.def(
       "compute",
       [](const Points& reference, const Points& compared, const Points& core, const m3c2::Params& params,
-         std::optional<Points> core_normals, int threads, nb::object progress, std::optional<Points> precision1,
-         std::optional<Points> precision2, std::optional<Ids> scan_position1, std::optional<Ids> scan_position2,
-         std::optional<Table> scan_positions1, std::optional<Table> scan_positions2, std::optional<Flat> transform,
-         std::optional<Flat> alignment_covariance, std::optional<Flat> reduction_point, bool transform_applied,
-         bool covariances, bool order_in_place) {
+         std::optional<Points> core_normals, int threads, nb::object progress, const UncertaintyArrays& inputs,
+         bool order_in_place) {
         std::vector<double> normals;
         if (core_normals) normals.assign(core_normals->data(), core_normals->data() + 3 * core_normals->shape(0));
         // Per-point uncertainty inputs (include/m3c2/uncertainty.hpp), viewed, not copied.
         m3c2::UncertaintyInputs u;
-        u.reference = cloud_uncertainty(precision1, scan_position1, scan_positions1);
-        u.compared = cloud_uncertainty(precision2, scan_position2, scan_positions2);
-        copy_exact("transform (3x4)", transform, 12, u.transform);
-        if (alignment_covariance) {
+        u.reference = cloud_uncertainty(inputs.precision1, inputs.scan_position1, inputs.scan_positions1);
+        u.compared = cloud_uncertainty(inputs.precision2, inputs.scan_position2, inputs.scan_positions2);
+        copy_exact("transform (3x4)", inputs.transform, 12, u.transform);
+        if (inputs.alignment_covariance) {
           u.alignment_covariance.resize(144);
-          copy_exact("alignment covariance (12x12)", alignment_covariance, 144, u.alignment_covariance.data());
+          copy_exact("alignment covariance (12x12)", inputs.alignment_covariance, 144, u.alignment_covariance.data());
         }
-        copy_exact("reduction point", reduction_point, 3, u.reduction_point);
-        u.transform_applied = transform_applied;
-        u.covariances = covariances;
+        copy_exact("reduction point", inputs.reduction_point, 3, u.reduction_point);
+        u.transform_applied = inputs.transform_applied;
+        u.covariances = inputs.covariances;
         return result_dict(run_engine(std::move(progress), threads, [&](const m3c2::RunOptions& run) {
           // order_in_place: the caller vouches that both arrays are its own and writeable
           // (m3c2kit.run.in_memory decides; RunOptions::order_clouds_in_place).
@@ -339,11 +360,7 @@ NB_MODULE(_core, m) {
         }));
       },
       "reference"_a, "compared"_a, "core_points"_a, "params"_a, "core_normals"_a = nb::none(), "threads"_a = 0,
-      "progress"_a = nb::none(), "precision1"_a = nb::none(), "precision2"_a = nb::none(),
-      "scan_position1"_a = nb::none(), "scan_position2"_a = nb::none(), "scan_positions1"_a = nb::none(),
-      "scan_positions2"_a = nb::none(), "transform"_a = nb::none(), "alignment_covariance"_a = nb::none(),
-      "reduction_point"_a = nb::none(), "transform_applied"_a = false, "covariances"_a = false,
-      "order_in_place"_a = false);
+      "progress"_a = nb::none(), "uncertainty"_a = UncertaintyArrays{}, "order_in_place"_a = false);
 
   m.def(
       "compute_normals",

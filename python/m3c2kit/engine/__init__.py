@@ -144,9 +144,14 @@ def compute(reference: np.ndarray, compared: np.ndarray, core: np.ndarray, param
     progress = _with_fault_checkpoint(_progress(progress))
     threads = _threads(threads)
     order_in_place = bool(order_in_place) and all(np.asarray(a).flags.writeable for a in (reference, compared))
+    inputs = _core.UncertaintyArrays()
     with translated():
+        for name, value in uncertainty_inputs.items():
+            if not hasattr(inputs, name):
+                raise TypeError(f"compute() got an unexpected uncertainty input {name!r}")
+            setattr(inputs, name, value)
         return _core.compute(reference, compared, core, params, core_normals, threads=threads, progress=progress,
-                             order_in_place=order_in_place, **uncertainty_inputs)
+                             uncertainty=inputs, order_in_place=order_in_place)
 
 
 def _with_fault_checkpoint(progress):
