@@ -49,8 +49,13 @@ struct CovarianceSum {
   std::vector<double> bin_side;  ///< the bin side each component used
 };
 
-/// The covariance of one component at lags h.
+/// The covariance of one component at lag h: the one place of the models' formulas (the Python
+/// error model's Component.covariance and .variogram call these through the binding).
 double component_covariance(const CovarianceComponent& c, double h);
+
+/// Its semivariance gamma(h) = sill - C(h), written so that it keeps its digits near h = 0
+/// (sill (1.5 r - 0.5 r^3); -sill expm1(-3 r)), where the variogram is fitted.
+double component_variogram(const CovarianceComponent& c, double h);
 
 /// S over the points `xy` (x0, y0, x1, y1, ...: 2 N finite values) by bins (above). The same bits
 /// for any thread count. Throws InvalidArgument on bad inputs.

@@ -423,6 +423,18 @@ NB_MODULE(_core, m) {
     return out;
   };
   m.def(
+      "component_values",
+      [covariance_components](std::uint8_t kind, double sill, double range, const Values& h, bool variogram) {
+        const auto component = covariance_components({kind}, {sill}, {range}).front();
+        std::vector<double> out(h.shape(0));
+        for (std::size_t i = 0; i < out.size(); ++i)
+          out[i] = variogram ? m3c2::component_variogram(component, h.data()[i])
+                             : m3c2::component_covariance(component, h.data()[i]);
+        return to_numpy(std::move(out));
+      },
+      "kind"_a, "sill"_a, "range"_a, "h"_a, "variogram"_a = false,
+      "C(h) of one component at the lags h, or gamma(h) with variogram=True (region_covariance.hpp).");
+  m.def(
       "region_covariance_sum",
       [covariance_components](const PlanPoints& xy, const std::vector<std::uint8_t>& kinds,
                               const std::vector<double>& sills, const std::vector<double>& ranges, double bin_fraction,

@@ -173,6 +173,12 @@ double component_covariance(const CovarianceComponent& c, double h) {
   return c.sill * std::exp(-3.0 * r);
 }
 
+double component_variogram(const CovarianceComponent& c, double h) {
+  const double r = std::abs(h) / c.range;
+  if (c.kind == CovarianceKind::kSpherical) return r < 1.0 ? c.sill * (1.5 * r - 0.5 * r * r * r) : c.sill;
+  return -c.sill * std::expm1(-3.0 * r);
+}
+
 CovarianceSum region_covariance_sum(std::span<const double> xy, std::span<const CovarianceComponent> components,
                                     const CovarianceSumOptions& options, const RunOptions& run) {
   check(xy, components);

@@ -25,7 +25,7 @@ from ..base.errors import Cancelled, UsageError
 
 __all__ = ["PARAM_FIELDS", "RESULT_FIELDS", "OPTIONAL_RESULT_FIELDS", "STATUS_NAMES", "MAX_CELLS_PER_AXIS", "MAX_BOOTSTRAP_SAMPLES", "INDEX_MEMORY", "Params",
            "translated", "make_params", "default_fields", "params_fields", "compute", "compute_normals",
-           "subsample_min_spacing", "match_rows", "CylinderIndex", "grid_core_points", "roughness_by_scale", "variogram_pairs", "region_covariance_sum", "dimensionality", "c2c", "max_abs_coordinate",
+           "subsample_min_spacing", "match_rows", "CylinderIndex", "grid_core_points", "roughness_by_scale", "variogram_pairs", "component_values", "region_covariance_sum", "dimensionality", "c2c", "max_abs_coordinate",
            "neighbourhood_reach", "tile_halo", "fdr_q_values"]
 
 Params = _core.Params
@@ -220,6 +220,16 @@ def variogram_pairs(points: np.ndarray, values: np.ndarray, edges, *, seed: int,
 
 #: the binding's codes of the covariance kinds (include/m3c2/region_covariance.hpp)
 _COVARIANCE_KINDS = {"spherical": 0, "exponential": 1}
+
+
+def component_values(kind: str, sill: float, range_: float, h, *, variogram: bool = False) -> np.ndarray:
+    """C(h) (or gamma(h) with `variogram`) of one covariance component at the lags `h` (any
+    shape): the engine's formulas (include/m3c2/region_covariance.hpp), their one place."""
+    h = np.asarray(h, dtype=np.float64)
+    with translated():
+        flat = _core.component_values(_COVARIANCE_KINDS[kind], float(sill), float(range_),
+                                      np.ascontiguousarray(h.ravel()), variogram)
+    return flat.reshape(h.shape)
 
 
 def region_covariance_sum(xy: np.ndarray, components, *, exact: bool = False, threads: int = 0,

@@ -82,15 +82,14 @@ class Component:
             raise ValueError(f"component range {self.range!r} must be finite and > 0")
 
     def variogram(self, h) -> np.ndarray:
-        """gamma(h) of this component (0 at h = 0, `sill` at infinity)."""
-        r = np.abs(np.asarray(h, dtype=np.float64)) / self.range
-        if self.kind == "spherical":
-            return self.sill * np.where(r < 1.0, 1.5 * r - 0.5 * r ** 3, 1.0)
-        return self.sill * -np.expm1(-3.0 * r)
+        """gamma(h) of this component (0 at h = 0, `sill` at infinity): the engine's formula."""
+        from ..engine import component_values  # the engine's, their one place; imported when used
+        return component_values(self.kind, self.sill, self.range, h, variogram=True)
 
     def covariance(self, h) -> np.ndarray:
-        """C(h) = sill - gamma(h)."""
-        return self.sill - self.variogram(h)
+        """C(h) = sill - gamma(h), the engine's formula (the one region sums use)."""
+        from ..engine import component_values
+        return component_values(self.kind, self.sill, self.range, h)
 
 
 @dataclass(frozen=True)

@@ -111,3 +111,23 @@ def test_load_refuses_non_json_and_missing(tmp_path):
         load(tmp_path / "t.json")
     with pytest.raises(ErrorModelError, match="missing.json"):
         load(tmp_path / "missing.json")
+
+
+@pytest.mark.parametrize("kind", ["spherical", "exponential"])
+def test_the_components_formulas_are_the_engines_and_the_analytic_ones(kind):
+    """One owner (issue 41): Component.covariance/.variogram are the engine's C(h) and gamma(h)
+    (include/m3c2/region_covariance.hpp, also what the region sums use), checked against the
+    closed forms; gamma keeps its digits near h = 0, where the fit looks."""
+    from m3c2kit.engine import component_values
+    c = Component(kind, 2.5, 4.0)
+    h = np.array([[0.0, 1e-9, 0.3], [3.999, 4.0, 9.0]])
+    r = h / 4.0
+    if kind == "spherical":
+        gamma = np.where(r < 1, 2.5 * (1.5 * r - 0.5 * r ** 3), 2.5)
+    else:
+        gamma = 2.5 * (1 - np.exp(-3 * r))
+    np.testing.assert_allclose(c.variogram(h), gamma, rtol=1e-12, atol=1e-15)
+    np.testing.assert_allclose(c.covariance(h), 2.5 - gamma, rtol=1e-12, atol=1e-15)
+    assert c.variogram(h).shape == h.shape
+    np.testing.assert_allclose(c.variogram(1e-9), 2.5 * 3 * 1e-9 / 4 * (0.5 if kind == "spherical" else 1), rtol=1e-6)
+    np.testing.assert_array_equal(c.covariance(h), component_values(kind, 2.5, 4.0, h))
