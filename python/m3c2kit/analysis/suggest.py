@@ -95,8 +95,10 @@ def suggest(reference, compared, *, sample: int = 2000, seed: int = 0, threads: 
         dmaxc = float(candidates[-1])
         D = dmin
         normal_scale = f"{dmin:.6g}:{dmaxc:.6g}:{dmin:.6g}" if dmaxc > dmin else dmin
-        normal_rule = (f"no candidate has xi >= {XI_TARGET:g} at {100 * XI_SHARE:g}% of core points: multi-scale "
-                       "range (the most planar scale wins)")
+        normal_rule = (f"no candidate has xi >= {XI_TARGET:g} at {100 * XI_SHARE:g}% of core points: " + (
+            "multi-scale range (the most planar scale wins)" if dmaxc > dmin else
+            "the largest candidate (the multi-scale range, from the first with xi >= 25 at half of them, holds "
+            "only it)"))
 
     # Max depth from a first pass with a generous cylinder.
     h0 = float(candidates[-1])

@@ -21,6 +21,7 @@ from ..run.checks import check_all_fields, check_core_normals, threads_count
 from ..settings import by_name, orientation, parameters_of, resolve
 from ..settings.cloudcompare_params import read_cloudcompare_params
 from ..settings.resolve import without_inapplicable
+from .auto_scales import check_all_but_scales, choose_scales, missing_scales
 from .inputs import input_files, orient_spec, print_notes, read_input
 from .options import add, add_progress_option, add_table_options, add_verbosity_options
 from .parser import phases_for
@@ -40,6 +41,9 @@ def compare_parser(sub) -> None:
     add_table_options(p, "compare", groups={"core_spacing": core})
     add(p, "core_normals")
     p.add_argument("--params", type=Path, help="CloudCompare qM3C2 parameter file; command-line options win")
+    p.add_argument("--auto-scales", action="store_true",
+                   help="choose D, d and the max depth from the data by m3c2 suggest's rules (also done for any of "
+                        "them not given); the run prints what it chose and why")
     p.add_argument("--projected", action="store_true", help="also write the projected positions x1..z2")
     add_drop_nonfinite_option(p)
     add(p, "ignore_crs")
@@ -173,8 +177,9 @@ def _compare_outputs(args) -> dict:
 def run_compare(args) -> int:
     cell = args.grid
     settings = compare_settings(args)  # with --grid: 2D mode's settings (raster.grid_settings)
+    chosen_later = missing_scales(settings, args)  # D, d, depth not given: from the data, once read
     # Every parameter's checks, options that would change nothing included, before any file is read.
-    resolve(settings, "compare")
+    check_all_but_scales(resolve, settings, chosen_later) if chosen_later else resolve(settings, "compare")
     check_core_normals(settings, args.core_normals, "--core-normals")
     check_all_fields(args.output, settings.get("all_fields"))
     laz_threads.set_threads(threads_count(settings.get("threads")))  # LAZ coding: --threads too (checked first)
@@ -186,6 +191,9 @@ def run_compare(args) -> int:
                              core_spacing=settings.get("core_spacing"),
                              inputs={"reference": args.reference, "compared": args.compared})
     if args.tile_size is not None or args.memory_limit is not None or args.dask_scheduler is not None:
+        if chosen_later:  # the rules read both clouds whole: not what a tiled run is for
+            raise UsageError(f"a tiled run needs its scales given ({', '.join(by_name()[n].flag for n in chosen_later)} "
+                             "missing): 'm3c2 suggest' on the clouds or a crop of them proposes them")
         return run_compare_tiled(args, settings, outputs)  # out-of-core / Dask (docs/scaling.md)
     files = [f for f in (args.reference, args.compared, args.core) if f is not None]
     with phases.phase("reading", total=len(files)) as step:
@@ -199,6 +207,11 @@ def run_compare(args) -> int:
         assign_crs(args.crs, reference, compared, core_cloud)
     check_same_crs(reference, compared, core_cloud, ignore=getattr(args, "ignore_crs", False),
                    allow_angular=getattr(args, "allow_angular", False))  # docs/errors.md
+    if chosen_later:
+        say = (lambda s: None) if args.quiet else (lambda s: print(f"m3c2: {s}", flush=True))
+        choose_scales(settings, chosen_later, reference.xyz, compared.xyz,
+                           threads=threads_count(settings.get("threads")), say=say)
+        resolve(settings, "compare")  # the chosen scales checked with the others, their warnings given
     grid = None
     if cell is not None:
         grid = raster.grid_core_points(reference, cell)

@@ -147,7 +147,8 @@ PARAMETERS: tuple[Parameter, ...] = (
               py4dgeo="normal_radii (radii: D / 2)", commands=BOTH, needs=(FITTED_NORMALS,),
               help="D, the normal scale: DIAMETER of the sphere of neighbours (as in the paper and CloudCompare). "
                    "One value, a list '0.5,1,2' or a range 'MIN:MAX:STEP' (multi-scale: the most planar scale "
-                   "wins); required unless --normal-source is vertical or core"),
+                   "wins); needed unless --normal-source is vertical or core, and chosen from the data by m3c2 "
+                   "compare when not given"),
     Parameter("normal_source", "--normal-source", Choice(*NORMAL_SOURCES), section="3.1.2",
               engine=enum("normal_source"), cli_type=str, cloudcompare_keys=("NormalMode",),
               help="where normals come from"),
@@ -176,10 +177,12 @@ PARAMETERS: tuple[Parameter, ...] = (
     # Projection (section 3.1.3)
     Parameter("projection_scale", "--projection-scale", Real(), section="3.1.3",
               engine=same("projection_diameter"), default=None, cloudcompare_keys=("SearchScale",),
-              py4dgeo="cyl_radius (a radius: d / 2)", help="d: DIAMETER of the projection cylinder (required)"),
+              py4dgeo="cyl_radius (a radius: d / 2)", help="d: DIAMETER of the projection cylinder (m3c2 compare chooses it from the data when not given; "
+                   "the Python API requires it)"),
     Parameter("max_depth", "--max-depth", Real(), section="3.1.3", engine=same("max_depth"), default=None,
               cloudcompare_keys=("SearchDepth",), py4dgeo="max_distance",
-              help="half-length of the cylinder along the normal, on each side (required)"),
+              help="half-length of the cylinder along the normal, on each side (m3c2 compare chooses it from the "
+                   "data when not given; the Python API requires it)"),
     Parameter("depth_search", "--depth-search", Choice(*DEPTH_SEARCHES), section="3.1.3, 5.3",
               engine=enum("depth_search"), cloudcompare="progressive", cli_type=str,
               cloudcompare_keys=("UseSinglePass4Depth",),

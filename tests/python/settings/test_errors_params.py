@@ -92,8 +92,16 @@ def test_bad_values_exit_2_naming_the_option(pair, capsys, option, value, messag
 
 
 def test_missing_required_options(pair, capsys):
-    code, _, err = run(capsys, *compare_args(pair, max_depth=None))
-    assert code == 2 and err == "m3c2: error: --max-depth is required (or a --params file that sets it)\n"
+    """The Python API requires every scale; the command line chooses a missing one from the data
+    (tests/python/cli/test_auto_scales.py), except in a tiled run."""
+    import m3c2kit
+    from m3c2kit.base.errors import UsageError
+    with pytest.raises(UsageError, match=r"^--max-depth is required \(or a --params file that sets it\)$"):
+        m3c2kit.compare(pair / "ref.xyz", pair / "cmp.xyz", normal_scale=0.5, projection_scale=0.3)
+    code, out, err = run(capsys, *compare_args(pair, max_depth=None))
+    assert code == 0 and err == "" and (pair / "out.csv").exists()
+    code, _, err = run(capsys, *compare_args(pair, max_depth=None), "--tile-size", "5")
+    assert code == 2 and "--max-depth missing" in err
 
 
 PARAMS = ("[General]\nM3C2VER=1\nNormalScale=0.5\nNormalMode=0\nSearchScale=0.3\nSearchDepth=0.5\n"
