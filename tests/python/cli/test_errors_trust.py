@@ -72,6 +72,18 @@ def data(tmp_path_factory) -> Path:
         np.savetxt(folder / f"{name}.xyz", rng.random((60, 3)))
     (folder / "sp.csv").write_text("id,x,y,z,sigma_range,sigma_scan,sigma_yaw\n1,0,0,5,0.01,0.001,0.001\n")
     (folder / "tf.txt").write_text("1 0 0 0\n0 1 0 0\n0 0 1 0\n")
+    # A compare output and the files of the newest commands (issue 42): regions, an error model.
+    xy = rng.random((60, 2)) * 10
+    ones = np.ones(60)
+    write_cloud_table(folder / "result.csv", np.column_stack([xy, np.zeros(60)]),
+                      {"distance": rng.normal(0, 0.01, 60), "lod": 0.03 * ones, "sigma1": 0.01 * ones,
+                       "sigma2": 0.01 * ones, "n1": 20 * ones, "n2": 20 * ones, "significant": np.zeros(60)})
+    (folder / "regions.geojson").write_text(json.dumps({"type": "FeatureCollection", "features": [
+        {"type": "Feature", "properties": {"name": "r"},
+         "geometry": {"type": "Polygon", "coordinates": [[[0, 0], [10, 0], [10, 10], [0, 10], [0, 0]]]}}]}))
+    (folder / "model.json").write_text(json.dumps({
+        "format": "m3c2kit-error-model", "version": 2, "nugget": 1e-5, "lag_distance": "3d", "projection_scale": 1.0,
+        "mean_u2": 1e-5, "components": [{"kind": "spherical", "sill": 1e-5, "range": 3.0}]}))
     return folder
 
 
@@ -134,6 +146,17 @@ OPTIONS = {
     "classify train --polygons": (".geojson", 2, lambda D, O, P: ["classify", "train", D / "a.xyz", "--polygons", P,
                                                                   "-o", O]),
     "info": (".xyz", 1, lambda D, O, P: ["info", P]),
+    # The newest commands (issue 42).
+    "convert input": (".xyz", 1, lambda D, O, P: ["convert", P, "-o", O]),
+    "variogram result": (".csv", 1, lambda D, O, P: ["variogram", P, "-o", O.with_suffix(".json")]),
+    "variogram --stable": (".geojson", 2, lambda D, O, P: ["variogram", D / "result.csv", "--stable", P, "-o",
+                                                           O.with_suffix(".json")]),
+    "aggregate result": (".csv", 1, lambda D, O, P: ["aggregate", P, "--regions", D / "regions.geojson", "-o", O]),
+    "aggregate --regions": (".geojson", 2, lambda D, O, P: ["aggregate", D / "result.csv", "--regions", P, "-o", O]),
+    "aggregate --error-model": (".json", 2, lambda D, O, P: ["aggregate", D / "result.csv", "--regions",
+                                                             D / "regions.geojson", "--error-model", P, "-o", O]),
+    "compare --error-model": (".json", 2, lambda D, O, P: ["compare", D / "a.xyz", D / "b.xyz", "-o", O, *SCALES,
+                                                           "--error-model", P]),
 }
 
 
