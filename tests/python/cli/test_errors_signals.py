@@ -177,3 +177,60 @@ def _convert(folder: Path) -> subprocess.Popen:
     return subprocess.Popen([sys.executable, "-m", "m3c2kit", "convert", str(DATA / "autzen-bmx-2010.las"), "-o",
                              str(folder / "copy.csv"), "-q"], cwd=folder, env=child_env(), stdout=subprocess.PIPE,
                             stderr=subprocess.PIPE, text=True, preexec_fn=_no_core_dump)
+
+
+def _newest_inputs(folder: Path) -> dict:
+    """A compare output and regions: the inputs of the newest writing commands (issue 42)."""
+    import json
+
+    import numpy as np
+
+    from m3c2kit.io import write_cloud_table
+    rng = np.random.default_rng(3)
+    n = 400
+    xy = rng.random((n, 2)) * 10
+    ones = np.ones(n)
+    write_cloud_table(folder / "result.csv", np.column_stack([xy, np.zeros(n)]),
+                      {"distance": rng.normal(0, 0.01, n), "lod": 0.03 * ones, "sigma1": 0.01 * ones,
+                       "sigma2": 0.01 * ones, "n1": 20 * ones, "n2": 20 * ones, "significant": np.zeros(n)})
+    (folder / "regions.geojson").write_text(json.dumps({"type": "FeatureCollection", "features": [
+        {"type": "Feature", "properties": {"name": "r"},
+         "geometry": {"type": "Polygon", "coordinates": [[[0, 0], [10, 0], [10, 10], [0, 10], [0, 0]]]}}]}))
+    return {"convert": ["convert", folder / "result.csv", "-o"],
+            "variogram": ["variogram", folder / "result.csv", "--projection-scale", "1", "-o"],
+            "aggregate": ["aggregate", folder / "result.csv", "--regions", folder / "regions.geojson", "-o"]}
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("signal_name", ["SIGKILL", "SIGTERM", "SIGINT", "SIGHUP"])
+@pytest.mark.parametrize("command, output", [("convert", "out.ply"), ("variogram", "model.json"),
+                                             ("aggregate", "table.csv")])
+def test_the_newest_commands_killed_while_writing_keep_the_older_output(tmp_path, command, output, signal_name):
+    """Issue 42's harness: each newest writing command stopped at its write (the testing aid,
+    M3C2_TEST_SIGNAL_AT=writing:SIGNAL) keeps the older output byte for byte (a handled signal
+    leaves nothing beside it; SIGKILL's private folder is removed by the next run, which writes
+    the output whole and leaves nothing else)."""
+    argv = _newest_inputs(tmp_path)[command]
+    out_dir = tmp_path / "out"
+    out_dir.mkdir()
+    (out_dir / output).write_bytes(OLDER)
+
+    def run(signal_at=None):
+        env = child_env()
+        env.pop("M3C2_TEST_SIGNAL_AT", None)
+        if signal_at is not None:
+            env["M3C2_TEST_SIGNAL_AT"] = signal_at
+        return finish(subprocess.Popen([sys.executable, "-m", "m3c2kit", *map(str, argv), str(out_dir / output), "-q"],
+                                       cwd=tmp_path, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                                       text=True, preexec_fn=_no_core_dump))
+
+    code, err = run(f"writing:{signal_name}")
+    if signal_name in HANDLED:
+        assert code == 1 and err.endswith(f"m3c2: error: interrupted by {signal_name}; no output written\n"), err
+        assert left_in(out_dir) == [output]
+    else:
+        assert code == -getattr(signal, signal_name), (code, err)
+    assert (out_dir / output).read_bytes() == OLDER
+    code, err = run()
+    assert code == 0, err
+    assert left_in(out_dir) == [output] and (out_dir / output).read_bytes() != OLDER
