@@ -5,6 +5,7 @@ no output, no temporary left; docs/errors.md, "Interruption"), its error message
 Processing log and a QgsProcessingException.
 
 QGIS's Python and m3c2kit's environment stay apart: nothing here imports m3c2kit."""
+import json
 import os
 import re
 import shlex
@@ -20,11 +21,9 @@ SETTING = "M3C2_EXECUTABLE"
 NOT_FOUND = ("m3c2 not found: install m3c2kit (docs/qgis.md) or set its path in Settings > Options > Processing > "
              "Providers > m3c2kit > m3c2 executable (" + SETTING + ")")
 
-# `m3c2 compare --progress` draws one tqdm bar per phase on stderr ("reading:  50%|...| 1/2 ...",
-# rewritten in place with carriage returns; m3c2kit.base.phases). Each phase's share of the run:
-PHASE_SPANS = {"reading": (0.0, 10.0), "indexing, normals, distances": (10.0, 95.0), "indexing, normals": (10.0, 95.0),
-               "writing": (95.0, 100.0)}
-_BAR = re.compile(r"^(?P<phase>[^:|]+):\s+(?P<percent>\d{1,3})%\|")
+# `m3c2 ... --progress json` writes one JSON line per update on stderr, {"phase", "done", "total",
+# "percent"}: the run's percent, monotone, from m3c2's own table of its phases (m3c2kit.base.phases).
+_PROGRESS = '{"phase"'
 _MESSAGE = re.compile(r"m3c2: (?:(?P<kind>warning|error): )?(?P<text>.*)")
 POLL_S = 0.1
 
@@ -63,13 +62,16 @@ def quoted(command) -> str:
     return " ".join(shlex.quote(str(a)) for a in command)
 
 
-def progress_of(segment: str):
-    """The run's percent for one redrawn bar of `m3c2 --progress`, or None."""
-    match = _BAR.match(segment.strip())
-    if match is None:
+def progress_of(line: str):
+    """The run's percent in one line of `m3c2 --progress json`, or None for any other line."""
+    text = line.strip()
+    if not text.startswith(_PROGRESS):
         return None
-    start, stop = PHASE_SPANS.get(match["phase"].strip(), (0.0, 100.0))
-    return start + (stop - start) * min(int(match["percent"]), 100) / 100.0
+    try:
+        percent = float(json.loads(text)["percent"])
+    except (ValueError, KeyError, TypeError):
+        return None
+    return min(max(percent, 0.0), 100.0)
 
 
 class _Stream(threading.Thread):
@@ -114,11 +116,10 @@ class Run:
 
     def _stderr(self, segment):
         percent = progress_of(segment)
-        if percent is not None:
+        if percent is not None:  # the progress, never the log's
             if self.progress and self.feedback is not None:
                 self.feedback.setProgress(percent)
-            # a warning printed while a bar was drawn follows the bar on the same line
-            segment = segment[segment.find("m3c2: "):] if "m3c2: " in segment else ""
+            return
         text = segment.strip()
         if not text:
             return

@@ -34,7 +34,7 @@ SMALL = {"CORE_SPACING": 20, "NORMAL_SCALE": "16", "PROJECTION_SCALE": 10, "MAX_
 class Recorder(QgsProcessingFeedback):
     def __init__(self):
         super().__init__()
-        self.percents, self.errors, self.commands = [], [], []
+        self.percents, self.errors, self.commands, self.infos = [], [], [], []
 
     def setProgress(self, value):  # noqa: N802 - QGIS's name
         self.percents.append(value)
@@ -45,6 +45,14 @@ class Recorder(QgsProcessingFeedback):
 
     def pushCommandInfo(self, info):  # noqa: N802 - QGIS's name
         self.commands.append(info)
+
+    def pushInfo(self, info):  # noqa: N802 - QGIS's name
+        self.infos.append(info)
+        super().pushInfo(info)
+
+    def pushConsoleInfo(self, info):  # noqa: N802 - QGIS's name
+        self.infos.append(info)
+        super().pushConsoleInfo(info)
 
 
 def run(algorithm, parameters, feedback=None):
@@ -135,14 +143,16 @@ def test_rasters_are_styled_symmetric_about_zero():
 
 
 def test_progress_reaches_the_feedback():
-    assert runner.progress_of("reading:  50%|#####     | 1/2 [00:00, ETA soon]") == 5.0
-    assert runner.progress_of("indexing, normals, distances: 100%|##########| 499/499 [00:00<00:00]") == 95.0
+    assert runner.progress_of('{"phase": "reading", "done": 1, "total": 2, "percent": 5.0}') == 5.0
+    assert runner.progress_of('{"phase": "writing", "done": 1, "total": 1, "percent": 100.0}\r') == 100.0
     assert runner.progress_of("m3c2: warning: something") is None
+    assert runner.progress_of('{"phase": "reading", "percent": "x"}') is None
     with Folder() as d:
         results, ok, context, feedback = run("compare", dict(SMALL, REFERENCE=REFERENCE, COMPARED=COMPARED,
                                                              OUTPUT=os.path.join(d, "p.csv")))
         assert ok and feedback.percents and feedback.percents[-1] == 100.0, feedback.percents
-        assert feedback.percents == sorted(feedback.percents)
+        assert feedback.percents == sorted(feedback.percents) and len(set(feedback.percents)) >= 4, feedback.percents
+        assert not any('"phase"' in line for line in feedback.infos), feedback.infos  # no internal JSON in the log
         assert feedback.commands[0].split()[1:3] == ["compare", REFERENCE]
 
 

@@ -24,6 +24,11 @@ __all__ = ["Phases", "PHASES", "ETA_AFTER"]
 
 #: The phases of a compare run, in order.
 PHASES = ("reading", "indexing", "normals", "distances", "writing")
+#: Each phase's span of a whole run, in percent, for `--progress json`'s "percent" (the one place
+#: of these names: the QGIS runner reads the percent, not the names). A phase not listed is a
+#: run of its own (0 to 100).
+RUN_SPANS = {"reading": (0.0, 10.0), "indexing, normals, distances": (10.0, 95.0), "indexing, normals": (10.0, 95.0),
+             "writing": (95.0, 100.0)}
 #: Share of a phase after which its ETA is shown.
 ETA_AFTER = 0.03
 
@@ -35,13 +40,14 @@ class Phases:
     """One progress bar per phase. `enabled`: None (default) shows the bars when `stream`
     (default stderr) is a terminal, True always, False never."""
 
-    def __init__(self, enabled: bool | None = None, stream=None, mininterval: float = 0.2) -> None:
+    def __init__(self, enabled: bool | None = None, stream=None, mininterval: float = 0.2, json: bool = False) -> None:
         self.stream = stream if stream is not None else sys.stderr
         if enabled is None:
             isatty = getattr(self.stream, "isatty", None)
             enabled = bool(isatty and isatty())
         self.enabled = enabled
         self.mininterval = mininterval
+        self.json = json
 
     def __enter__(self) -> "Phases":
         return self
@@ -59,10 +65,41 @@ class Phases:
         self.stream.flush()
 
     @contextlib.contextmanager
+    def _json(self, name: str, total: int | None) -> Iterator[Callable[[int, int], bool]]:
+        """One JSON line at the start, at most one per `mininterval` while it runs, one at its end."""
+        import json
+        start, stop = RUN_SPANS.get(name, (0.0, 100.0))
+        state = {"done": 0, "total": total, "at": 0.0}
+
+        def write(done: int, total_now: int | None) -> None:
+            share = min(done / total_now, 1.0) if total_now else 0.0
+            line = {"phase": name, "done": int(done), "total": total_now, "percent": round(start + (stop - start) * share, 2)}
+            self.stream.write(json.dumps(line) + "\n")
+            self.stream.flush()
+            state["at"] = time.monotonic()
+
+        def update(done: int, total_now: int | None = None) -> bool:
+            if total_now is not None:
+                state["total"] = total_now
+            done = max(int(done), state["done"])  # monotone, whatever the caller reports
+            state["done"] = done
+            if time.monotonic() - state["at"] >= self.mininterval:
+                write(done, state["total"])
+            return True
+
+        write(0, total)
+        yield update
+        write(state["total"] or state["done"], state["total"] or state["done"] or None)
+
+    @contextlib.contextmanager
     def phase(self, name: str, total: int | None = None) -> Iterator[Callable[[int, int], bool]]:
         """A context whose value is ``update(done, total) -> True``, the engine's callback."""
         if not self.enabled:
             yield lambda done, total=None: True
+            return
+        if self.json:
+            with self._json(name, total) as update:
+                yield update
             return
         try:
             from tqdm.auto import tqdm

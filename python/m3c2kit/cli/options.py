@@ -45,7 +45,9 @@ OPTIONS: dict[str, Option] = {
     "quiet": Option(("-q", "--quiet"), "no progress bar or summary (warnings and errors still go to stderr)", None),
     "verbose": Option(("--verbose",), "also print the parameters the run used", None),
     "progress": Option(("--progress",), "show the progress bars on stderr even when it is not a terminal "
-                                        "(default: only on a terminal)", None),
+                                        "(default: only on a terminal); --progress json: one JSON line per update "
+                                        "instead, {\"phase\", \"done\", \"total\", \"percent\"} (the run's "
+                                        "percent, monotone), for a program that follows the run", None),
     # Inputs
     "core": Option(("--core",), "core points file", Path),
     "core_normals": Option(("--core-normals",), "with --normal-source core: file of nx,ny,nz per core point "
@@ -146,4 +148,6 @@ def add_verbosity_options(parser) -> None:
 
 
 def add_progress_option(parser) -> None:
-    add(parser, "progress")
+    """--progress (bars), or --progress json (m3c2kit.base.phases: one JSON line per update)."""
+    option = OPTIONS["progress"]
+    parser.add_argument(*option.flags, nargs="?", const="bars", choices=("bars", "json"), help=option.help)

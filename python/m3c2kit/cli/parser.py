@@ -90,4 +90,5 @@ def phases_for(args):
         if getattr(args, "progress", False):  # both asked: one would be silently ignored
             raise UsageError("--progress would change nothing in this run: -q/--quiet shows no progress bar")
         return Phases(enabled=False)
-    return Phases(enabled=True if getattr(args, "progress", False) else None)
+    shown = getattr(args, "progress", None)
+    return Phases(enabled=True if shown else None, json=shown == "json")

@@ -96,7 +96,7 @@ class CompareAlgorithm(M3C2Algorithm):
 
     def processAlgorithm(self, parameters, context, feedback):  # noqa: N802 - QGIS's name
         args, output, report = self.command_arguments(parameters, context)
-        self.m3c2(args + ["--progress"], feedback, progress=True)
+        self.m3c2(args + ["--progress", "json"], feedback, progress=True)
         outputs = {"OUTPUT": output, "REPORT_FILE": report or None}
         outputs["OUTPUT_LAYER"] = results.table_layer(output, feedback, context)
         if parameters.get("GRID_CELL") is not None:

@@ -64,5 +64,5 @@ class PdalCompareAlgorithm(M3C2Algorithm):
                  "--registration-error", repr(number("REG_ERROR")),
                  "--min-points", str(self.parameterAsInt(parameters, "MIN_POINTS", context)),
                  "--orient", ORIENT[orientation], "--lod", "z", "--variance", "population", "--field-names", "pdal"]
-        self.m3c2(args + ["--progress"], feedback, progress=True)
+        self.m3c2(args + ["--progress", "json"], feedback, progress=True)
         return {"OUTPUT": output, "OUTPUT_LAYER": results.table_layer(output, feedback, context)}

@@ -137,3 +137,21 @@ def test_progress_over_every_phase_when_forced(tmp_path, capsys):
     for phase in ("reading", "indexing, normals, distances", "writing"):
         assert phase in err, phase
     assert "3000/3000" in err  # the engine's core points done
+
+
+def test_progress_json_is_one_line_per_update_and_monotone(tmp_path, capsys, monkeypatch):
+    """`--progress json` (issue 44: what the QGIS runner reads): valid JSON lines only, every phase,
+    the run's percent never going back, from 0 to 100; the engine's updates reach it."""
+    import json
+
+    from m3c2kit.base import phases
+    monkeypatch.setattr(phases.Phases.__init__, "__defaults__", (None, None, 0.0, False))  # no throttle: every update
+    ref, cmp_ = _pair(tmp_path)
+    assert main(["compare", ref, cmp_, "-o", tmp_path / "p.csv", "--normal-scale", "2", "--projection-scale", "1",
+                 "--max-depth", "1", "--progress", "json"]) == 0
+    lines = [json.loads(line) for line in capsys.readouterr().err.splitlines()]
+    assert {line["phase"] for line in lines} == {"reading", "indexing, normals, distances", "writing"}
+    percents = [line["percent"] for line in lines]
+    assert percents == sorted(percents) and percents[0] == 0.0 and percents[-1] == 100.0
+    compute = [line for line in lines if line["phase"] == "indexing, normals, distances"]
+    assert len({line["done"] for line in compute}) >= 3 and compute[-1]["done"] == compute[-1]["total"] == 3000
