@@ -48,6 +48,7 @@ class Phases:
         self.enabled = enabled
         self.mininterval = mininterval
         self.json = json
+        self.seconds: dict[str, float] = {}  # each phase's wall time, shown or not (--verbose prints them)
 
     def __enter__(self) -> "Phases":
         return self
@@ -93,7 +94,21 @@ class Phases:
 
     @contextlib.contextmanager
     def phase(self, name: str, total: int | None = None) -> Iterator[Callable[[int, int], bool]]:
-        """A context whose value is ``update(done, total) -> True``, the engine's callback."""
+        """A context whose value is ``update(done, total) -> True``, the engine's callback; its
+        wall time is added to :attr:`seconds`."""
+        start = time.monotonic()
+        try:
+            with self._shown(name, total) as update:
+                yield update
+        finally:
+            self.seconds[name] = self.seconds.get(name, 0.0) + time.monotonic() - start
+
+    def timing_line(self) -> str:
+        """``time: reading 0.12 s, indexing, normals, distances 1.30 s, writing 0.05 s``."""
+        return "time: " + "; ".join(f"{name} {s:.2f} s" for name, s in self.seconds.items())
+
+    @contextlib.contextmanager
+    def _shown(self, name: str, total: int | None) -> Iterator[Callable[[int, int], bool]]:
         if not self.enabled:
             yield lambda done, total=None: True
             return

@@ -89,6 +89,7 @@ def run_normals(args) -> int:
         for name, value in sorted(given.items()):
             if value is not None:
                 print(f"parameter {name}: {value}")
+        print(phases.timing_line())
     if not args.quiet:
         ok = int(np.count_nonzero(np.asarray(out["status"]) == 0))
         print(f"wrote {args.output}: normals at {ok:,} of {len(out['core']):,} points "

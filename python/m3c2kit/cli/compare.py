@@ -240,6 +240,7 @@ def run_compare(args) -> int:
     if args.verbose:
         for name, value in sorted(result.params.items()):
             print(f"parameter {name}: {value}")
+        print(phases.timing_line())  # where the time went (issue 45)
     print_notes((reference, compared, core_cloud))  # the warnings: m3c2kit.run.diagnostics, through main()
     return 0
 

@@ -4,6 +4,7 @@ summary, and the warnings on stderr (Toronto's shoreline)."""
 from __future__ import annotations
 
 import json
+import re
 from pathlib import Path
 
 import numpy as np
@@ -155,3 +156,13 @@ def test_progress_json_is_one_line_per_update_and_monotone(tmp_path, capsys, mon
     assert percents == sorted(percents) and percents[0] == 0.0 and percents[-1] == 100.0
     compute = [line for line in lines if line["phase"] == "indexing, normals, distances"]
     assert len({line["done"] for line in compute}) >= 3 and compute[-1]["done"] == compute[-1]["total"] == 3000
+
+
+def test_verbose_says_where_the_time_went(tmp_path, capsys):
+    """Issue 45: one line of each phase's wall time under --verbose, in the order they ran."""
+    ref, cmp_ = _pair(tmp_path)
+    assert main(["compare", ref, cmp_, "-o", tmp_path / "p.csv", "--normal-scale", "2", "--projection-scale", "1",
+                 "--max-depth", "1", "--verbose"]) == 0
+    line = [x for x in capsys.readouterr().out.splitlines() if x.startswith("time: ")]
+    assert len(line) == 1 and re.fullmatch(r"time: reading [0-9.]+ s; indexing, normals, distances [0-9.]+ s; "
+                                           r"writing [0-9.]+ s", line[0]), line
