@@ -10,10 +10,11 @@ from pathlib import Path
 from ..analysis.aggregate import aggregate, survey_from_fields
 from ..analysis.aggregate_table import table_format, write_table
 from ..analysis.error_model import load as load_error_model
-from ..base.errors import M3C2Warning, printable
+from ..base.errors import M3C2Warning, UsageError, printable
 from ..io import read_cloud
 from ..io.collisions import check_outputs
 from ..io.polygons import read_regions_for, require_points_inside
+from ..settings.error_model import check_projection_scale
 from ..settings.table import by_name
 from .integers import integer, positive_real
 from .options import add, add_table_option, table_type
@@ -40,6 +41,7 @@ def aggregate_parser(sub) -> None:
     p.add_argument("--error-model", type=Path, metavar="MODEL.json",
                    help="the spatially correlated error model (m3c2 variogram) the intervals account for "
                         "(default: none, uncorrelated intervals)")
+    add_table_option(p, "projection_scale")
     confidence = by_name()["confidence"]  # its range and default are the table's (compare's LOD level)
     p.add_argument("--confidence", type=table_type(confidence), default=confidence.default_for(),
                    help=f"confidence level of the intervals (default {confidence.default_for():g})")
@@ -59,6 +61,15 @@ def run_aggregate(args) -> int:
                                         "--error-model": args.error_model})
     table_format(args.output)
     model = load_error_model(args.error_model) if args.error_model is not None else None
+    if model is not None:  # issue 42: the model's d was never checked
+        check_projection_scale(model, str(args.error_model), args.projection_scale, of=f"{args.result}'s")
+        if args.projection_scale is None and model.projection_scale is not None:
+            warnings.warn(f"{args.result}: a compare output does not record its projection scale: taken as the error "
+                          f"model's, d = {model.projection_scale:g}; give --projection-scale to have it checked",
+                          M3C2Warning, stacklevel=2)
+    elif args.projection_scale is not None:
+        raise UsageError("--projection-scale is checked against --error-model's d: without a model it would change "
+                         "nothing")
     cloud = read_cloud(args.result)
     polygons = read_regions_for(args.regions, cloud)
     survey = survey_from_fields(cloud.xyz, cloud.fields, args.result)

@@ -1,14 +1,15 @@
 """`m3c2 compare REFERENCE COMPARED -o OUTPUT` with no scale: D, d and the maximum depth not given
 are chosen from the data by `m3c2 suggest`'s rules (m3c2kit.analysis.suggest, sections 5.1, 5.2.2
 and 5.3 of the paper), rounded as its proposal, and the run says what it chose and why (issue 44).
-`--auto-scales` asks for it explicitly: every scale is chosen, a --params file's included."""
+`--auto-scales` asks for it explicitly: every scale is chosen, a --params file's included. With
+--error-model, d is the model's (it applies at no other d)."""
 from __future__ import annotations
 
 import math
 import warnings
 from typing import Callable
 
-from ..base.errors import UsageError
+from ..base.errors import M3C2Error, UsageError
 from ..settings import by_name
 
 #: The scales the rules choose, in the order they are chosen and printed.
@@ -26,6 +27,10 @@ def missing_scales(settings: dict, args) -> list[str]:
             raise UsageError(f"--auto-scales chooses {', '.join(given)} from the data: give one or the other")
         for name in SCALES:
             settings.pop(name, None)
+    if settings.get("projection_scale") is None and settings.get("error_model") is not None:
+        # --error-model applies only at the d it was fitted at (settings.resolve): that d, not the rules'
+        from ..settings.error_model import for_compare
+        settings["projection_scale"] = for_compare(settings["error_model"]).projection_scale
     fitted = settings.get("normal_source", "reference") not in ("vertical", "core")
     return [n for n in SCALES if settings.get(n) is None and (n != "normal_scale" or fitted)]
 
@@ -47,9 +52,13 @@ def choose_scales(settings: dict, names: list[str], reference, compared, *, thre
     """Fills `names` in `settings` from suggest's rules on the two clouds and says what was chosen."""
     from importlib import import_module
     rules = import_module("m3c2kit.analysis.suggest")  # the module: the package names its function suggest
-    with warnings.catch_warnings():  # the rules' trial runs warn about their own trial scales
-        warnings.simplefilter("ignore")
-        found = rules.suggest(reference, compared, threads=threads)
+    try:
+        with warnings.catch_warnings():  # the rules' trial runs warn about their own trial scales
+            warnings.simplefilter("ignore")
+            found = rules.suggest(reference, compared, threads=threads)
+    except M3C2Error as e:
+        raise (UsageError if isinstance(e, UsageError) else M3C2Error)(f"{e}; the scales cannot be chosen from the data: give "
+                      f"{', '.join(by_name()[n].flag for n in names)}") from None
     rounded = rules.proposal(found)
     why = {
         "normal_scale": found["normal_rule"],

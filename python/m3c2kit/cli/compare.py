@@ -209,7 +209,7 @@ def run_compare(args) -> int:
                    allow_angular=getattr(args, "allow_angular", False))  # docs/errors.md
     if chosen_later:
         say = (lambda s: None) if args.quiet else (lambda s: print(f"m3c2: {s}", flush=True))
-        choose_scales(settings, chosen_later, reference.xyz, compared.xyz,
+        choose_scales(settings, chosen_later, reference, compared,
                            threads=threads_count(settings.get("threads")), say=say)
         resolve(settings, "compare")  # the chosen scales checked with the others, their warnings given
     grid = None

@@ -34,8 +34,7 @@ def variogram_parser(sub) -> None:
                         help="stable areas: GeoJSON or WKT polygons (default: every core point)")
     stable.add_argument("--stable-field", metavar="NAME=VALUE",
                         help="stable core points: where the result's field NAME equals VALUE (classification=2)")
-    # the d of the compare run that wrote RESULT (an output does not record it): recorded in
-    # MODEL.json, which compare --error-model then applies only at that d (docs/analysis.md)
+    # recorded in MODEL.json, which compare --error-model then applies only at that d (docs/analysis.md)
     add_table_option(p, "projection_scale")
     p.add_argument("--lag-distance", choices=LAG_DISTANCES, default="3d",
                    help="lags as 3D distances (cliffs, overhangs) or in plan view (default 3d)")

@@ -289,3 +289,15 @@ def for_compare(value) -> ErrorModel:
                               "without it): compare's LOD term is the excess of the stable distances' variance over "
                               "eq. (1)'s s1^2/n1 + s2^2/n2, which needs it; refit the model with m3c2 variogram")
     return model
+
+
+def check_projection_scale(model: ErrorModel, name: str, d: float | None, *, of: str = "this run's") -> None:
+    """The model's sills are the correlated variance of cylinder means at ITS d: another d would
+    average the field over another footprint (docs/algorithm.md, "Spatially correlated errors").
+    A UsageError naming both when `d` (the run's, or a result's: `of`) differs from the d the
+    model records; nothing to check when either is unknown (the callers say so)."""
+    fitted = model.projection_scale
+    if d is not None and fitted is not None and abs(d - fitted) > 1e-9 * fitted:
+        raise UsageError(f"--error-model {name} was fitted at --projection-scale {fitted:g}, {of} is {d:g}: the "
+                         f"correlated variance of a cylinder mean depends on d; fit a model on a result of this d "
+                         f"(m3c2 variogram)")

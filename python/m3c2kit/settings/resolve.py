@@ -124,10 +124,7 @@ def _error_model(values: dict, given: Mapping) -> None:
     if fitted is None:
         warnings.warn(f"{name}: the error model does not record the projection scale it was "
                       f"fitted at; its correlated variance is used as that of d = {d:g}", M3C2Warning, stacklevel=2)
-    elif d is not None and abs(d - fitted) > 1e-9 * fitted:
-        raise UsageError(f"--error-model {name} was fitted at --projection-scale {fitted:g}, this run's "
-                         f"is {d:g}: the correlated variance of a cylinder mean depends on d; fit a model on a result "
-                         f"of this d (m3c2 variogram)")
+    error_model.check_projection_scale(model, name, d)
 
 
 #: Rules that tie several parameters, checked after each value is (in the table's order).

@@ -177,8 +177,9 @@ PARAMETERS: tuple[Parameter, ...] = (
     # Projection (section 3.1.3)
     Parameter("projection_scale", "--projection-scale", Real(), section="3.1.3",
               engine=same("projection_diameter"), default=None, cloudcompare_keys=("SearchScale",),
-              py4dgeo="cyl_radius (a radius: d / 2)", help="d: DIAMETER of the projection cylinder (m3c2 compare chooses it from the data when not given; "
-                   "the Python API requires it)"),
+              py4dgeo="cyl_radius (a radius: d / 2)", help="d: DIAMETER of the projection cylinder (compare: chosen from the data when not given, the Python "
+                   "API requires it; variogram, aggregate: the d of the compare run that wrote RESULT, which a "
+                   "compare output does not record: recorded in the error model, checked against it)"),
     Parameter("max_depth", "--max-depth", Real(), section="3.1.3", engine=same("max_depth"), default=None,
               cloudcompare_keys=("SearchDepth",), py4dgeo="max_distance",
               help="half-length of the cylinder along the normal, on each side (m3c2 compare chooses it from the "

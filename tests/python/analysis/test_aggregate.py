@@ -305,3 +305,29 @@ def test_regions_that_hold_no_core_point_are_said(tmp_path, capsys):
     assert main(["aggregate", str(tmp_path / "r.csv"), "--regions", str(tmp_path / "g.geojson"), "-o",
                  str(tmp_path / "t.csv"), "-q"]) == 0
     assert "warning:" in (err := capsys.readouterr().err) and "region 'r1' holds no core point" in err
+
+
+def test_the_error_models_d_is_checked_against_the_results(tmp_path, capsys):
+    """Issue 42: aggregate never checked the model's d. A compare output does not record its d:
+    --projection-scale gives it (a d other than the model's is refused, naming both); without
+    it the model's is taken and the run says so; without a model it would change nothing."""
+    xy = lattice(6, 6, 0.5, 0.0, 0.0)
+    _write_result(tmp_path / "r.csv", xy, np.full(len(xy), 0.1), np.full(len(xy), 0.05), 0.01, 10)
+    (tmp_path / "g.wkt").write_text("POLYGON ((0 0, 3 0, 3 3, 0 3, 0 0))\n")
+    from dataclasses import replace
+    fitted = 0.5
+    save(tmp_path / "m.json", replace(MODEL, projection_scale=fitted, mean_u2=1e-6))
+    run = ["aggregate", str(tmp_path / "r.csv"), "--regions", str(tmp_path / "g.wkt"), "-o", str(tmp_path / "t.csv"),
+           "--simulations", "0", "-q"]
+    assert main([*run, "--error-model", str(tmp_path / "m.json"), "--projection-scale", str(2 * fitted)]) == 2
+    assert capsys.readouterr().err == (f"m3c2: error: --error-model {tmp_path / 'm.json'} was fitted at "
+                                       f"--projection-scale {fitted:g}, {tmp_path / 'r.csv'}'s is {2 * fitted:g}: the "
+                                       "correlated variance of a cylinder mean depends on d; fit a model on a result "
+                                       "of this d (m3c2 variogram)\n")
+    assert not (tmp_path / "t.csv").exists()
+    assert main([*run, "--error-model", str(tmp_path / "m.json"), "--projection-scale", str(fitted)]) == 0
+    assert capsys.readouterr().err == ""
+    assert main([*run, "--error-model", str(tmp_path / "m.json")]) == 0
+    assert f"taken as the error model's, d = {fitted:g}; give --projection-scale" in capsys.readouterr().err
+    assert main([*run, "--projection-scale", "1"]) == 2
+    assert "without a model it would change nothing" in capsys.readouterr().err

@@ -62,3 +62,22 @@ def test_another_parameter_is_checked_before_any_file_is_read(pair, capsys):
     assert main(["compare", str(pair / "missing.xyz"), str(pair / "cmp.xyz"), "-o", str(pair / "out.csv"),
                  "--min-points", "0"]) == 2
     assert "--min-points" in capsys.readouterr().err
+
+
+def test_with_an_error_model_d_is_the_models(pair, capsys):
+    """--error-model applies only at the d it was fitted at: that d, not the rules' (the placeholder
+    d of the early checks made the run refuse its own model)."""
+    from m3c2kit.analysis.error_model import Component, ErrorModel, save
+    save(pair / "m.json", ErrorModel(1e-6, (Component("spherical", 1e-6, 1.0),), 0.3, "3d", "test", mean_u2=1e-6))
+    assert main(["compare", str(pair / "ref.xyz"), str(pair / "cmp.xyz"), "-o", str(pair / "out.csv"), "--error-model",
+                 str(pair / "m.json"), "--verbose"]) == 0
+    out = capsys.readouterr().out
+    assert _chosen(out)[0::2] == ["--normal-scale", "--max-depth"] and "parameter projection_scale: 0.3" in out
+
+
+def test_too_few_points_to_choose_says_which_options_to_give(pair, capsys):
+    (pair / "few.xyz").write_text("0 0 0\n1 0 0\n0 1 0\n")
+    assert main(["compare", str(pair / "few.xyz"), str(pair / "cmp.xyz"), "-o", str(pair / "out.csv")]) == 1
+    assert capsys.readouterr().err == (f"m3c2: error: {pair / 'few.xyz'}: 3 points; suggest needs at least 10 (sigma(D) "
+                                       "is fitted to 10 neighbours, section 5.1); the scales cannot be chosen from the "
+                                       "data: give --normal-scale, --projection-scale, --max-depth\n")
