@@ -159,6 +159,16 @@ def same_crs(a: str | None, b: str | None, sample=None) -> bool | None:
         return False
 
 
+def same_horizontal_crs(a: str | None, b: str | None) -> bool | None:
+    """same_crs of the horizontal parts (a compound CRS's first): plan-view data, such as regions,
+    carry no vertical datum, and 'NAD83 / Oregon LCC' is the plan of 'NAD83 / Oregon LCC + NAVD88
+    height' (issue 42: the regions of a compound-CRS LAS file were refused)."""
+    ca, cb = parse_crs(a), parse_crs(b)
+    if ca is None or cb is None:
+        return same_crs(a, b)
+    return same_crs(_horizontal(ca).to_wkt(), _horizontal(cb).to_wkt())
+
+
 def _horizontal(crs):
     return crs.sub_crs_list[0] if crs.is_compound and crs.sub_crs_list else crs
 

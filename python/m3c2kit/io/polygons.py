@@ -299,15 +299,18 @@ def read_regions_for(path, cloud, option: str = "--regions") -> list[Polygon]:
     import warnings
 
     from ..base.errors import M3C2Warning
-    from .crs import crs_label, same_crs
+    from .crs import _has_pyproj, crs_label, parse_crs, same_horizontal_crs
     polygons, crs = read_polygons_and_crs(path)
     if crs is None:
         return polygons
+    if _has_pyproj() and parse_crs(crs) is None:
+        raise UsageError(f"{option} {path}: its CRS {crs_label(crs)} cannot be read: name one PROJ knows "
+                         f"(EPSG:XXXX, urn:ogc:def:crs:EPSG::XXXX) or none (the data's coordinates)")
     if not cloud.crs:
         warnings.warn(f"{option} {path}: the regions are in {crs_label(crs)}, {cloud.path or 'the data'} names no CRS: "
                       f"the regions are taken to be in its coordinates", M3C2Warning, stacklevel=2)
         return polygons
-    if same_crs(crs, cloud.crs) is False:
+    if same_horizontal_crs(crs, cloud.crs) is False:  # plan-view regions: the horizontal part
         raise UsageError(f"{option} {path}: the regions are in {crs_label(crs)}, {cloud.path or 'the data'} in "
                          f"{crs_label(cloud.crs)}: reproject the regions into the data's CRS")
     return polygons

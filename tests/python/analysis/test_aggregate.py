@@ -331,3 +331,23 @@ def test_the_error_models_d_is_checked_against_the_results(tmp_path, capsys):
     assert f"taken as the error model's, d = {fitted:g}; give --projection-scale" in capsys.readouterr().err
     assert main([*run, "--projection-scale", "1"]) == 2
     assert "without a model it would change nothing" in capsys.readouterr().err
+
+
+def test_regions_in_the_horizontal_part_of_a_compound_crs_are_taken_and_an_unreadable_crs_refused(tmp_path, capsys):
+    """Issue 42 (hostile round 2): a LAS result in 'UTM 33N + EGM96 height' refused regions in UTM
+    33N, the only CRS a plan-view polygon can carry; a regions CRS PROJ cannot read was accepted."""
+    ring = [[500000, 4000000], [500003, 4000000], [500003, 4000003], [500000, 4000003], [500000, 4000000]]
+    _regions_case(tmp_path, _collection(ring, crs="urn:ogc:def:crs:EPSG::32633"), crs="EPSG:32633+5773")
+    assert main(["aggregate", str(tmp_path / "r.las"), "--regions", str(tmp_path / "g.geojson"), "-o",
+                 str(tmp_path / "t.csv"), "-q"]) == 0
+    _regions_case(tmp_path, _collection(ring, crs="urn:ogc:def:crs:EPSG::32632"), crs="EPSG:32633+5773")
+    assert main(["aggregate", str(tmp_path / "r.las"), "--regions", str(tmp_path / "g.geojson"), "-o",
+                 str(tmp_path / "t2.csv"), "-q"]) == 2
+    assert "reproject the regions" in capsys.readouterr().err
+    _regions_case(tmp_path, _collection(ring, crs="garbage-crs"), crs="EPSG:32633")
+    assert main(["aggregate", str(tmp_path / "r.las"), "--regions", str(tmp_path / "g.geojson"), "-o",
+                 str(tmp_path / "t3.csv"), "-q"]) == 2
+    assert capsys.readouterr().err == (f"m3c2: error: --regions {tmp_path / 'g.geojson'}: its CRS garbage-crs cannot be "
+                                       "read: name one PROJ knows (EPSG:XXXX, urn:ogc:def:crs:EPSG::XXXX) or none (the "
+                                       "data's coordinates)\n")
+    assert not (tmp_path / "t2.csv").exists() and not (tmp_path / "t3.csv").exists()
