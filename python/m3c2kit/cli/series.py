@@ -148,10 +148,11 @@ def tam3c2_parser():
                         "normal scales / 2)")
     p.add_argument("--weights", choices=engine.TAM3C2_CHOICES["weights"], default="none",
                    help="space-time weights of the points, with Kish's effective n in the LOD (default none)")
-    p.add_argument("--sigma-ratio", type=positive_real("--sigma-ratio"), default=1.0,
-                   help="width of the gaussian weights in units of the radius and window (default 1)")
-    p.add_argument("--space-time-ratio", type=positive_real("--space-time-ratio"), default=1.0,
-                   help="the temporal kernel's window is the window times this (default 1)")
+    p.add_argument("--sigma-ratio", type=positive_real("--sigma-ratio"), default=None,
+                   help="with --weights gaussian: their width in units of the radius and window (default 1)")
+    p.add_argument("--space-time-ratio", type=positive_real("--space-time-ratio"), default=None,
+                   help="with --weights linear or gaussian: the temporal kernel's window is the window times this "
+                        "(default 1)")
     p.add_argument("--reference-time", default=None, metavar="TIME",
                    help="the reference's time (ISO 8601) when the store has none recorded")
     p.add_argument("--fallback", choices=engine.TAM3C2_CHOICES["fallback"], default="m3c2",

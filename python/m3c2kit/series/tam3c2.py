@@ -56,8 +56,8 @@ class Tam3c2Options:
     window_ratios: tuple = (0.2,)  # the reference's example; each in (0, 1]
     min_points: int = 10  # the reference's required_points default
     weights: str = "none"
-    sigma_ratio: float = 1.0
-    space_time_ratio: float = 1.0
+    sigma_ratio: float | None = None  # with gaussian weights; 1 when None
+    space_time_ratio: float | None = None  # with weights; 1 when None
     reference_time: str | None = None  # the store's when None
     confidence: float | None = None  # the store's when None
     lod: str | None = None  # the LOD's statistic, z, t or auto (tam3c2.hpp, Tam3c2Lod); the store's when None
@@ -78,10 +78,19 @@ def _check(o: Tam3c2Options) -> None:
         raise UsageError(f"--normal-radius: each radius must be finite and > 0, got {list(o.normal_radii)}")
     if not (isinstance(o.min_points, int) and o.min_points >= 1):
         raise UsageError(f"--required-points must be an integer >= 1, got {o.min_points!r}")
-    if not (math.isfinite(o.space_time_ratio) and o.space_time_ratio > 0):
+    if o.space_time_ratio is not None and not (math.isfinite(o.space_time_ratio) and o.space_time_ratio > 0):
         raise UsageError(f"--space-time-ratio must be finite and > 0, got {o.space_time_ratio!r}")
-    if not (math.isfinite(o.sigma_ratio) and o.sigma_ratio > 0):
+    if o.sigma_ratio is not None and not (math.isfinite(o.sigma_ratio) and o.sigma_ratio > 0):
         raise UsageError(f"--sigma-ratio must be finite and > 0, got {o.sigma_ratio!r}")
+    # Nothing silently ignored (docs/errors.md): an option its mode never reads is refused.
+    moot = [("--sigma-ratio", o.sigma_ratio, o.weights != "gaussian", "--weights gaussian"),
+            ("--space-time-ratio", o.space_time_ratio, o.weights == "none", "--weights linear or gaussian"),
+            *((flag, value, o.breaks != "changepoints", "--window-breaks changepoints") for flag, value in (
+                ("--break-width", o.break_width), ("--break-min-size", o.break_min_size),
+                ("--break-penalty", o.break_penalty)))]
+    for flag, value, unused, needs in moot:
+        if value is not None and unused:
+            raise UsageError(f"{flag} would change nothing in this run: it is read only with {needs}")
     if o.confidence is not None and not 0.0 < o.confidence < 1.0:
         raise UsageError(f"--confidence must be in (0, 1), got {o.confidence!r}")
     for name in ("fallback", "breaks"):
@@ -164,8 +173,8 @@ def _settings(store: Path, group, o: Tam3c2Options) -> tuple[dict, float]:
     radii = o.normal_radii or tuple(d / 2.0 for d in params.normal_diameters)
     settings = dict(normal_radii=[float(r) for r in radii], window_ratios=[float(r) for r in o.window_ratios],
                     min_points=int(o.min_points), cylinder_radius=params.projection_diameter / 2.0,
-                    max_distance=params.max_depth, weights=o.weights, sigma_ratio=float(o.sigma_ratio),
-                    space_time_ratio=float(o.space_time_ratio), registration_error=params.registration_error,
+                    max_distance=params.max_depth, weights=o.weights, sigma_ratio=float(o.sigma_ratio or 1.0),
+                    space_time_ratio=float(o.space_time_ratio or 1.0), registration_error=params.registration_error,
                     lod=lod, confidence=float(confidence),
                     orientation=[0.0, 0.0, 1.0], fallback=o.fallback, breaks=o.breaks)
     defaults = facade.tam3c2_params()

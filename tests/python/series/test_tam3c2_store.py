@@ -336,3 +336,18 @@ def test_the_lod_follows_the_stores_statistic_unless_given(base, tmp_path, capsy
     assert np.array_equal(ok, np.isfinite(t)) and (t[ok] > z[ok]).all()
     code, _, err = run(capsys, "series", "tam3c2", store, *options, "--lod", "bootstrap")
     assert code == 2 and "--lod" in err and "bootstrap" in err, err
+
+
+@pytest.mark.parametrize("extra, needs", [
+    (["--sigma-ratio", "3"], "--weights gaussian"),
+    (["--weights", "linear", "--sigma-ratio", "3"], "--weights gaussian"),
+    (["--space-time-ratio", "5"], "--weights linear or gaussian"),
+    (["--break-width", "4"], "--window-breaks changepoints"),
+    (["--break-min-size", "2"], "--window-breaks changepoints"),
+    (["--break-penalty", "1"], "--window-breaks changepoints"),
+])
+def test_an_option_its_mode_never_reads_is_refused(tmp_path, capsys, extra, needs):
+    """Hostile round 2: --sigma-ratio 3 --space-time-ratio 5 under --weights none ran with the same
+    bits and recorded both; the break options without --window-breaks changepoints changed nothing."""
+    code, _, err = run(capsys, "series", "tam3c2", tmp_path / "none.zarr", *extra)
+    assert code == 2 and err.endswith(f"would change nothing in this run: it is read only with {needs}\n"), err
