@@ -89,7 +89,7 @@ void py4dgeo_seeds(std::uint32_t core, std::vector<double> ts, const std::vector
         break;
       }
       previous = volume;
-      if (target == n - 1 && p.use_unfinished)
+      if (target == n - 1 && p.use_unfinished)  // py4dgeo 1.2.0: no height test for an unfinished seed
         out.push_back({core, start, static_cast<std::uint32_t>(n - 1), start, 0.0});
     }
   }
@@ -141,7 +141,10 @@ void baseline_seeds(std::uint32_t core, const std::vector<double>& ts, const std
         break;
       }
       previous = volume;
-      if (target == n - 1 && p.use_unfinished)
+      // A change still going on at the last epoch: a seed too when asked, under the same least
+      // height (its period is at least min_period: start + min_period < n above). py4dgeo's rule
+      // (py4dgeo_seeds) keeps such a seed whatever its height, as py4dgeo 1.2.0 does.
+      if (target == n - 1 && p.use_unfinished && peak >= p.height_threshold)
         out.push_back({core, start, static_cast<std::uint32_t>(n - 1), static_cast<std::uint32_t>(base), 0.0});
     }
   }

@@ -35,6 +35,8 @@ def _kind(action: argparse.Action) -> dict:
         return {"type": "integer", "minimum": bounds[0], "maximum": bounds[1]}
     if name == "positive":
         return {"type": "real", "minimum": 0.0, "minimum_included": False}
+    if name == "non_negative":
+        return {"type": "real", "minimum": 0.0, "minimum_included": True}
     if action.type is float:
         return {"type": "real", "minimum": None, "minimum_included": True}
     return {"type": "text"}  # lists and the like: passed to m3c2 verbatim, which checks them

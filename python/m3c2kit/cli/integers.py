@@ -10,7 +10,7 @@ from __future__ import annotations
 import argparse
 
 from .. import engine
-from ..settings.parsers import positive
+from ..settings.parsers import non_negative, positive
 
 __all__ = ["COUNT_MAX", "SEED_MAX", "integer", "positive_real", "fraction_list"]
 
@@ -40,6 +40,15 @@ def positive_real(flag: str):
         return positive(flag, text)
     parse.__name__ = "positive"
     parse.bounds = (0.0, None)  # > 0 (settings.export)
+    return parse
+
+
+def non_negative_real(flag: str):
+    """An argparse ``type`` reading a finite real number >= 0 (settings.parsers.non_negative)."""
+    def parse(text: str) -> float:
+        return non_negative(flag, text)
+    parse.__name__ = "non_negative"
+    parse.bounds = (0.0, None)  # >= 0 (settings.export)
     return parse
 
 

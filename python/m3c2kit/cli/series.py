@@ -19,7 +19,8 @@ import argparse
 from contextlib import contextmanager
 from pathlib import Path
 
-from .integers import COUNT_MAX, fraction_list, integer, positive_real
+from ..base.errors import UsageError
+from .integers import COUNT_MAX, fraction_list, integer, non_negative_real, positive_real
 from .options import add, add_table_option
 from ..io.files import add_drop_nonfinite_option
 
@@ -223,7 +224,9 @@ def _objects_options(p) -> None:
     g.add_argument("--window-penalty", type=positive_real("--window-penalty"), default=1.0,
                    help="least cost decrease of a change point")
     g.add_argument("--min-period", type=integer(1, COUNT_MAX), default=24, help="fewest epochs of a seed's change")
-    g.add_argument("--height-threshold", type=float, default=0.0, help="least magnitude of a seed's change")
+    g.add_argument("--height-threshold", type=non_negative_real("--height-threshold"), default=0.0,
+                   help="least magnitude of a seed's change, a change still going on at the last epoch's too "
+                        "(--dtw py4dgeo: not that one's, as py4dgeo)")
     g.add_argument("--finished-only", action="store_true", help="drop seeds still growing at the last epoch")
     g.add_argument("--seed-subsampling", type=integer(1, COUNT_MAX), default=1,
                    help="search every k-th core point for seeds")
@@ -254,8 +257,11 @@ def objects_parser():
     g.add_argument("--thresholds", type=fraction_list, default="0.1,0.2,0.3,0.4,0.5,0.6,0.7,0.8,0.9",
                    help="DTW thresholds to choose from, in (0, 1]")
     g.add_argument("--min-segments", type=integer(0, COUNT_MAX), default=20, help="fewest core points of an object")
-    g.add_argument("--max-segments", type=integer(0, COUNT_MAX), default=0, help="most core points of an object (0: no limit)")
-    g.add_argument("--max-cv", type=float, default=0.8, help="largest coefficient of variation of an object's DTW")
+    g.add_argument("--max-segments", type=integer(0, COUNT_MAX), default=0,
+                   help="the choice of the DTW threshold stops at the first whose object reaches this many core "
+                        "points (0: no limit; at least --min-segments)")
+    g.add_argument("--max-cv", type=positive_real("--max-cv"), default=0.8,
+                   help="largest coefficient of variation of an object's DTW")
     g.add_argument("--dtw", choices=OBJECTS_DTW, default="baseline",
                    help="seeds and DTW alignment: baseline (each series from its median before the change), "
                         "seed-start (from its value at the seed's first epoch), py4dgeo (py4dgeo 1.2.0's rule: from "
@@ -448,8 +454,19 @@ def _run_tam3c2(args) -> int:
               f"computed ({out['from_epoch']} the epoch's own M3C2); LOD ({out['lod']}) at {out['confidence']:g}")
     return 0
 
+def check_objects_options(args) -> None:
+    """The objects options that contradict each other, refused before the store is opened."""
+    if getattr(args, "max_segments", 0) and args.max_segments < args.min_segments:
+        raise UsageError(f"--max-segments {args.max_segments} is below --min-segments {args.min_segments}: no object "
+                         f"could be kept")
+    if args.window_min_size > args.window_width:
+        raise UsageError(f"--window-min-size {args.window_min_size} exceeds --window-width {args.window_width}: no "
+                         f"change point fits the window")
+
+
 def objects_params(args):
     from ..series import engine
+    check_objects_options(args)
     kw = dict(window_width=args.window_width, window_min_size=args.window_min_size, window_jump=args.window_jump,
               window_penalty=args.window_penalty, min_period=args.min_period, height_threshold=args.height_threshold,
               use_unfinished=not args.finished_only, seed_subsampling=args.seed_subsampling)
@@ -463,6 +480,7 @@ def objects_params(args):
 
 def _run_objects(args) -> int:
     from ..series.outputs import members_path
+    check_objects_options(args)
     _check_outputs({"-o": args.output, "-o's members table": members_path(args.output)}, {"store": args.store},
                    reads_store=args.store)
     from ..series.analysis import objects

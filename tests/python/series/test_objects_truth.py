@@ -111,3 +111,40 @@ def test_py4dgeo_rule_reads_the_interpolated_epochs():
     a, b = run(d, core, "py4dgeo"), run(filled, core, "py4dgeo")
     assert len(a["object_seed"]) >= 3
     assert all(np.asarray(a[k]).tobytes() == np.asarray(b[k]).tobytes() for k in a)
+
+
+def test_a_change_still_going_on_at_the_last_epoch_meets_the_height_threshold_too():
+    """Hostile round 2: an unfinished seed (the change still going on at the last epoch) was kept
+    whatever --height-threshold said (1 m kept a 5 cm rise). py4dgeo's rule keeps it, as py4dgeo."""
+    n, cores = 40, 3
+    d = np.zeros((cores, n))
+    d[:, 10:26] = np.linspace(0.0, 0.05, 16)
+    d[:, 26:] = 0.05  # held to the last epoch
+    d += np.random.default_rng(0).normal(0, 0.001, d.shape)
+    core = np.column_stack([np.arange(cores) * 0.5, np.zeros(cores), np.zeros(cores)])
+
+    def seeds(rule, threshold):
+        p = engine.objects_params(window_width=8, window_min_size=4, window_penalty=0.01, min_period=5,
+                                  height_threshold=threshold,
+                                  use_unfinished=True, dtw=rule, min_segments=1)
+        return len(engine.objects_by_change(d, core, p)["object_start"])
+
+    assert seeds("baseline", 0.0) >= 1
+    assert seeds("baseline", 1.0) == 0
+    assert seeds("py4dgeo", 1.0) == seeds("py4dgeo", 0.0) >= 1
+
+
+@pytest.mark.parametrize("extra, words", [
+    (["--max-cv", "nan"], "--max-cv must be finite and > 0"),
+    (["--max-cv", "0"], "--max-cv must be finite and > 0"),
+    (["--height-threshold", "nan"], "--height-threshold must be finite and >= 0"),
+    (["--height-threshold", "-1"], "--height-threshold must be finite and >= 0"),
+    (["--max-segments", "1", "--min-segments", "5"], "--max-segments 1 is below --min-segments 5"),
+    (["--window-min-size", "100", "--window-width", "8"], "--window-min-size 100 exceeds --window-width 8"),
+])
+def test_impossible_objects_options_are_refused(tmp_path, capsys, extra, words):
+    """Hostile round 2: each ran with exit 0 and no object, or with objects a contradiction allowed."""
+    from m3c2kit.cli.main import main
+    assert main(["series", "objects", str(tmp_path / "s.zarr"), "-o", str(tmp_path / "o.csv"), *extra]) == 2
+    err = capsys.readouterr().err
+    assert words in err and err.count("\n") == 1, err
