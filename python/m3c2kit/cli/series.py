@@ -20,6 +20,7 @@ from contextlib import contextmanager
 from pathlib import Path
 
 from ..base.errors import UsageError
+from ..io.collisions import require_suffix
 from .integers import COUNT_MAX, fraction_list, integer, non_negative_real, positive_real
 from .options import add, add_table_option
 from ..io.files import add_drop_nonfinite_option
@@ -483,6 +484,7 @@ def _run_objects(args) -> int:
     check_objects_options(args)
     _check_outputs({"-o": args.output, "-o's members table": members_path(args.output)}, {"store": args.store},
                    reads_store=args.store)
+    require_suffix("-o", args.output, (".csv",), "the objects table")  # its content is CSV
     from ..series.analysis import objects
     out = objects(args.store, args.output, objects_params(args), use=args.use, threads=args.threads or 0)
     if not args.quiet:
@@ -495,6 +497,8 @@ def _run_check(args) -> int:
     from ..base.errors import printable
     from ..series.integrity import check
     from ..series.store import StoreError
+    if not args.store.exists():  # "damaged ... 1 damage(s)" for a path that is not there
+        raise StoreError(f"{args.store}: no such store (no file or folder of that name)")
     found, damages = check(args.store)
     for line in found:
         _log(args)(printable(f"{args.store}: {line}"))
@@ -528,6 +532,7 @@ def _run_report(args) -> int:
     tables = {"objects table": args.objects,
               "objects' members table": members_path(args.objects) if args.objects is not None else None}
     _check_outputs({"-o": args.output}, {"store": args.store, **tables}, reads_store=args.store)
+    require_suffix("-o", args.output, (".html", ".htm"), "the report")  # its content is HTML
     from ..series.integrity import require_present
     require_present(args.store)  # a damaged store is refused, not drawn from fill values
     write_report(args.store, args.output, cores=args.core, objects_table=args.objects)

@@ -41,6 +41,11 @@ SMALL_FILE_LIMITS: dict[str, int] = {
 }
 
 
+def _a(kind: str) -> str:
+    """`kind` with its article: "an error model file", "a classifier"."""
+    return f"{'an' if kind[:1].lower() in 'aeiou' else 'a'} {kind}"
+
+
 def os_problem(err: OSError) -> str:
     """What an OS error says, in the words messages use (ENAMETOOLONG names its limit)."""
     if err.errno == errno.ENAMETOOLONG:
@@ -98,7 +103,7 @@ def read_small_bytes(path, kind: str, *, label: str | None = None,
     `error` (``"{label}: {problem}"``) for a missing, special, unreadable or too large file."""
     label = str(path) if label is None else label
     limit = SMALL_FILE_LIMITS[kind]
-    fd = _open_regular(path, label, error, f"not a {kind}")
+    fd = _open_regular(path, label, error, f"not {_a(kind)}")
     try:
         with os.fdopen(fd, "rb") as f:
             data = f.read(limit + 1)  # one byte more tells a file at the limit from a larger one
@@ -117,7 +122,7 @@ def read_small_text(path, kind: str, *, label: str | None = None, error: Callabl
     try:
         return data.decode(encoding)
     except UnicodeDecodeError as e:
-        raise error(f"{label}: not a {kind} (not {encoding} text at byte {e.start})") from None
+        raise error(f"{label}: not {_a(kind)} (not {encoding} text at byte {e.start})") from None
 
 
 def read_small_json(path, kind: str, *, label: str | None = None, error: Callable[[str], M3C2Error] = UsageError):
@@ -133,9 +138,9 @@ def parse_json(text: str, kind: str, *, label: str, error: Callable[[str], M3C2E
     try:
         return json.loads(text)
     except RecursionError:
-        raise error(f"{label}: not a {kind} (JSON nested too deeply)") from None
+        raise error(f"{label}: not {_a(kind)} (JSON nested too deeply)") from None
     except ValueError as e:
-        raise error(f"{label}: not a {kind} (not valid JSON: {e})") from None
+        raise error(f"{label}: not {_a(kind)} (not valid JSON: {e})") from None
 
 
 def path_argument(name: str, value) -> Path:

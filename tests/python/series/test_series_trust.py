@@ -604,3 +604,17 @@ def test_a_zarr_older_than_the_extra_asks_is_named(monkeypatch):
     monkeypatch.delattr(zarr.Array, "with_config")
     with pytest.raises(UsageError, match=r"needs zarr >= 3\.1\.6 \(installed: .*pip install -U 'm3c2kit\[series\]'"):
         st.require_extra()
+
+
+@pytest.mark.parametrize("argv, words", [
+    (["report", "{s}", "-o", "{d}/rep.pdf"], "-o {d}/rep.pdf: the report is written as .html or .htm; give a name ending so"),
+    (["objects", "{s}", "-o", "{d}/ob.json"], "-o {d}/ob.json: the objects table is written as .csv; give a name ending so"),
+    (["check", "{d}/missing.zarr"], "{d}/missing.zarr: no such store (no file or folder of that name)"),
+])
+def test_an_output_named_for_another_content_and_a_missing_store_are_named(base, tmp_path, capsys, argv, words):
+    """Hostile round 2: series report wrote HTML under any name, objects CSV under .json, and check
+    called a path that is not there a damaged store."""
+    code = main(["series", *(a.format(s=base, d=tmp_path) for a in argv)])
+    err = capsys.readouterr().err
+    assert code in (1, 2) and err == f"m3c2: error: {words.format(d=tmp_path)}\n", err
+    assert list(tmp_path.iterdir()) == []
