@@ -1,7 +1,7 @@
 """Calibration of the Kalman filter's observation models (docs/series.md, "Kalman filter",
 Calibration): seeded per-epoch M3C2 draws with a known truth, filtered with `--observation
-shared` (the default) and `independent` (kalman4d's and the tum-rsa fork's model), q by maximum
-likelihood (the engine's `auto`).
+shared` (the default, with its step test) and `independent` (kalman4d's and the tum-rsa fork's
+model), q by maximum likelihood (the engine's `auto`).
 
 Each cell (core point) is a rough surface of scatter sigma ~ U(1, 4) cm. The reference cylinder
 holds n1 points: its mean errs by b, the mean of n1 draws, and b is in every epoch's distance;

@@ -79,7 +79,15 @@ struct KalmanParams {
   /// starts at the first observation with d diffuse, so var(d) keeps b's s^2 / n1 (docs/series.md).
   double reference_time = std::numeric_limits<double>::quiet_NaN();
   std::int64_t reference_epoch = -1;
-  double registration_error = 0.0;      ///< reg of eq. (1), one per epoch (each registered on its own)
+  double registration_error = 0.0;  ///< reg of eq. (1), one per epoch (each registered on its own)
+  /// The shared model only: the false-alarm rate of the step test (docs/series.md, "Steps"). At
+  /// each observed epoch t the generalised likelihood ratio of a jump of the level d just before t,
+  /// from the innovations of t and of the next observed epoch (Willsky & Jones 1976), is compared
+  /// with the chi-square(1) quantile at 1 - step_false_alarm; above it the jump's variance
+  /// mu^2 - var(mu) (mu its estimated size) is added to var(d) before t's update, in the filter and
+  /// the smoother alike. 0: no test (the smooth-motion model alone). The q of
+  /// kalman_fit_process_noise is the smooth-motion model's (fitted without the test).
+  double step_false_alarm = 1e-4;
   Variance spread = Variance::kSample;  ///< how the store's sigma1, sigma2 were made (Params::variance)
 };
 
@@ -121,9 +129,10 @@ KalmanSmoothed kalman_smooth(const KalmanParams& params, const KalmanBlock& bloc
 /// thread count.
 double kalman_log_likelihood(const KalmanParams& params, const KalmanBlock& block, const RunOptions& run = {});
 
-/// `--process-noise auto`: the q maximising kalman_log_likelihood (one q for the scene, as the
-/// papers use one), over log10 q: a grid of half decades from 10^-8 to 10^4 times q0 = (median
-/// observation variance) / M00(median epoch spacing), M00 the variance q = 1 adds to d over dt,
+/// `--process-noise auto`: the q maximising kalman_log_likelihood without the step test (one q
+/// for the scene, as the papers use one; step_false_alarm ignored), over log10 q: a grid of half
+/// decades from 10^-8 to 10^4 times q0 = (median observation variance) / M00(median epoch
+/// spacing), M00 the variance q = 1 adds to d over dt,
 /// refined by golden section to 1e-3 decades. `edge`: -1 / +1 when the best grid point is the
 /// smallest / largest tried, else 0. Throws when no two epochs differ in time or nothing is observed.
 struct KalmanFit {

@@ -759,6 +759,7 @@ NB_MODULE(_core, m) {
       .def_rw("reference_time", &m3c2::KalmanParams::reference_time)
       .def_rw("reference_epoch", &m3c2::KalmanParams::reference_epoch)
       .def_rw("registration_error", &m3c2::KalmanParams::registration_error)
+      .def_rw("step_false_alarm", &m3c2::KalmanParams::step_false_alarm)
       .def_prop_rw(
           "population_spread", [](const m3c2::KalmanParams& p) { return p.spread == m3c2::Variance::kPopulation; },
           [](m3c2::KalmanParams& p, bool v) { p.spread = v ? m3c2::Variance::kPopulation : m3c2::Variance::kSample; });

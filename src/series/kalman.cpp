@@ -47,6 +47,9 @@ void check(const KalmanParams& p, const KalmanBlock& b) {
   if (p.reference_epoch < -1 || (p.reference_epoch >= 0 && std::size_t(p.reference_epoch) >= b.epochs))
     throw InvalidArgument("reference_epoch must be -1 or an epoch of the block");
   if (std::isinf(p.reference_time)) throw InvalidArgument("the reference's time must be finite or NaN (unknown)");
+  if (!(p.step_false_alarm >= 0.0 && p.step_false_alarm < 1.0))
+    throw InvalidArgument("the step test's false-alarm rate must be in [0, 1), got " +
+                          std::to_string(p.step_false_alarm));
 }
 
 double median(std::vector<double> v) {
@@ -114,6 +117,9 @@ KalmanFit kalman_fit_process_noise(const KalmanParams& params, const KalmanBlock
   const auto loglik = [&](double u) {
     KalmanParams p = params;
     p.process_noise = std::pow(10.0, u);
+    // q is the smooth motion's: fitted without the step test, whose yes / no decisions would make
+    // the likelihood jump with q (more jumps, each a gain, at the q that provokes them).
+    p.step_false_alarm = 0.0;
     return kalman_log_likelihood(p, block, run);
   };
   constexpr double kFrom = -8.0, kTo = 4.0, kStep = 0.5, kTolerance = 1e-3;  // decades of q around q0

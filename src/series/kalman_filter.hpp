@@ -18,6 +18,17 @@
 // the state: F and Q leave it (constant), H = [1, 0, (0,) 1], so S = P00 + 2 P0b + Pbb + r and
 // K = P H / S; the filter is otherwise the same code. The templates take K, the dynamic
 // components, and N = K (independent) or K + 1 (shared), the state's size.
+// The shared model's step test (KalmanParams::step_false_alarm; docs/series.md, "Steps"): a jump
+// of the level d just before an observed epoch t changes the innovation of t by 1 and that of the
+// next observed epoch t' by g = H F(t' - t) (I - K_t H) e_d (the filter's response to it), so the
+// generalised likelihood ratio of a jump of unknown size mu from these two innovations v, v'
+// (variances S, S') is  Lambda = (v/S + g v'/S')^2 / I,  I = 1/S + g^2/S',  mu = (v/S + g v'/S') / I
+// (Willsky & Jones 1976, IEEE Trans. Autom. Control 21: 108, with a window of two epochs;
+// chi-square(1) without a jump). Where Lambda exceeds the quantile at 1 - alpha, the jump is taken
+// as process noise of variance j = mu^2 - 1/I on d before t's update (the covariance matching of
+// adaptive filtering, Mehra 1972, IEEE Trans. Autom. Control 17: 693; Bar-Shalom, Li &
+// Kirubarajan 2001, 11.2), and the smoother's P-next holds the same j: the RTS pass stays the
+// smoother of the model with those jumps.
 
 #include <m3c2/kalman.hpp>
 
@@ -32,6 +43,7 @@
 #include <numbers>
 #include <string>
 #include <utility>
+#include <vector>
 
 namespace m3c2::detail::kalman {
 // Internal linkage, as the templates had in one unit: each unit's own copy, inlined as before
@@ -212,10 +224,55 @@ void first_state(const KalmanParams& p, double z, double r, double vb, Vec<N>& x
   if constexpr (N > K) P(0, 0) += vb, P(0, K) = P(K, 0) = -vb, P(K, K) = vb;
 }
 
+/// The chi-square(1) quantile at 1 - alpha that the step test's Lambda is compared with
+/// (infinite, no test, for alpha = 0).
+inline double step_threshold(double alpha) {
+  if (!(alpha > 0.0)) return std::numeric_limits<double>::infinity();
+  const double z = detail::z_critical(1.0 - alpha);
+  return z * z;
+}
+
+/// The step test at observed epoch t of row r (shared model; the header's comment): x, P the
+/// prediction at t, z and var t's observation. Returns j, the variance to add to var(d) before
+/// t's update (0: no jump).
+template <int K, int N>
+double step_jump(const KalmanParams& p, const KalmanBlock& b, const SharedRow& row, std::size_t r, std::size_t t,
+                 double threshold, double z, double var, const Vec<N>& x, const Mat<N>& P) {
+  const Vec<N> ph = P.col(0) + P.col(N - 1);
+  const double s = ph(0) + ph(N - 1) + var, v = z - x(0) - x(N - 1);
+  double info = 1.0 / s, score = v / s;
+  std::size_t next = t + 1;
+  double next_var = kNaN;
+  for (; next < b.epochs; ++next)
+    if (!std::isnan(next_var = observation_variance(p, b, row, r, next))) break;
+  if (next < b.epochs) {  // t's update without a jump, predicted to the next observation
+    const Vec<N> gain = ph / s;
+    Mat<N> a = Mat<N>::Identity();
+    a.col(0) -= gain, a.col(N - 1) -= gain;
+    Vec<N> xn = x + gain * v;
+    Mat<N> pn = a * P * a.transpose() + (var * gain) * gain.transpose();
+    symmetrize<N>(pn);
+    for (std::size_t u = t + 1; u <= next; ++u) predict<K, N>(p, b.times[u] - b.times[u - 1], xn, pn);
+    Vec<N> e = -gain;  // (I - K H) e_d
+    e(0) += 1.0;
+    const Vec<N> w = transition<K, N>(b.times[next] - b.times[t]) * e;
+    const double g = w(0) + w(N - 1);
+    const double s1 = pn(0, 0) + 2.0 * pn(0, N - 1) + pn(N - 1, N - 1) + next_var;
+    const double v1 = b.values[r * b.epochs + next] - xn(0) - xn(N - 1);
+    info += g * g / s1, score += g * v1 / s1;
+  }
+  if (!(score * score / info > threshold)) return 0.0;
+  const double mu = score / info;
+  return std::max(0.0, mu * mu - 1.0 / info);
+}
+
 /// The forward filter of row r from epoch `from` (the moments before it kept), writing the
 /// moments of every later epoch (NaN before the row's start); returns the log-likelihood.
+/// `jumps` (epochs, or null): the step test's j of each epoch (0 where none; shared model), for
+/// the smoother; `threshold`: step_threshold(p.step_false_alarm).
 template <int K, int N>
-double forward(const KalmanParams& p, const KalmanBlock& b, std::size_t r, double* moments) {
+double forward(const KalmanParams& p, const KalmanBlock& b, std::size_t r, double* moments, double* jumps = nullptr,
+               double threshold = std::numeric_limits<double>::infinity()) {
   constexpr std::size_t m = std::size_t(N) + std::size_t(N) * (N + 1) / 2;
   SharedRow row;
   double vb = 0.0;
@@ -227,6 +284,7 @@ double forward(const KalmanParams& p, const KalmanBlock& b, std::size_t r, doubl
     }
     vb = row.scatter / row.n1;
   }
+  if (jumps) std::fill_n(jumps, b.epochs, 0.0);
   Vec<N> x;
   Mat<N> P;
   bool started = false;
@@ -269,6 +327,13 @@ double forward(const KalmanParams& p, const KalmanBlock& b, std::size_t r, doubl
     } else {
       predict<K, N>(p, b.times[t] - t_last, x, P);
       t_last = b.times[t];
+      if constexpr (N > K) {
+        if (obs && threshold < std::numeric_limits<double>::infinity()) {
+          const double j = step_jump<K, N>(p, b, row, r, t, threshold, z, var, x, P);
+          P(0, 0) += j;
+          if (jumps) jumps[t] = j;
+        }
+      }
       if (obs) ll += update<K, N>(z, var, x, P);
     }
     store<N>(x, P, moments + t * m);
@@ -277,8 +342,10 @@ double forward(const KalmanParams& p, const KalmanBlock& b, std::size_t r, doubl
 }
 
 /// The RTS smoother of a row (its `moments`) over all its filtered epochs; writes d, d' (d'').
+/// `jumps`: forward's (null: none).
 template <int K, int N>
-void backward(const KalmanParams& p, const KalmanBlock& b, const double* moments, double* mean, double* sd) {
+void backward(const KalmanParams& p, const KalmanBlock& b, const double* moments, double* mean, double* sd,
+              const double* jumps = nullptr) {
   constexpr std::size_t m = std::size_t(N) + std::size_t(N) * (N + 1) / 2;
   std::fill_n(mean, b.epochs * K, kNaN);
   std::fill_n(sd, b.epochs * K, kNaN);
@@ -294,6 +361,7 @@ void backward(const KalmanParams& p, const KalmanBlock& b, const double* moments
       const Mat<N> f = transition<K, N>(dt);
       Mat<N> pp = f * P * f.transpose() + process_noise<K, N>(p, dt);
       symmetrize<N>(pp);
+      if (jumps) pp(0, 0) += jumps[t + 1];  // the step test's jump, as the filter added it
       // C = P F^T pp^-1, solved (pp symmetric): C^T = pp^-1 F P.
       const Mat<N> c = pp.ldlt().solve(f * P).transpose();
       xs = x + c * (xs - f * x);
@@ -314,19 +382,25 @@ KalmanSmoothed smooth_k(const KalmanParams& p, const KalmanBlock& b, const RunOp
   out.mean.assign(b.rows * b.epochs * K, kNaN);
   out.sd.assign(b.rows * b.epochs * K, kNaN);
   out.log_likelihood.assign(b.rows, 0.0);
-  detail::parallel_blocks<int>(b.rows, run, [&](std::size_t begin, std::size_t end, int&) {
-    for (std::size_t r = begin; r < end; ++r) {
-      double* moments = b.moments + r * b.epochs * m;
-      out.log_likelihood[r] = forward<K, N>(p, b, r, moments);
-      backward<K, N>(p, b, moments, out.mean.data() + r * b.epochs * K, out.sd.data() + r * b.epochs * K);
-    }
-  });
+  const double threshold = N > K ? step_threshold(p.step_false_alarm) : std::numeric_limits<double>::infinity();
+  const bool test = threshold < std::numeric_limits<double>::infinity();
+  detail::parallel_blocks<std::vector<double>>(
+      b.rows, run, [&](std::size_t begin, std::size_t end, std::vector<double>& jumps) {
+        if (test) jumps.resize(b.epochs);
+        double* j = test ? jumps.data() : nullptr;
+        for (std::size_t r = begin; r < end; ++r) {
+          double* moments = b.moments + r * b.epochs * m;
+          out.log_likelihood[r] = forward<K, N>(p, b, r, moments, j, threshold);
+          backward<K, N>(p, b, moments, out.mean.data() + r * b.epochs * K, out.sd.data() + r * b.epochs * K, j);
+        }
+      });
   return out;
 }
 
 template <int K, int N>
 double likelihood_k(const KalmanParams& p, const KalmanBlock& b, const RunOptions& run) {
   std::vector<double> ll(b.rows, 0.0);
+  const double threshold = N > K ? step_threshold(p.step_false_alarm) : std::numeric_limits<double>::infinity();
   detail::parallel_blocks<std::vector<double>>(
       b.rows, run, [&](std::size_t begin, std::size_t end, std::vector<double>& work) {
         constexpr std::size_t m = std::size_t(N) + std::size_t(N) * (N + 1) / 2;
@@ -334,7 +408,7 @@ double likelihood_k(const KalmanParams& p, const KalmanBlock& b, const RunOption
         KalmanBlock one = b;
         one.moments = work.data();
         one.resume_from = 0;
-        for (std::size_t r = begin; r < end; ++r) ll[r] = forward<K, N>(p, one, r, work.data());
+        for (std::size_t r = begin; r < end; ++r) ll[r] = forward<K, N>(p, one, r, work.data(), nullptr, threshold);
       });
   double total = 0.0;
   for (double v : ll) total += v;  // row order: the same bits for any thread count

@@ -351,12 +351,14 @@ def change_points(series: np.ndarray, width: int, min_size: int, jump: int, pena
 
 def kalman_params(*, order: int, discrete_noise: bool, process_noise: float, initial_variance=None,
                   prior_time: float | None = None, observation: str = "shared", reference=None,
-                  registration_error: float = 0.0, population_spread: bool = False) -> "_core.KalmanParams":
+                  registration_error: float = 0.0, population_spread: bool = False,
+                  step_false_alarm: float | None = None) -> "_core.KalmanParams":
     """The engine's KalmanParams (include/m3c2/kalman.hpp; initial_variance: the engine's default
     when None); `prior_time` (independent model): start every row there (its prior mean given to
     kalman_smooth) instead of at its first observation. `observation`: shared (the reference's
     error in the state; kalman_smooth then needs `spread`) or independent; `reference` (shared):
-    (its time or None, the epoch that is the reference file or None)."""
+    (its time or None, the epoch that is the reference file or None); `step_false_alarm` (shared):
+    the step test's false-alarm rate, 0 for none (None: the engine's default)."""
     p = _core.KalmanParams()
     with translated("--observation"):
         p.observation = observation
@@ -365,6 +367,8 @@ def kalman_params(*, order: int, discrete_noise: bool, process_noise: float, ini
     p.reference_epoch = -1 if ref_epoch is None else int(ref_epoch)
     p.registration_error = float(registration_error)
     p.population_spread = bool(population_spread)
+    if step_false_alarm is not None:
+        p.step_false_alarm = float(step_false_alarm)
     with translated("--model"):
         p.order = int(order)
     p.discrete_noise = bool(discrete_noise)
