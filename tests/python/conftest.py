@@ -35,6 +35,11 @@ def pytest_collection_finish(session):
 # test nothing. A handled signal is reset to the default in a child, whose Python then makes
 # SIGINT a KeyboardInterrupt as a terminal's Ctrl-C does.
 signal.signal(signal.SIGINT, signal.default_int_handler)
+# m3c2 leaves a signal its caller ignores ignored (nohup: SIGHUP; cli/main.py): a suite started
+# under nohup would then test nothing of SIGHUP, in this process or its children.
+for _name in ("SIGHUP", "SIGQUIT", "SIGTERM"):
+    if hasattr(signal, _name) and signal.getsignal(getattr(signal, _name)) == signal.SIG_IGN:
+        signal.signal(getattr(signal, _name), signal.SIG_DFL)
 
 
 @pytest.fixture

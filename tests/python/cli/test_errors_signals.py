@@ -234,3 +234,21 @@ def test_the_newest_commands_killed_while_writing_keep_the_older_output(tmp_path
     code, err = run()
     assert code == 0, err
     assert left_in(out_dir) == [output] and (out_dir / output).read_bytes() != OLDER
+
+
+@pytest.mark.slow
+def test_a_signal_the_caller_ignores_stays_ignored(tmp_path):
+    """`nohup m3c2 ...` (SIGHUP ignored) and a shell's background job (SIGINT ignored): m3c2 must not
+    make the signal end the run again; a SIGHUP at its write changes nothing, the output is whole."""
+    def ignore_hup():
+        _no_core_dump()
+        signal.signal(signal.SIGHUP, signal.SIG_IGN)
+
+    env = child_env()
+    env["M3C2_TEST_SIGNAL_AT"] = "writing:SIGHUP"
+    argv = [sys.executable, "-m", "m3c2kit", "compare", str(DATA / "autzen-bmx-2010.las"),
+            str(DATA / "autzen-bmx-2023.las"), "-o", str(tmp_path / "out.csv"), *ARGS]
+    code, err = finish(subprocess.Popen(argv, cwd=tmp_path, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                                        text=True, preexec_fn=ignore_hup))
+    assert code == 0, err
+    assert left_in(tmp_path) == ["out.csv"] and (tmp_path / "out.csv").read_bytes().startswith(b"x,y,z,")
