@@ -237,6 +237,23 @@ def _resumable(group, options: KalmanOptions, n: int) -> tuple[int, float | None
     return epochs, float(kept_q)
 
 
+#: The largest process-noise variance q dt^(2 n - 1) (n the state's size) the filter keeps finite.
+LARGEST_PROCESS_VARIANCE = 1e300
+
+
+def _require_representable(q: float, days: np.ndarray, model: str) -> None:
+    """Hostile round 2: --process-noise 1e290 over epochs 8,000 years apart overflowed the
+    process noise of the gap (q dt^3) and published every estimate as NaN with exit 0."""
+    finite = days[np.isfinite(days)]
+    span = float(max(np.ptp(finite), np.abs(finite).max())) if len(finite) else 0.0
+    power = 2 * MODELS[model] - 1  # the state's size: q dt^3 (velocity), q dt^5 (acceleration)
+    with np.errstate(over="ignore"):
+        variance = q * span ** power
+    if not variance <= LARGEST_PROCESS_VARIANCE:
+        raise UsageError(f"--process-noise {q:g} over epochs spanning {span:g} days: the process noise of that gap, "
+                         f"q dt^{power} = {variance:.3g}, is beyond the float range; give a smaller --process-noise")
+
+
 def kalman(store: Path, options: KalmanOptions = KalmanOptions()) -> dict:
     """Runs the filter and smoother on the store and publishes its variables; returns what it did."""
     _check(options)
@@ -265,6 +282,7 @@ def kalman(store: Path, options: KalmanOptions = KalmanOptions()) -> dict:
             else:
                 q = float(options.process_noise)
         source = "auto" if options.process_noise == "auto" else "given"
+        _require_representable(q, days, options.model)
         run = _Run(options, q, source, confidence, params, days, resume, threads, reference)
         done = _write(store, folder, group, run)
         removed = [name for name in st.KALMAN_VARIABLES if name in group and name not in done]

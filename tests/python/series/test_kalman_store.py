@@ -249,3 +249,24 @@ def test_the_reference_file_as_an_epoch_is_the_anchor_not_an_observation(epochs,
     has = np.isfinite(d[:, 0])
     assert has.mean() > 0.9 and (d[has, 0] == 0).all() and (s[has, 0] == 0).all()
     assert (s[has, 1:] > 0).all() and (ds["kalman_significant"].values[has, 0] == 0).all()
+
+
+def test_a_process_noise_whose_variance_overflows_is_refused(tmp_path, capsys):
+    """Hostile round 2: --process-noise 1e290 over epochs 8,000 years apart overflowed q dt^3 and
+    published every estimate as NaN with exit 0. Refused, naming q, the span and the power; a q
+    just inside the bound still estimates every cell."""
+    rng = np.random.default_rng(5)
+    xy = np.stack(np.meshgrid(np.arange(12) * 0.25, np.arange(12) * 0.25), -1).reshape(-1, 2)
+    for k, dz in enumerate((0.0, 0.0, 0.02)):
+        np.savetxt(tmp_path / f"e{k}.xyz", np.column_stack([xy, dz + rng.normal(0, 0.002, len(xy))]))
+    (tmp_path / "list.txt").write_text(f"{tmp_path / 'e1.xyz'}, 1900-01-02T00:00:00Z\n"
+                                       f"{tmp_path / 'e2.xyz'}, 9999-12-31T00:00:00Z\n")
+    store = tmp_path / "s.zarr"
+    assert main(["series", str(tmp_path / "e0.xyz"), str(tmp_path / "list.txt"), "-o", str(store), "--normal-scale",
+                 "1", "--projection-scale", "1", "--max-depth", "1", "-q"]) == 0
+    assert main(["series", "kalman", str(store), "--process-noise", "1e290", "-q"]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("m3c2: error: --process-noise 1e+290 over epochs spanning 2.9") and "q dt^3 = inf" in err, err
+    assert "kalman_distance" not in st.open_group(store)
+    assert main(["series", "kalman", str(store), "--process-noise", "3e280", "-q"]) == 0
+    assert np.isfinite(st.open_group(store)["kalman_distance"][:]).all()
