@@ -144,12 +144,8 @@ def compute(reference: np.ndarray, compared: np.ndarray, core: np.ndarray, param
     progress = _with_fault_checkpoint(_progress(progress))
     threads = _threads(threads)
     order_in_place = bool(order_in_place) and all(np.asarray(a).flags.writeable for a in (reference, compared))
-    inputs = _core.UncertaintyArrays()
+    inputs = _bound_struct(_core.UncertaintyArrays, uncertainty_inputs)
     with translated():
-        for name, value in uncertainty_inputs.items():
-            if not hasattr(inputs, name):
-                raise TypeError(f"compute() got an unexpected uncertainty input {name!r}")
-            setattr(inputs, name, value)
         return _core.compute(reference, compared, core, params, core_normals, threads=threads, progress=progress,
                              uncertainty=inputs, order_in_place=order_in_place)
 
@@ -436,13 +432,19 @@ def tam3c2_params(**settings) -> "_core.Tam3c2Params":
     space_time_ratio, registration_error, orientation, lod, confidence (the LOD's level; the
     engine owns its quantile), fallback, breaks, break_width, break_min_size, break_jump,
     break_penalty; the engine's default for the others."""
-    p = _core.Tam3c2Params()
+    return _bound_struct(_core.Tam3c2Params, settings)
+
+
+def _bound_struct(kind: type, fields: dict):
+    """A bound C++ struct of `kind` (its defaults the engine's) with `fields` set by name; a name
+    it lacks is a TypeError naming it."""
+    out = kind()
     with translated():
-        for name, value in settings.items():
-            if not hasattr(p, name):
-                raise TypeError(f"Tam3c2Params has no field {name!r}")
-            setattr(p, name, value)
-    return p
+        for name, value in fields.items():
+            if not hasattr(out, name):
+                raise TypeError(f"{kind.__name__} has no field {name!r}")
+            setattr(out, name, value)
+    return out
 
 
 def tam3c2(pool, core, reference: int, targets, settings: dict, *, orientations=None, epochwise=None,
