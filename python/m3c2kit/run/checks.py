@@ -55,6 +55,21 @@ def check_coordinate_range(name: str, source, points: np.ndarray, limit: float) 
     raise UsageError(f"the {name} cloud: {message}")
 
 
+def check_moved_range(shared: dict, points: np.ndarray, limit: float) -> None:
+    """M3C2-EP moves the compared cloud by --transform inside the engine: a translation of 1e300
+    was reported as a far coordinate of the compared FILE (hostile round 2). The moved bounding
+    box's corners bound every moved point (the motion is affine)."""
+    from .uncertainty_inputs import moved_compared
+    if len(points) == 0 or "transform" not in shared or shared.get("transform_applied"):
+        return
+    lo, hi = points.min(axis=0), points.max(axis=0)
+    corners = np.array([[(lo, hi)[(k >> a) & 1][a] for a in range(3)] for k in range(8)])
+    with np.errstate(over="ignore", invalid="ignore"):
+        worst = float(np.max(np.abs(moved_compared(shared, corners))))
+    if not worst < limit:
+        raise UsageError(f"--transform moves the compared cloud to a coordinate ({worst:.6g}) beyond +-{limit:.6g}, "
+                         f"the range of the spatial index for these scales: check its translation and "
+                         f"--reduction-point (or give --transform-applied when the cloud is already moved)")
 
 
 def check_core_normals(values, core_normals, name: str = "core_normals") -> None:

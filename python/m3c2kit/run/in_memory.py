@@ -14,7 +14,7 @@ from ..base.errors import UsageError
 from ..engine.result import Result
 from ..settings import engine_params, orientation, resolve
 from ..settings.parsers import positive
-from .checks import as_points, check_coordinate_range, check_core_normals, check_spacing
+from .checks import as_points, check_coordinate_range, check_core_normals, check_moved_range, check_spacing
 from .cores import core_points_for
 from .fdr import Fdr
 from .memory import check_memory
@@ -74,6 +74,7 @@ def run(reference, compared, core_points=None, *, core_normals=None, vegetation=
             raise UsageError(f"core_normals has {len(normals)} rows for {len(core_xyz)} core points")
     # Per-point inputs of --uncertainty pm / ep from the clouds' fields (docs/algorithm.md §6.5).
     per_point = uncertainty_inputs.inputs_for(values, reference, compared)
+    check_moved_range(per_point, cmp_, limit)
     raw = compute_arrays(ref, cmp_, core_xyz, plan.engine, normals, threads=values["threads"], progress=progress,
                          per_point=per_point, order_in_place=reorder_inputs)
     result = Result.from_engine(core_xyz, raw, plan.record)

@@ -154,3 +154,18 @@ def test_the_report_of_a_pm_or_ep_run_has_its_uncertainty_section(pair, kind):
         assert given in page, given  # every input the run was given
     spread1 = cols["spread1"][np.isfinite(cols["spread1"])]
     assert f'<td class="num">{np.median(spread1):.6g}</td>' in page  # median spread1, from the written table
+
+
+def test_a_transform_moving_the_cloud_beyond_the_index_is_named(pair, capsys):
+    """Hostile round 2: a translation of 1e300 was reported as a 300-digit coordinate of the compared
+    file, with advice to remove its outliers; the file is fine, --transform moved it."""
+    d, _, _ = pair
+    far = np.eye(3, 4)
+    far[0, 3] = 1e300
+    np.savetxt(d / "far.csv", far, delimiter=",")
+    assert main(["compare", str(d / "ref.xyz"), str(d / "cmp.xyz"), "--core", str(d / "core.xyz"), "-o",
+                 str(d / "o.csv"), *BASE, "--uncertainty", "ep", "--scan-positions", str(d / "sps.json"),
+                 "--scan-position-field", "scan", "--transform", str(d / "far.csv")]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("m3c2: error: --transform moves the compared cloud to a coordinate (1e+300) beyond +-"), err
+    assert err.count("\n") == 1 and not (d / "o.csv").exists()
