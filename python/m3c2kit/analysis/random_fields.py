@@ -52,12 +52,13 @@ def _component_field(xy: np.ndarray, c: Component, rng: np.random.Generator) -> 
     lo = xy.min(axis=0)
     extent = xy.max(axis=0) - lo
     # cells covering the box, +1 for bilinear interpolation's upper neighbour
-    need = np.ceil(extent / step).astype(np.int64) + 2
-    shape = tuple(_good_size(int(np.ceil((e + reach) / step)) + 2) for e in extent)
-    if shape[0] * shape[1] > MAX_GRID_CELLS:
+    cells = [float(np.ceil((e + reach) / step)) + 2 for e in extent]  # in floats: a tiny range overflowed int64
+    if not cells[0] * cells[1] <= MAX_GRID_CELLS:
         raise UsageError(f"a correlated field of range {c.range:g} over a {extent[0]:g} x {extent[1]:g} box needs "
-                         f"{shape[0]} x {shape[1]} grid cells, more than {MAX_GRID_CELLS}: use a smaller area or a "
-                         "longer range")
+                         f"{cells[0]:.3g} x {cells[1]:.3g} grid cells, more than {MAX_GRID_CELLS}: use a smaller area "
+                         "or a longer range")
+    need = np.ceil(extent / step).astype(np.int64) + 2
+    shape = tuple(_good_size(int(n)) for n in cells)
     # periodic distances: the minimal image along each axis
     ix = np.arange(shape[0]); ix = np.minimum(ix, shape[0] - ix) * step
     iy = np.arange(shape[1]); iy = np.minimum(iy, shape[1] - iy) * step

@@ -203,13 +203,20 @@ def save(path: str | os.PathLike, model: ErrorModel) -> None:
         raise ErrorModelError(f"{path}: cannot write the error model: {e.strerror or e}") from None
 
 
+#: The largest magnitude of a model's numbers (variances in the data's unit squared, lengths in
+#: its unit): beyond, the region sums (N^2 sills) and the simulated fields' FFTs overflowed to
+#: NaN intervals with exit 0 (hostile round 2: a sill of 1e308), and a range of 1e-300 asked for a
+#: grid of 1e300 cells. A standard deviation of 1e50 or a range of 1e-100 is no error model.
+LARGEST = 1e100
+
+
 def _number(path, doc: dict, key: str, *, positive: bool = False, optional: bool = False) -> float | None:
     v = doc.get(key)
     if v is None and optional:
         return None
     if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or v < 0 \
-            or (positive and v <= 0):
-        need = "a finite number > 0" if positive else "a finite number >= 0"
+            or (positive and v <= 0) or v > LARGEST or (positive and v < 1 / LARGEST):
+        need = (f"a number from {1 / LARGEST:g} to {LARGEST:g}" if positive else f"a number from 0 to {LARGEST:g}")
         raise ErrorModelError(f"{path}: not a valid error model ({key!r} must be {need}, found {v!r})")
     return float(v)
 

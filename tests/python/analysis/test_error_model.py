@@ -2,6 +2,7 @@
 version 1 files read and refused by compare, the excess variance, the conventions of the two
 kinds, and the disc-distance pdf against a Monte Carlo."""
 import json
+import re
 
 import numpy as np
 import pytest
@@ -131,3 +132,28 @@ def test_the_components_formulas_are_the_engines_and_the_analytic_ones(kind):
     assert c.variogram(h).shape == h.shape
     np.testing.assert_allclose(c.variogram(1e-9), 2.5 * 3 * 1e-9 / 4 * (0.5 if kind == "spherical" else 1), rtol=1e-6)
     np.testing.assert_array_equal(c.covariance(h), component_values(kind, 2.5, 4.0, h))
+
+
+@pytest.mark.parametrize("change, words", [
+    (lambda d: d["components"][0].update(sill=1e308), "'sill' must be a number from 0 to 1e+100, found 1e+308"),
+    (lambda d: d["components"][0].update(range=1e-300), "'range' must be a number from 1e-100 to 1e+100, found 1e-300"),
+    (lambda d: d.update(nugget=1e200), "'nugget' must be a number from 0 to 1e+100"),
+])
+def test_numbers_that_overflow_the_intervals_are_refused(tmp_path, change, words):
+    """Hostile round 2: a sill of 1e308 gave NaN intervals with exit 0 (the region sums and the
+    fields' FFTs overflowed); a range of 1e-300 asked for a grid of 1e300 cells."""
+    save(tmp_path / "m.json", MODEL)
+    doc = json.loads((tmp_path / "m.json").read_text())
+    change(doc)
+    (tmp_path / "m.json").write_text(json.dumps(doc))
+    with pytest.raises(ErrorModelError, match=re.escape(words)):
+        load(tmp_path / "m.json")
+
+
+def test_a_field_too_fine_for_its_box_is_refused_at_once():
+    """The grid's size is checked in floats before any FFT length is sought (a tiny range's cell
+    count overflowed int64, and the search for a fast length took minutes)."""
+    from m3c2kit.analysis.random_fields import sample_field
+    xy = np.array([[0.0, 0.0], [10.0, 10.0]])
+    with pytest.raises(UsageError, match=r"needs 3.2e\+102 x 3.2e\+102 grid cells, more than"):
+        sample_field(xy, ErrorModel(0.0, (Component("spherical", 1.0, 1e-100),)), 0)
