@@ -84,7 +84,11 @@ def check_grid(xy: np.ndarray, cell: float, source) -> None:
     grid of side `cell`, and some two are one cell apart (else the grid is coarser than `cell`)."""
     if len(xy) == 0:
         return
-    r = (xy - xy[0]) / cell
+    with np.errstate(over="ignore", invalid="ignore"):
+        r = (xy - xy[0]) / cell
+    if not np.abs(r).max() < 2.0 ** 52:  # cell indices beyond exact integers (a cell of 1e-300 overflowed)
+        raise UsageError(f"{source}: --cell-size {cell:g} is too small for the core points' extent: their cell "
+                         f"indices exceed 2**52; --cell-size must be the --grid CELL of the compare run that wrote it")
     k = np.round(r)
     off = np.abs(r - k).max(axis=1)
     worst = int(np.argmax(off))

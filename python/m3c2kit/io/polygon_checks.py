@@ -10,6 +10,8 @@ of k vertices costs about k log k plus the pairs that overlap in x, never k^2 fo
 regions."""
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from ..base.errors import UsageError
@@ -27,7 +29,11 @@ def check_region(rings: list[np.ndarray], area: float, path, where: str) -> None
         raise UsageError(f"{path}: {where}: self-intersecting (edges cross near x {crossing[0]:.6g}, "
                          f"y {crossing[1]:.6g}); its inside is undefined: fix the polygon (OGC simple features)")
     xy = np.concatenate(rings)
-    extent = float(np.max(xy.max(axis=0) - xy.min(axis=0)))
+    with np.errstate(over="ignore", invalid="ignore"):
+        extent = float(np.max(xy.max(axis=0) - xy.min(axis=0)))
+        if not math.isfinite(area) or not math.isfinite(extent * extent):  # 1e300 vertices: "zero area" before
+            raise UsageError(f"{path}: {where}: its coordinates (up to {float(np.abs(xy).max()):.6g}) are too large for "
+                             f"its area to be computed: not a region of the data")
     if not area > AREA_EPSILON * extent * extent:
         raise UsageError(f"{path}: {where}: a region of zero area (its vertices lie on a line or a point)")
 

@@ -58,7 +58,8 @@ class Polygon:
 
 def _ring_area(ring: np.ndarray) -> float:
     x, y = ring[:, 0], ring[:, 1]
-    return abs(0.5 * float(np.dot(x, np.roll(y, -1)) - np.dot(y, np.roll(x, -1))))
+    with np.errstate(over="ignore", invalid="ignore"):  # vertices near 1e300: inf or NaN, refused by check_region
+        return abs(0.5 * float(np.dot(x, np.roll(y, -1)) - np.dot(y, np.roll(x, -1))))
 
 
 def _ring(coords, path: Path, where: str) -> np.ndarray:

@@ -351,3 +351,20 @@ def test_regions_in_the_horizontal_part_of_a_compound_crs_are_taken_and_an_unrea
                                        "read: name one PROJ knows (EPSG:XXXX, urn:ogc:def:crs:EPSG::XXXX) or none (the "
                                        "data's coordinates)\n")
     assert not (tmp_path / "t2.csv").exists() and not (tmp_path / "t3.csv").exists()
+
+
+def test_a_cell_or_a_region_beyond_the_float_range_is_refused_in_words(tmp_path, capsys):
+    """Hostile round 2: --cell-size 1e-300 overflowed the cell index (numpy's cast warning, then
+    'several core points in one cell'); a region at 1e300 overflowed its area ('zero area')."""
+    xy = lattice(4, 4, 0.5, 0.0, 0.0)
+    _write_result(tmp_path / "r.csv", xy, np.full(16, 0.1), np.full(16, 0.05), 0.01, 10)
+    (tmp_path / "g.wkt").write_text("POLYGON ((0 0, 3 0, 3 3, 0 3, 0 0))\n")
+    run = ["aggregate", str(tmp_path / "r.csv"), "-o", str(tmp_path / "t.csv"), "-q"]
+    assert main([*run, "--regions", str(tmp_path / "g.wkt"), "--cell-size", "1e-300"]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "--cell-size 1e-300 is too small for the core points' extent" in err, err
+    (tmp_path / "far.wkt").write_text("POLYGON ((-1e300 -1e300, 1e300 -1e300, 1e300 1e300, -1e300 1e300, -1e300 -1e300))\n")
+    assert main([*run, "--regions", str(tmp_path / "far.wkt")]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "are too large for its area to be computed" in err, err
+    assert not (tmp_path / "t.csv").exists()
