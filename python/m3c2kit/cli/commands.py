@@ -12,7 +12,7 @@ from ..io.collisions import check_outputs
 from ..io.crs import crs_label
 from ..io.registry import keeps_crs
 from ..io.describe import describe, describe_text
-from ..io.files import add_drop_nonfinite_option
+from ..io.files import add_drop_nonfinite_option, writable_format
 from ..run import in_memory
 from ..settings import orientation, parameters_of, resolve
 from .inputs import input_files, orient_spec, read_input
@@ -111,6 +111,7 @@ def run_subsample(args) -> int:
 
 def run_convert(args) -> int:
     check_outputs({"-o": args.output}, input_files(args))
+    writable_format(args.output)  # before the input is read
     cloud = read_input(args.input, args)
     if cloud.crs and not keeps_crs(args.output):
         warnings.warn(f"{args.output}: {args.output.suffix or 'this format'} stores no CRS: the CRS of {args.input} "

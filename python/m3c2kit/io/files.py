@@ -156,6 +156,19 @@ def info(path: str | os.PathLike) -> dict:
     }
 
 
+def writable_format(path):
+    """The format that writes the point-cloud file `path`, or a CloudWriteError naming it: a
+    command asks before any work (convert read the whole input, warned, then failed)."""
+    if Path(path).is_dir():  # before the extension: a folder has none ("cannot write '' files")
+        raise CloudWriteError(f"{path}: is a directory")
+    fmt = format_for(Path(path), writing=True)
+    if fmt is None or fmt.write is None:
+        ext = extension_of(Path(path))
+        what = "has no extension to name its format" if not ext else f"cannot write {ext!r} files"
+        raise CloudWriteError(f"{path}: {what} (supported: {' '.join(SUPPORTED_WRITE)})")
+    return fmt
+
+
 def write_cloud_table(path: str | os.PathLike, xyz: np.ndarray, fields: dict[str, np.ndarray], *,
                       like: Cloud | None = None) -> None:
     """Writes points and per-point columns to `path`, format chosen by extension
@@ -181,12 +194,7 @@ def write_cloud_table(path: str | os.PathLike, xyz: np.ndarray, fields: dict[str
         shape = np.shape(values.values) if isinstance(values, Quantised) else values.shape
         if shape != (len(xyz),):
             raise CloudWriteError(f"{path}: field {name!r} has shape {shape}, expected ({len(xyz)},)")
-    if Path(path).is_dir():  # before the extension: a folder has none ("cannot write '' files")
-        raise CloudWriteError(f"{path}: is a directory")
-    fmt = format_for(Path(path), writing=True)
-    if fmt is None or fmt.write is None:
-        raise CloudWriteError(f"{path}: cannot write {extension_of(Path(path))!r} files "
-                              f"(supported: {' '.join(SUPPORTED_WRITE)})")
+    fmt = writable_format(path)
     if not fmt.quantises:  # only LAS declares a scale and no_data: elsewhere the values themselves
         fields = {k: v.values.astype(np.float32) if isinstance(v, Quantised) else v for k, v in fields.items()}
     fmt.write(Path(path), xyz, fields, like)

@@ -66,3 +66,16 @@ def test_coordinates_las_cannot_hold_are_refused_not_moved(ext, tmp_path, capsys
     assert "LAS cannot store these coordinates" in err and "write .ply, .csv or .txt" in err and not out.exists()
     assert main(["convert", str(src), "-o", str(tmp_path / "far.csv"), "-q"]) == 0
     assert np.array_equal(m3c2kit.read(tmp_path / "far.csv").xyz, np.loadtxt(src))
+
+
+@pytest.mark.parametrize("name, words", [("out", "has no extension to name its format"),
+                                         ("out.xls", "cannot write '.xls' files")])
+def test_an_output_format_it_cannot_write_is_refused_before_the_input_is_read(tmp_path, capsys, name, words):
+    """Hostile round 2: `convert IN.las -o out` read the whole input, warned that the format stores
+    no CRS, then failed with "cannot write '' files"."""
+    from m3c2kit.cli.main import main
+    las = Path(__file__).resolve().parents[2] / "data" / "pairs" / "autzen-bmx" / "autzen-bmx-2010.las"
+    assert main(["convert", str(las), "-o", str(tmp_path / name)]) == 1
+    err = capsys.readouterr().err
+    assert err == f"m3c2: error: {tmp_path / name}: {words} (supported: .las .laz .ply .csv .txt .xyz .asc)\n", err
+    assert list(tmp_path.iterdir()) == []
