@@ -165,3 +165,18 @@ def reference_line(x: np.ndarray, y_at: float, x_at: float, slope: float) -> np.
     """y = y_at (x / x_at)^slope: a reference slope drawn through (x_at, y_at), a point of the
     data, so that it lies on the data whatever the fit's anchor l0 is."""
     return y_at * (np.asarray(x, dtype=float) / x_at) ** slope
+
+
+def repeated_positions(xyz: np.ndarray) -> str | None:
+    """A warning when core points share a position (merged scans, a cloud concatenated with
+    itself): each counts as a point of its own, so the aggregates' intervals narrow (by sqrt 2 for
+    doubled points) and the variogram gets a lag-0 bin of zero semivariance. None when all differ."""
+    if len(xyz) < 2:
+        return None
+    distinct = len(np.unique(np.ascontiguousarray(xyz, dtype=np.float64), axis=0))
+    repeated = len(xyz) - distinct
+    if repeated == 0:
+        return None
+    return (f"{repeated} core points repeat the position of another ({len(xyz)} core points at {distinct} positions): "
+            f"each counts as an independent point, which narrows the intervals and biases the variogram's nugget; "
+            f"compare with the repeated reference points removed (m3c2 subsample --spacing)")

@@ -9,6 +9,7 @@ from pathlib import Path
 
 from ..analysis.aggregate import aggregate, survey_from_fields
 from ..analysis.aggregate_table import table_format, write_table
+from ..analysis.common import repeated_positions
 from ..analysis.error_model import load as load_error_model
 from ..base.errors import M3C2Warning, UsageError, printable
 from ..io import read_cloud
@@ -72,6 +73,8 @@ def run_aggregate(args) -> int:
                          "nothing")
     cloud = read_cloud(args.result)
     polygons = read_regions_for(args.regions, cloud)
+    if (message := repeated_positions(cloud.xyz)) is not None:
+        warnings.warn(f"{args.result}: {message}", M3C2Warning, stacklevel=2)
     survey = survey_from_fields(cloud.xyz, cloud.fields, args.result)
     table = aggregate(survey, polygons, model=model, confidence=float(args.confidence), cell=args.cell_size,
                       simulations=args.simulations, seed=args.seed, threads=args.threads, source=args.result)

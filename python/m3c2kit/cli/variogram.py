@@ -10,7 +10,7 @@ from pathlib import Path
 import numpy as np
 
 from ..analysis import variogram as vg
-from ..analysis.common import figure_format
+from ..analysis.common import figure_format, repeated_positions
 from ..analysis.error_model import LAG_DISTANCES, model_bytes
 from ..base.errors import M3C2Warning, UsageError
 from ..io import read_cloud
@@ -64,6 +64,8 @@ def run_variogram(args) -> int:
         raise UsageError(f"{args.result}: no 'distance' field: not a compare output "
                          f"(its fields: {', '.join(sorted(cloud.fields)) or 'none'})")
     u2 = vg.eq1_variance(cloud)
+    if (message := repeated_positions(cloud.xyz)) is not None:
+        warnings.warn(f"{args.result}: {message}", M3C2Warning, stacklevel=2)
     mask = vg.stable_mask(cloud, polygons=args.stable, field=args.stable_field)
     if args.stable is None and args.stable_field is None and (message := vg.change_taken_for_error(cloud)):
         warnings.warn(f"{args.result}: {message}", M3C2Warning, stacklevel=2)

@@ -368,3 +368,20 @@ def test_a_cell_or_a_region_beyond_the_float_range_is_refused_in_words(tmp_path,
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "are too large for its area to be computed" in err, err
     assert not (tmp_path / "t.csv").exists()
+
+
+def test_repeated_core_points_are_said(tmp_path, capsys):
+    """Hostile round 2: a reference with every point twice (merged scans) as its own core points:
+    aggregate counted 1800 core points for 900 positions and narrowed the interval 1.6x, silently."""
+    xy = lattice(4, 4, 0.5, 0.0, 0.0)
+    twice = np.concatenate([xy, xy])
+    _write_result(tmp_path / "r.csv", twice, np.full(32, 0.1), np.full(32, 0.05), 0.01, 10)
+    (tmp_path / "g.wkt").write_text("POLYGON ((-1 -1, 3 -1, 3 3, -1 3, -1 -1))\n")
+    assert main(["aggregate", str(tmp_path / "r.csv"), "--regions", str(tmp_path / "g.wkt"), "-o",
+                 str(tmp_path / "t.csv"), "-q", "--simulations", "0"]) == 0
+    err = capsys.readouterr().err
+    assert "16 core points repeat the position of another (32 core points at 16 positions)" in err, err
+    _write_result(tmp_path / "once.csv", xy, np.full(16, 0.1), np.full(16, 0.05), 0.01, 10)
+    assert main(["aggregate", str(tmp_path / "once.csv"), "--regions", str(tmp_path / "g.wkt"), "-o",
+                 str(tmp_path / "t2.csv"), "-q", "--simulations", "0"]) == 0
+    assert "repeat the position" not in capsys.readouterr().err
