@@ -110,9 +110,10 @@ KalmanFit kalman_fit_process_noise(const KalmanParams& params, const KalmanBlock
   for (double v : kalman_observation_variance(params, block, run))
     if (std::isfinite(v)) r.push_back(v);
   if (dts.empty() || r.empty())
-    throw InvalidArgument(
-        "--process-noise auto needs at least two epochs at distinct times and observations "
-        "with a variance; give --process-noise Q");
+    throw InvalidArgument(std::string("--process-noise auto needs ") +
+                          (r.empty() ? "observations with a variance, and no core point has a distance with one"
+                                     : "at least two epochs at distinct times") +
+                          "; give --process-noise Q");
   const double u0 = std::log10(std::max(median(r), 1e-300) / unit_m00(params, median(dts)));
   const auto loglik = [&](double u) {
     KalmanParams p = params;

@@ -54,8 +54,8 @@ def non_negative_real(flag: str):
 
 def fraction_list(text: str) -> list[float]:
     """An argparse ``type`` reading comma-separated numbers in (0, 1], at least one."""
-    try:
-        values = [float(t) for t in text.split(",") if t.strip()]
+    try:  # an empty item ("0.2,,0.3") is a typo, not a value to drop
+        values = [float(t) for t in text.split(",")]
     except ValueError:
         raise argparse.ArgumentTypeError(f"must be a list of numbers like 0.1,0.2, got {text!r}") from None
     if not values or not all(0 < v <= 1 for v in values):

@@ -400,7 +400,7 @@ def kalman_log_likelihood(values, variance, times, params, *, prior_mean=None, s
 def kalman_fit_process_noise(values, variance, times, params, *, spread=None, threads: int = 0) -> tuple[float, int]:
     """`--process-noise auto` (include/m3c2/kalman.hpp): the q of maximum likelihood and where it
     fell on the searched grid (-1 / +1: its smallest / largest q, else 0)."""
-    with translated("--process-noise"):
+    with translated():  # the engine's message names --process-noise itself
         return _core.kalman_fit_process_noise(values, variance, times, params, spread=spread, threads=threads)
 
 

@@ -270,3 +270,22 @@ def test_a_process_noise_whose_variance_overflows_is_refused(tmp_path, capsys):
     assert "kalman_distance" not in st.open_group(store)
     assert main(["series", "kalman", str(store), "--process-noise", "3e280", "-q"]) == 0
     assert np.isfinite(st.open_group(store)["kalman_distance"][:]).all()
+
+
+def test_auto_process_noise_without_any_distance_says_so(tmp_path, capsys):
+    """Hostile round 2: epochs that never meet the core points (no distance anywhere) gave
+    "--process-noise: --process-noise auto needs ... distinct times and ... a variance"."""
+    xy = np.stack(np.meshgrid(np.arange(8) * 0.25, np.arange(8) * 0.25), -1).reshape(-1, 2)
+    np.savetxt(tmp_path / "ref.xyz", np.column_stack([xy, np.zeros(len(xy))]))
+    lines = []
+    for k in range(3):
+        np.savetxt(tmp_path / f"far{k}.xyz", np.column_stack([xy + 100.0, np.zeros(len(xy))]))
+        lines.append(f"{tmp_path / f'far{k}.xyz'}, 2024-01-0{k + 1}T00:00:00Z")
+    (tmp_path / "list.txt").write_text("\n".join(lines) + "\n")
+    store = tmp_path / "s.zarr"
+    assert main(["series", str(tmp_path / "ref.xyz"), str(tmp_path / "list.txt"), "-o", str(store), "--normal-scale",
+                 "1", "--projection-scale", "1", "--max-depth", "1", "-q"]) == 0
+    capsys.readouterr()
+    assert main(["series", "kalman", str(store), "-q"]) == 2
+    assert capsys.readouterr().err == ("m3c2: error: --process-noise auto needs observations with a variance, and no "
+                                       "core point has a distance with one; give --process-noise Q\n")
