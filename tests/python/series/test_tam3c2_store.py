@@ -351,3 +351,9 @@ def test_an_option_its_mode_never_reads_is_refused(tmp_path, capsys, extra, need
     bits and recorded both; the break options without --window-breaks changepoints changed nothing."""
     code, _, err = run(capsys, "series", "tam3c2", tmp_path / "none.zarr", *extra)
     assert code == 2 and err.endswith(f"would change nothing in this run: it is read only with {needs}\n"), err
+
+
+def test_a_list_of_fractions_with_an_empty_item_is_refused(capsys):
+    """Hostile round 2: --window-ratio 0.2,,0.3 dropped the empty item and ran."""
+    code, _, err = run(capsys, "series", "tam3c2", "none.zarr", "--window-ratio", "0.2,,0.3")
+    assert code == 2 and "must be a list of numbers like 0.1,0.2, got '0.2,,0.3'" in err
