@@ -221,7 +221,7 @@ def test_a_negative_value_meets_its_range_check(argv, message, tmp_path, capsys)
     (["--neighbourhood-radius", "-1"], "--neighbourhood-radius must be finite and > 0, got '-1'"),
     (["--neighbourhood-radius", "nan"], "--neighbourhood-radius must be finite and > 0, got 'nan'"),
     (["--thresholds", "0.5,1.5"], "--thresholds: must be numbers in (0, 1], at least one, got '0.5,1.5'"),
-    (["--thresholds", ","], "--thresholds: must be numbers in (0, 1], at least one"),
+    (["--thresholds", ","], "--thresholds: must be a list of numbers like 0.1,0.2, got ','"),
 ])
 def test_objects_options_are_checked_where_they_are_read(argv, message, tmp_path, capsys):
     """The engine checks these too, in its own terms (min_period, thresholds...); the command line
