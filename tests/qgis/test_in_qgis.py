@@ -156,6 +156,17 @@ def test_progress_reaches_the_feedback():
         assert feedback.commands[0].split()[1:3] == ["compare", REFERENCE]
 
 
+def test_a_compare_with_only_its_clouds_and_an_output():
+    """Issue 44: the scales left empty are chosen from the data; the log says which and why."""
+    with Folder() as d:
+        results, ok, context, feedback = run("compare", {"REFERENCE": REFERENCE, "COMPARED": COMPARED,
+                                                         "OUTPUT": os.path.join(d, "auto.csv")})
+        assert ok, feedback.errors
+        assert any("scales chosen from the data by m3c2 suggest's rules" in line for line in feedback.infos), \
+            feedback.infos
+        assert os.path.getsize(os.path.join(d, "auto.csv")) > 0
+
+
 def _stopped_child(parent):
     """A child process of `parent` stopped by SIGSTOP, or None."""
     for entry in os.listdir("/proc"):
