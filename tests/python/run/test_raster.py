@@ -251,10 +251,13 @@ def test_usage_errors(las_pair, tmp_path, capsys, extra, message):
     assert list(tmp_path.iterdir()) == []
 
 
-def test_max_depth_is_required(las_pair, tmp_path, capsys):
+def test_max_depth_is_chosen_from_the_data_when_not_given(las_pair, tmp_path, capsys):
+    """As every compare run's (docs/cli.md, "Scales from the data"); the grid gives D and d."""
     d, _, _ = las_pair
-    assert main(["compare", str(d / "ref.las"), str(d / "cmp.las"), "-o", str(tmp_path / "o.csv"), "--grid", "2"]) == 2
-    assert "--max-depth" in capsys.readouterr().err
+    assert main(["compare", str(d / "ref.las"), str(d / "cmp.las"), "-o", str(tmp_path / "o.csv"), "--grid", "2"]) == 0
+    out = capsys.readouterr().out
+    chosen = [line for line in out.splitlines() if line.startswith("m3c2: scales chosen from the data")]
+    assert len(chosen) == 1 and chosen[0].split("): ")[1].split()[0::2] == ["--max-depth"], out
 
 
 def test_a_failed_raster_leaves_no_output(las_pair, tmp_path, monkeypatch):
