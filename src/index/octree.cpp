@@ -5,6 +5,7 @@
 #include "index/radix_sort.hpp"
 #include "index/rows_in_place.hpp"
 #include "support/assert.hpp"
+#include "support/number_text.hpp"
 #include "support/parallel_for.hpp"
 #include "support/portable.hpp"
 
@@ -15,7 +16,6 @@
 #include <cmath>
 #include <limits>
 #include <numeric>
-#include <sstream>
 #include <string>
 
 namespace m3c2::detail {
@@ -137,26 +137,15 @@ OctreeGrid octree_grid(double smallest_scale, double largest_normal_diameter) {
 
 double OctreeGrid::max_abs_coordinate() const { return std::ldexp(cell, kAxisBits - 2); }
 
-namespace {
-
-/// 6 significant digits: std::to_string wrote 1e300 as its 301 digits.
-std::string shown(double v) {
-  std::ostringstream s;
-  s.precision(6);
-  s << v;
-  return s.str();
-}
-
-}  // namespace
-
 void require_within_grid(const char* what, PointsView points, OctreeGrid grid) {
   const double limit = grid.max_abs_coordinate();
   for (std::size_t i = 0; i < points.size(); ++i)
     for (int a = 0; a < 3; ++a)
       if (!(std::abs(points.coord(i, a)) < limit))
-        throw InvalidArgument(std::string(what) + " has a coordinate (" + shown(points.coord(i, a)) + ") beyond +-" +
-                              shown(limit) + ", the range of the spatial index for these scales (2^40 cells of " +
-                              shown(grid.cell) + "); remove far outliers or shift the coordinates to a local origin");
+        throw InvalidArgument(
+            std::string(what) + " has a coordinate (" + number_text(points.coord(i, a), 6) + ") beyond +-" +
+            number_text(limit, 6) + ", the range of the spatial index for these scales (2^40 cells of " +
+            number_text(grid.cell, 6) + "); remove far outliers or shift the coordinates to a local origin");
 }
 
 inline CellKey Octree::cell_of(const double* p) const {

@@ -3,22 +3,16 @@
 #include <m3c2/errors.hpp>
 #include <m3c2/m3c2.hpp>
 
+#include "support/number_text.hpp"
+
 #include <cmath>
-#include <sstream>
 #include <string>
 
 namespace m3c2::detail {
 namespace {
 
-std::string format(double v) {
-  std::ostringstream s;
-  s.precision(17);
-  s << v;
-  return s.str();
-}
-
 [[noreturn]] void fail(std::string_view name, std::string_view rule, double value) {
-  throw InvalidArgument(std::string(name) + " must be " + std::string(rule) + ", got " + format(value));
+  throw InvalidArgument(std::string(name) + " must be " + std::string(rule) + ", got " + number_text(value, 17));
 }
 
 }  // namespace
@@ -40,8 +34,8 @@ void require_cell_count(std::string_view name, double cell, PointsView points) {
   for (std::size_t i = 1; i < points.size(); ++i) lo = lo.cwiseMin(points[i]), hi = hi.cwiseMax(points[i]);
   const double cells = (hi - lo).maxCoeff() / cell;
   if (!(cells <= kMaxCellsPerAxis))
-    throw InvalidArgument(std::string(name) + " " + format(cell) + " is too small for the points' extent " +
-                          format((hi - lo).maxCoeff()) + " (more than 2^40 cells along an axis)");
+    throw InvalidArgument(std::string(name) + " " + number_text(cell, 17) + " is too small for the points' extent " +
+                          number_text((hi - lo).maxCoeff(), 17) + " (more than 2^40 cells along an axis)");
 }
 
 void validate_normal_params(const Params& p) {
@@ -74,7 +68,7 @@ void validate_params(const Params& p) {
   if (p.depth_search == DepthSearch::kTwoPass) {
     require_positive("first_pass_depth", p.first_pass_depth);
     if (p.first_pass_depth > p.max_depth)
-      fail("first_pass_depth", "<= max_depth (" + format(p.max_depth) + ")", p.first_pass_depth);
+      fail("first_pass_depth", "<= max_depth (" + number_text(p.max_depth, 17) + ")", p.first_pass_depth);
   }
   if (!(p.registration_error >= 0.0) || !std::isfinite(p.registration_error))
     fail("registration_error", "finite and >= 0", p.registration_error);

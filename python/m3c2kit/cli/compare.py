@@ -179,7 +179,10 @@ def run_compare(args) -> int:
     settings = compare_settings(args)  # with --grid: 2D mode's settings (raster.grid_settings)
     chosen_later = missing_scales(settings, args)  # D, d, depth not given: from the data, once read
     # Every parameter's checks, options that would change nothing included, before any file is read.
-    check_all_but_scales(resolve, settings, chosen_later) if chosen_later else resolve(settings, "compare")
+    if chosen_later:
+        check_all_but_scales(resolve, settings, chosen_later)
+    else:
+        resolve(settings, "compare")
     check_core_normals(settings, args.core_normals, "--core-normals")
     check_all_fields(args.output, settings.get("all_fields"))
     laz_threads.set_threads(threads_count(settings.get("threads")))  # LAZ coding: --threads too (checked first)

@@ -306,7 +306,7 @@ def read_regions_for(path, cloud, option: str = "--regions") -> list[Polygon]:
         return polygons
     if _has_pyproj() and parse_crs(crs) is None:
         raise UsageError(f"{option} {path}: its CRS {crs_label(crs)} cannot be read: name one PROJ knows "
-                         f"(EPSG:XXXX, urn:ogc:def:crs:EPSG::XXXX) or none (the data's coordinates)")
+                         f"(as EPSG:32633 or urn:ogc:def:crs:EPSG::32633) or none (the data's coordinates)")
     if not cloud.crs:
         warnings.warn(f"{option} {path}: the regions are in {crs_label(crs)}, {cloud.path or 'the data'} names no CRS: "
                       f"the regions are taken to be in its coordinates", M3C2Warning, stacklevel=2)

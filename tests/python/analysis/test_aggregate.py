@@ -348,7 +348,7 @@ def test_regions_in_the_horizontal_part_of_a_compound_crs_are_taken_and_an_unrea
     assert main(["aggregate", str(tmp_path / "r.las"), "--regions", str(tmp_path / "g.geojson"), "-o",
                  str(tmp_path / "t3.csv"), "-q"]) == 2
     assert capsys.readouterr().err == (f"m3c2: error: --regions {tmp_path / 'g.geojson'}: its CRS garbage-crs cannot be "
-                                       "read: name one PROJ knows (EPSG:XXXX, urn:ogc:def:crs:EPSG::XXXX) or none (the "
+                                       "read: name one PROJ knows (as EPSG:32633 or urn:ogc:def:crs:EPSG::32633) or none (the "
                                        "data's coordinates)\n")
     assert not (tmp_path / "t2.csv").exists() and not (tmp_path / "t3.csv").exists()
 
