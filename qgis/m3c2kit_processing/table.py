@@ -1,4 +1,4 @@
-"""m3c2 compare's parameters in QGIS, from parameters.json: the parameter table of m3c2kit
+"""m3c2 compare's parameters (and the series steps') in QGIS, from parameters.json: the parameter table of m3c2kit
 (python/m3c2kit/settings/table.py, its one owner), exported by
 `python -m m3c2kit.settings.export qgis/m3c2kit_processing/parameters.json`. A row added to the
 table reaches this dialog by regenerating the file; only its QGIS name may need a line in NAMES.
@@ -23,7 +23,9 @@ INT_MAX = 2**31 - 1  # QGIS's integer parameter is an int
 NAMES = {"orient": "ORIENTATION"}
 # In the dialog's main part; the others are "Advanced parameters".
 MAIN = ("normal_scale", "projection_scale", "max_depth", "registration_error", "orient", "normal_source", "median",
-        "confidence", "lod", "core_spacing", "classifier", "keep", "threads")
+        "confidence", "lod", "core_spacing", "classifier", "keep", "threads",
+        "use", "neighbourhood_radius", "min_period", "height_threshold", "min_segments")  # series objects'
+
 # Rows the compare algorithm leaves out, and why: an alias of another row.
 LEFT_OUT = {"t_statistic": "the same as LOD = auto"}
 

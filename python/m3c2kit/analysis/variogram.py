@@ -280,6 +280,8 @@ def stable_mask(cloud, *, polygons=None, field: str | None = None) -> np.ndarray
         wanted = float(value)
     except ValueError:
         raise UsageError(f"--stable-field {field!r}: VALUE must be a number") from None
+    if not np.isfinite(wanted):  # hostile round: NaN equals no value, so no point was ever stable
+        raise UsageError(f"--stable-field {field!r}: VALUE must be a finite number (a field equals no NaN or inf)")
     return np.asarray(cloud.fields[name], dtype=np.float64) == wanted
 
 

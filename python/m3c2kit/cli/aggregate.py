@@ -7,6 +7,7 @@ import math
 import warnings
 from pathlib import Path
 
+from .command_index import summary
 from ..analysis.aggregate import aggregate, survey_from_fields
 from ..analysis.aggregate_table import table_format, write_table
 from ..analysis.common import repeated_positions
@@ -25,8 +26,7 @@ SIMULATIONS = 200
 
 
 def aggregate_parser(sub) -> None:
-    p = sub.add_parser("aggregate", help="per region: mean change, volume and area of significant change, with "
-                                         "intervals that account for spatially correlated errors",
+    p = sub.add_parser("aggregate", help=summary("aggregate"),
                        description="Per region (GeoJSON or WKT polygons, plan view) of a compare output, and over all "
                                    "of them: the core points with a distance, the mean change, the volume (grid runs: "
                                    "--cell-size) and the area of significant change, each with its interval at "

@@ -9,6 +9,7 @@ from pathlib import Path
 
 import numpy as np
 
+from .command_index import summary
 from ..io import read_cloud, write_cloud_table
 from ..io.collisions import check_outputs
 from ..io.files import add_drop_nonfinite_option
@@ -73,7 +74,7 @@ def _core_points(args, cloud_xyz, default_all=True):
 
 def analysis_parsers(sub) -> None:
     """Adds the roughness, calibrate, c2c, simplify and suggest subcommands."""
-    p = sub.add_parser("roughness", help="roughness sigma(D) vs scale and the self-affine fit (section 5.1, Fig. 6a)",
+    p = sub.add_parser("roughness", help=summary("roughness"),
                        description="Mean and standard deviation of sigma(D) over core points per scale D, and the "
                                    "fit of eq. (3) <sigma(D)> = sigma(l0) (D/l0)^beta in log-log.")
     p.add_argument("cloud", type=Path, help="the point cloud")
@@ -89,7 +90,7 @@ def analysis_parsers(sub) -> None:
     _run_options(p)
     p.set_defaults(run=run_roughness)
 
-    p = sub.add_parser("calibrate", help="LOD95 calibration on subsampled copies of one cloud (5.2.1-5.2.2, Figs. 8-9)",
+    p = sub.add_parser("calibrate", help=summary("calibrate"),
                        description="Compares a cloud with differently subsampled versions of itself: per d, the "
                                    "percentage of core points correctly NOT significant with eq. (1) z, Welch t "
                                    "(eq. 2) and the bootstrap, the mean LOD95 and its scaling d^alpha vs beta - 0.95.")
@@ -114,7 +115,7 @@ def analysis_parsers(sub) -> None:
     _run_options(p)
     p.set_defaults(run=run_calibrate)
 
-    p = sub.add_parser("c2c", help="closest-point baselines C2C and C2C_HF (section 3.4)",
+    p = sub.add_parser("c2c", help=summary("c2c"),
                        description="Distance from each compared point (or core point) to the closest reference point "
                                    "(C2C) and, with --model plane, to the least-squares plane of that point's "
                                    "reference neighbours (C2C_HF). Unsigned, as in CloudCompare.")
@@ -133,7 +134,7 @@ def analysis_parsers(sub) -> None:
     _run_options(p)
     p.set_defaults(run=run_c2c)
 
-    p = sub.add_parser("simplify", help="self-comparison: local averaging or outlier removal (section 6.3)",
+    p = sub.add_parser("simplify", help=summary("simplify"),
                        description="Compares the cloud with itself at core points and writes the projected "
                                    "positions core + i n (mean: local averaging; --median: outlier removal) with "
                                    "roughness, density and normals; d is the averaging scale.")
@@ -150,7 +151,7 @@ def analysis_parsers(sub) -> None:
     _run_options(p)
     p.set_defaults(run=run_simplify)
 
-    p = sub.add_parser("suggest", help="suggest D, d and the max depth for a pair of clouds",
+    p = sub.add_parser("suggest", help=summary("suggest"),
                        description="Proposes D (smallest scale with xi >= 25 at 95% of sampled core points), d "
                                    "(smallest with median n >= 30 in both clouds) and a max depth (3 x the 99th "
                                    "percentile of |distance| of a first pass), printing the numbers behind each.")

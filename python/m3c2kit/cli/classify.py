@@ -8,6 +8,7 @@ from pathlib import Path
 
 import numpy as np
 
+from .command_index import summary
 from ..analysis.common import figure_format
 from .integers import COUNT_MAX, integer
 from .options import add, add_table_option
@@ -25,7 +26,7 @@ DEFAULT_SCALE_FACTORS = (4, 6, 8, 12, 16, 24, 32)  # times the point spacing sqr
 
 def classify_parsers(sub) -> None:
     """Adds `classify` with its `train` and `apply` subcommands."""
-    p = sub.add_parser("classify", help="CANUPO multi-scale dimensionality classification (Brodu & Lague 2012)",
+    p = sub.add_parser("classify", help=summary("classify"),
                        description="Vegetation removal before comparing (the paper's section 4.3): train a "
                                    "classifier on labelled samples, apply it to a cloud (docs/classify.md).")
     csub = p.add_subparsers(dest="classify_command", required=True, parser_class=type(p))

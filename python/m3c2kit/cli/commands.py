@@ -6,6 +6,7 @@ from pathlib import Path
 
 import numpy as np
 
+from .command_index import summary
 from ..base.errors import M3C2Warning, printable
 from ..io import write_cloud_table
 from ..io.collisions import check_outputs
@@ -21,7 +22,7 @@ from .parser import phases_for
 
 
 def normals_parser(sub) -> None:
-    p = sub.add_parser("normals", help="normals at the most planar scale, with roughness (section 6.3)")
+    p = sub.add_parser("normals", help=summary("normals"))
     p.add_argument("input", type=Path, help="the point cloud")
     p.add_argument("-o", "--output", type=Path, required=True,
                    help="output: .csv .txt .ply .las .laz (nx, ny, nz, normal_scale, roughness, count, status)")
@@ -34,7 +35,7 @@ def normals_parser(sub) -> None:
 
 
 def subsample_parser(sub) -> None:
-    p = sub.add_parser("subsample", help="subsample to a minimum spacing (core points)")
+    p = sub.add_parser("subsample", help=summary("subsample"))
     p.add_argument("input", type=Path, help="the point cloud")
     p.add_argument("-o", "--output", type=Path, required=True,
                    help="the kept points with their attributes: .csv .txt .ply .las .laz")
@@ -45,7 +46,7 @@ def subsample_parser(sub) -> None:
 
 
 def info_parser(sub) -> None:
-    p = sub.add_parser("info", help="point count, bounds, CRS and fields of a file")
+    p = sub.add_parser("info", help=summary("info"))
     p.add_argument("file", type=Path, help="a point-cloud file")
     p.add_argument("--json", action="store_true",
                    help="machine-readable output: one JSON object, the CRS as name, EPSG code and WKT (default: text)")
@@ -54,7 +55,7 @@ def info_parser(sub) -> None:
 
 def convert_parser(sub) -> None:
     # The QGIS provider's route from any output to a table QGIS reads (its Python has no m3c2kit).
-    p = sub.add_parser("convert", help="copy a point-cloud file into another format, every field kept")
+    p = sub.add_parser("convert", help=summary("convert"))
     p.add_argument("input", type=Path, help="a point-cloud file")
     p.add_argument("-o", "--output", type=Path, required=True,
                    help="the copy, format by extension: .csv .txt .ply .las .laz (the CRS kept where the format holds one)")

@@ -5,6 +5,7 @@ from pathlib import Path
 
 import numpy as np
 
+from .command_index import summary
 from .. import api
 from ..base.errors import UsageError
 from ..classify.vegetation import vegetation_filter
@@ -26,7 +27,7 @@ from .inputs import input_files, orient_spec, print_notes, read_input
 from .options import add, add_progress_option, add_table_options, add_verbosity_options
 from .parser import phases_for
 def compare_parser(sub) -> None:
-    p = sub.add_parser("compare", help="M3C2 distances between two clouds",
+    p = sub.add_parser("compare", help=summary("compare"),
                        description="M3C2 change between REFERENCE and COMPARED at core points. "
                                    "D and d are diameters; --max-depth is the half-length of the cylinder.")
     p.add_argument("reference", type=Path, help="reference cloud (first epoch)")

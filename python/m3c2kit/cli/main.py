@@ -13,22 +13,28 @@ from ..base.errors import M3C2Error, M3C2Warning, UsageError, printable
 from ..base.interrupt import Interrupted  # noqa: F401 - the stop of a run, for callers of main()
 
 
-def make_parser() -> argparse.ArgumentParser:
-    # The subcommands' modules are imported here, not at the top: `m3c2 --version` needs none.
-    from .analysis import analysis_parsers
-    from .classify import classify_parsers
-    from .commands import convert_parser, info_parser, normals_parser, subsample_parser
-    from .compare import compare_parser
+#: make_parser's default: every subcommand's parser built (the docs, the tests, the fuzzer).
+EVERY_COMMAND = "*"
+
+
+def make_parser(command: str | None = EVERY_COMMAND) -> argparse.ArgumentParser:
+    """The `m3c2` parser. `command`: build that subcommand's parser only, the others listed by
+    name and help (cli/command_index.py) without importing their modules; None: list them all,
+    which is all `m3c2 --help` or an unknown command needs (issue 45: `--help` took 0.8 s)."""
+    from importlib import import_module
+    from .command_index import COMMANDS
     from .parser import ArgumentParser
     parser = ArgumentParser(prog="m3c2", description="M3C2 point-cloud change detection (Lague et al. 2013)")
     parser.add_argument("--version", action="version", version=_version_text())
     sub = parser.add_subparsers(dest="command", required=True, parser_class=ArgumentParser)
-    from .series import series_parsers  # noqa: PLC0415 - m3c2 series (docs/series.md)
-    from .variogram import variogram_parser  # noqa: PLC0415 - m3c2 variogram (docs/analysis.md)
-    from .aggregate import aggregate_parser  # noqa: PLC0415 - m3c2 aggregate (docs/analysis.md)
-    for build in (compare_parser, normals_parser, subsample_parser, info_parser, convert_parser, analysis_parsers, classify_parsers,
-                  series_parsers, variogram_parser, aggregate_parser):
-        build(sub)
+    built = list(COMMANDS) if command == EVERY_COMMAND else [command] if command in COMMANDS else []
+    for name in built:
+        module, builder, _ = COMMANDS[name]
+        if name not in sub._name_parser_map:  # else added with another (analysis_parsers adds five)
+            getattr(import_module(f".{module}", __package__), builder)(sub)
+    for name, (_, _, text) in COMMANDS.items():
+        if name not in sub._name_parser_map:
+            sub.add_parser(name, help=text, add_help=False)  # listed only: never parsed (not the command)
     return parser
 
 
@@ -74,11 +80,15 @@ def _main(argv) -> int:
             warnings.showwarning = _show_warning
             # The imports a run starts with, inside the handlers: a SIGINT while laspy loads is the
             # clean "interrupted" of any other moment, not a traceback (issue 42).
-            from ..io import laspy_local
-            if argv is None and laspy_local.names_las_file(sys.argv[1:]):
-                laspy_local.import_laspy_for_local_files()
+            words = [str(a) for a in (sys.argv[1:] if argv is None else argv)]
+            from .command_index import COMMANDS
+            command = words[0] if words and words[0] in COMMANDS else None
+            if command is not None:  # the top-level help and an unknown command read no file
+                from ..io import laspy_local
+                if argv is None and laspy_local.names_las_file(sys.argv[1:]):
+                    laspy_local.import_laspy_for_local_files()
             # A value starting with "-" (`--orient -z`) is its option's: m3c2kit.cli.parser.ArgumentParser.
-            args = make_parser().parse_args([str(a) for a in (sys.argv[1:] if argv is None else argv)])
+            args = make_parser(command).parse_args(words)
             # --threads bounds LAZ coding too, as its help says (compare adds its --params file's).
             from ..io import laz_threads
             laz_threads.set_threads(getattr(args, "threads", None) or 0)

@@ -22,7 +22,7 @@ from pathlib import Path
 from typing import Callable
 
 from ..settings import by_name, parameters_of
-from ..settings.table import Parameter, _shown
+from ..settings.table import Parameter
 from .integers import SEED_MAX, integer
 
 __all__ = ["Option", "OPTIONS", "add", "add_table_option", "add_table_options", "add_verbosity_options",
@@ -91,7 +91,8 @@ def add(parser, name: str, *, default=None, default_text: str | None = None,
 def table_type(param: Parameter) -> Callable[[str], object]:
     """argparse's type for a table row: its `cli_type` (argparse names it in "invalid int value"),
     then the row's range (`kind`), whose UsageError is the one resolve() gives a --params file's
-    value. The value is returned as read: resolve() converts it with the others. One per row."""
+    value. The value is returned as read: resolve() converts it with the others (a series step's,
+    which has no resolve step, as its row converted it). One per row."""
     return _row_type(param.name)
 
 
@@ -101,8 +102,8 @@ def _row_type(name: str) -> Callable[[str], object]:
 
     def parse(text: str):
         value = param.cli_type(text)
-        param.kind(param.flag, value)
-        return value
+        checked = param.kind(param.flag, value)
+        return checked if param.scope == "series" else value  # a series step has no resolve() to convert it
 
     parse.__name__ = param.cli_type.__name__
     return parse
@@ -111,7 +112,7 @@ def _row_type(name: str) -> Callable[[str], object]:
 def table_help(param: Parameter, compat: bool) -> str:
     """The row's help and default; with the --compat cloudcompare default only where the command
     takes --compat."""
-    return param.help_text() if compat else f"{param.help} (default {_shown(param.default_for())})"
+    return param.help_text() if compat else f"{param.help} ({param.default_clause()})"
 
 
 def add_table_option(parser, name: str | Parameter, *, filled: bool = False, compat: bool = False,

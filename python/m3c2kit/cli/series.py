@@ -19,9 +19,10 @@ import argparse
 from contextlib import contextmanager
 from pathlib import Path
 
+from .command_index import summary
 from ..base.errors import UsageError
 from ..io.collisions import require_suffix
-from .integers import COUNT_MAX, fraction_list, integer, non_negative_real, positive_real
+from .integers import integer
 from .options import add, add_table_option
 from ..io.files import add_drop_nonfinite_option
 
@@ -64,6 +65,19 @@ def _run_options(p) -> None:
     add(p, "quiet")
 
 
+def step_options(p, command: str, groups: dict | None = None) -> None:
+    """The parameter table's rows of the series step `command` (settings/series_rows.py) as
+    options of `p`, in argument groups by section (`groups`). A row that acts only with another
+    option (its `needs`) is None when not given, so that the step can refuse it where it would
+    change nothing; the others carry their default."""
+    from ..settings.table import parameters_of
+    titles = {}
+    for row in parameters_of(command):
+        title = (groups or {}).get(row.section)
+        target = p if title is None else titles.setdefault(title, p.add_argument_group(title))
+        add_table_option(target, row, filled=not row.needs)
+
+
 def create_parser():
     p = _parser("m3c2 series", "Create a time-series store: core points and normals from REFERENCE once, then every "
                                "EPOCH compared with it (each equal to m3c2 compare REFERENCE EPOCH) and committed. "
@@ -75,9 +89,7 @@ def create_parser():
     add(core, "core", default_text="every reference point")
     add(p, "core_normals")
     _compare_options(p, required=True, core_group=core)
-    p.add_argument("--core-chunk", type=integer(1, COUNT_MAX), default=16384,
-                   help="core points per chunk (default 16384)")
-    p.add_argument("--epoch-chunk", type=integer(1, COUNT_MAX), default=8, help="epochs per chunk (default 8)")
+    step_options(p, "series")  # the store's layout
     _run_options(p)
     return p
 
@@ -96,41 +108,13 @@ def smooth_parser():
     p = _parser("m3c2 series smooth", "Temporal median of distance over WINDOW epochs, written to the store as "
                                       "smoothed_distance (Anders et al. 2021, 2.2), chunk by chunk.")
     p.add_argument("store", type=Path, help=STORE_HELP)
-    p.add_argument("--window", type=integer(1, COUNT_MAX), default=24,
-                   help="epochs in the median window, centred (default 24)")
+    step_options(p, "series smooth")
     add_table_option(p, "threads", filled=True)
     add(p, "quiet")
     return p
 
 
-def _process_noise(text: str):
-    """--process-noise: 'auto' or q >= 0."""
-    if text == "auto":
-        return text
-    try:
-        value = float(text)
-    except ValueError:
-        value = float("nan")
-    if not (value >= 0.0 and value != float("inf")):
-        raise argparse.ArgumentTypeError(f"--process-noise must be 'auto' or a finite number >= 0, got {text!r}")
-    return value
-
-
-
-def _positive_list(text: str) -> list[float]:
-    """Comma-separated finite numbers > 0, at least one."""
-    try:
-        values = [float(t) for t in text.split(",") if t.strip()]
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"must be a list of numbers like 0.5,1, got {text!r}") from None
-    if not values or not all(0 < v < float("inf") for v in values):
-        raise argparse.ArgumentTypeError(f"must be finite numbers > 0, at least one, got {text!r}")
-    return values
-
-
 def tam3c2_parser():
-    from .. import engine  # the engine's option names and defaults (include/m3c2/tam3c2.hpp)
-    defaults = engine.tam3c2_params()
     p = _parser("m3c2 series tam3c2", "Time-adaptive M3C2 (Huang et al., ISPRS Annals 2026): for each core point "
                                       "and epoch, the reference's and the epoch's cylinders each aggregate the "
                                       "epochs nearest in time until --required-points points, within a window of "
@@ -139,43 +123,8 @@ def tam3c2_parser():
                                       "tam3c2_lod, tam3c2_significant, tam3c2_window, tam3c2_n1, tam3c2_n2 "
                                       "(docs/series.md, \"TAM3C2\").")
     p.add_argument("store", type=Path, help=STORE_HELP)
-    p.add_argument("--required-points", type=integer(1, COUNT_MAX), default=10,
-                   help="aggregation stops when a side holds this many points (the reference's "
-                        "required_points; default 10)")
-    p.add_argument("--window-ratio", type=fraction_list, default=[0.2], metavar="R[,R...]",
-                   help="the window's half-width over |t_epoch - t_reference|, in (0, 1]; several: chosen per "
-                        "core point with the normal radius (the reference's max_window_ratio; default 0.2)")
-    p.add_argument("--normal-radius", type=_positive_list, default=None, metavar="R[,R...]",
-                   help="radii of the normal's sphere; several: chosen per core point (default: the store's "
-                        "normal scales / 2)")
-    p.add_argument("--weights", choices=engine.TAM3C2_CHOICES["weights"], default="none",
-                   help="space-time weights of the points, with Kish's effective n in the LOD (default none)")
-    p.add_argument("--sigma-ratio", type=positive_real("--sigma-ratio"), default=None,
-                   help="with --weights gaussian: their width in units of the radius and window (default 1)")
-    p.add_argument("--space-time-ratio", type=positive_real("--space-time-ratio"), default=None,
-                   help="with --weights linear or gaussian: the temporal kernel's window is the window times this "
-                        "(default 1)")
-    p.add_argument("--reference-time", default=None, metavar="TIME",
-                   help="the reference's time (ISO 8601) when the store has none recorded")
-    p.add_argument("--fallback", choices=engine.TAM3C2_CHOICES["fallback"], default="m3c2",
-                   help="a cell whose windows leave a side short of --required-points: the epoch's own M3C2 "
-                        "from the store where it has a distance (m3c2, the default; tam3c2_window 0) or the "
-                        "authors' rule (none)")
-    p.add_argument("--window-breaks", choices=engine.TAM3C2_CHOICES["breaks"], default="none",
-                   help="changepoints: the windows stop at the change points of the core point's per-epoch "
-                        "M3C2 distances, so that none borrows across a step (default none: the authors' rule)")
-    p.add_argument("--break-width", type=integer(2, COUNT_MAX), default=None, metavar="N",
-                   help=f"epochs in the breaks' change-point window (default {defaults.break_width})")
-    p.add_argument("--break-min-size", type=integer(1, COUNT_MAX), default=None, metavar="N",
-                   help=f"fewest epochs of a segment between breaks (default {defaults.break_min_size})")
-    p.add_argument("--break-penalty", type=positive_real("--break-penalty"), default=None, metavar="P",
-                   help=f"a break is kept when it lowers the series' L1 cost by more than this, in the "
-                        f"distance's unit (default {defaults.break_penalty:g})")
+    step_options(p, "series tam3c2")
     add_table_option(p, "confidence")  # of tam3c2_lod; default: the store's
-    # The table's --lod offers the bootstrap, which TAM3C2 cannot resample (issue 42): its own choices.
-    p.add_argument("--lod", choices=engine.TAM3C2_CHOICES["lod"], default=None,
-                   help="the LOD's statistic: z, Welch's t, or auto (t when a side has under 30 points); TAM3C2 "
-                        "has no bootstrap (default: the store's; docs/series.md, \"TAM3C2\")")
     add_table_option(p, "threads", filled=True)
     add(p, "quiet")
     return p
@@ -188,55 +137,17 @@ def kalman_parser():
                                       "kalman_significant to the store. After m3c2 series add, a rerun filters only the "
                                       "new epochs and smooths again over all (docs/series.md).")
     p.add_argument("store", type=Path, help=STORE_HELP)
-    p.add_argument("--model", choices=("velocity", "acceleration"), default="velocity",
-                   help="the state: distance and rate (velocity), or also the acceleration (default velocity)")
-    p.add_argument("--process-noise", type=_process_noise, default="auto", metavar="Q|auto",
-                   help="q of the process noise Q = q M(dt), in the distances' unit and days; auto: the q of "
-                        "maximum likelihood (default auto)")
-    p.add_argument("--noise", choices=("continuous", "discrete"), default="continuous",
-                   help="continuous white noise on the highest derivative, or the piecewise-constant (discrete) "
-                        "noise of kalman4d and filterpy (default continuous)")
-    p.add_argument("--observation", choices=("shared", "independent"), default="shared",
-                   help="shared: the state holds the reference cylinder's error, which every epoch's distance "
-                        "shares, and each core point's scatter pooled over its epochs weighs every epoch with a "
-                        "distance (calibrated bands); independent: each epoch's LOD as independent noise, the model "
-                        "of kalman4d and the tum-rsa fork, over-confident where the reference is no denser than the "
-                        "epochs (default shared)")
+    step_options(p, "series kalman")
     add_table_option(p, "confidence")  # of kalman_significant; default: the store's
-    p.add_argument("--from-scratch", action="store_true",
-                   help="filter every epoch again (and estimate q again with auto) instead of resuming")
     add_table_option(p, "threads", filled=True)
     add(p, "quiet")
     return p
 
 
-#: `series objects --dtw`: the engine's ObjectsDtw (include/m3c2/objects_by_change.hpp).
-OBJECTS_DTW = ("baseline", "seed-start", "py4dgeo")
-
-
-def _objects_options(p) -> None:
-    g = p.add_argument_group("seeds: change points (Anders et al. 2021, 2.3.1; py4dgeo's defaults)")
-    g.add_argument("--window-width", type=integer(2, COUNT_MAX), default=24,
-                   help="sliding window of the change-point detection")
-    g.add_argument("--window-min-size", type=integer(0, COUNT_MAX), default=12,
-                   help="fewest epochs between two change points")
-    g.add_argument("--window-jump", type=integer(1, COUNT_MAX), default=1,
-                   help="epochs between the change-point candidates")
-    g.add_argument("--window-penalty", type=positive_real("--window-penalty"), default=1.0,
-                   help="least cost decrease of a change point")
-    g.add_argument("--min-period", type=integer(1, COUNT_MAX), default=24, help="fewest epochs of a seed's change")
-    g.add_argument("--height-threshold", type=non_negative_real("--height-threshold"), default=0.0,
-                   help="least magnitude of a seed's change, a change still going on at the last epoch's too "
-                        "(--dtw py4dgeo: not that one's, as py4dgeo)")
-    g.add_argument("--finished-only", action="store_true", help="drop seeds still growing at the last epoch")
-    g.add_argument("--seed-subsampling", type=integer(1, COUNT_MAX), default=1,
-                   help="search every k-th core point for seeds")
-
-
-def _use_option(p) -> None:
-    p.add_argument("--use", choices=("auto", "smoothed", "raw", "kalman"), default="auto",
-                   help="the series: smoothed_distance when present (auto), distance (raw), or kalman_distance "
-                        "(after m3c2 series kalman)")
+#: The argument groups of the objects and changepoints forms, by the rows' section.
+OBJECTS_GROUPS = {"Anders et al. 2021, 2.3.1": "seeds: change points (Anders et al. 2021, 2.3.1; py4dgeo's defaults)",
+                  "Anders et al. 2021, 2.3.2": "region growing (2.3.2) and filters (2.3.3)",
+                  "Anders et al. 2021, 2.3.3": "region growing (2.3.2) and filters (2.3.3)"}
 
 
 def _core_index_option(p, *, required: bool = False, default_text: str | None = None) -> None:
@@ -251,23 +162,7 @@ def objects_parser():
                                        "OBJECTS_members.csv and the store's `object` label per core point and epoch.")
     p.add_argument("store", type=Path, help=STORE_HELP)
     p.add_argument("-o", "--output", type=Path, required=True, help="objects table (CSV)")
-    _objects_options(p)
-    g = p.add_argument_group("region growing (2.3.2) and filters (2.3.3)")
-    g.add_argument("--neighbourhood-radius", type=positive_real("--neighbourhood-radius"), default=1.0,
-                   help="core points this close are adjacent")
-    g.add_argument("--thresholds", type=fraction_list, default="0.1,0.2,0.3,0.4,0.5,0.6,0.7,0.8,0.9",
-                   help="DTW thresholds to choose from, in (0, 1]")
-    g.add_argument("--min-segments", type=integer(0, COUNT_MAX), default=20, help="fewest core points of an object")
-    g.add_argument("--max-segments", type=integer(0, COUNT_MAX), default=0,
-                   help="the choice of the DTW threshold stops at the first whose object reaches this many core "
-                        "points (0: no limit; at least --min-segments)")
-    g.add_argument("--max-cv", type=positive_real("--max-cv"), default=0.8,
-                   help="largest coefficient of variation of an object's DTW")
-    g.add_argument("--dtw", choices=OBJECTS_DTW, default="baseline",
-                   help="seeds and DTW alignment: baseline (each series from its median before the change), "
-                        "seed-start (from its value at the seed's first epoch), py4dgeo (py4dgeo 1.2.0's rule: from "
-                        "the series' first epoch, D_max of the raw seed slice); docs/series.md, Analysis")
-    _use_option(p)  # the series segmented
+    step_options(p, "series objects", OBJECTS_GROUPS)
     add_table_option(p, "threads", filled=True)
     add(p, "quiet")
     return p
@@ -277,8 +172,7 @@ def changepoints_parser():
     p = _parser("m3c2 series changepoints", "Change points of core points' series (the detection 4D-OBC's seeds use).")
     p.add_argument("store", type=Path, help=STORE_HELP)
     _core_index_option(p, required=True)
-    _objects_options(p)
-    _use_option(p)
+    step_options(p, "series changepoints", OBJECTS_GROUPS)
     add(p, "quiet")  # accepted as by every form; the change points are the output and still printed
     return p
 
@@ -319,7 +213,7 @@ PARSERS = {"add": add_parser, "smooth": smooth_parser, "kalman": kalman_parser, 
 
 def series_parsers(sub) -> None:
     """Adds `series`: its words are parsed by the form's own parser (see the module docstring)."""
-    p = sub.add_parser("series", help="M3C2 time series: a store of many epochs, 4D objects-by-change",
+    p = sub.add_parser("series", help=summary("series"),
                        add_help=False, prefix_chars="\0",
                        usage=f"m3c2 series REFERENCE EPOCH... -o STORE | m3c2 series {{{','.join(ACTIONS)}}} ...")
     p.add_argument("words", nargs=argparse.REMAINDER, help="REFERENCE EPOCH... -o STORE, or an action and its "
@@ -445,7 +339,7 @@ def _run_tam3c2(args) -> int:
     options = Tam3c2Options(normal_radii=None if args.normal_radius is None else tuple(args.normal_radius),
                             window_ratios=tuple(args.window_ratio), min_points=args.required_points, weights=args.weights,
                             sigma_ratio=args.sigma_ratio, space_time_ratio=args.space_time_ratio,
-                            reference_time=args.reference_time, confidence=args.confidence, lod=args.lod,
+                            reference_time=args.reference_time, confidence=args.confidence, lod=args.tam3c2_lod,
                             fallback=args.fallback, breaks=args.window_breaks, break_width=args.break_width,
                             break_min_size=args.break_min_size, break_penalty=args.break_penalty,
                             threads=args.threads or 0)
@@ -466,17 +360,11 @@ def check_objects_options(args) -> None:
 
 
 def objects_params(args):
+    """The engine's ObjectsParams from the objects form's rows (settings/series_rows.py)."""
     from ..series import engine
+    from ..settings.series_rows import engine_fields
     check_objects_options(args)
-    kw = dict(window_width=args.window_width, window_min_size=args.window_min_size, window_jump=args.window_jump,
-              window_penalty=args.window_penalty, min_period=args.min_period, height_threshold=args.height_threshold,
-              use_unfinished=not args.finished_only, seed_subsampling=args.seed_subsampling)
-    for name in ("neighbourhood_radius", "min_segments", "max_segments", "max_cv", "dtw"):
-        if hasattr(args, name):
-            kw[name] = getattr(args, name)
-    if hasattr(args, "thresholds"):
-        kw["thresholds"] = args.thresholds  # checked by the parser (fraction_list)
-    return engine.objects_params(**kw)
+    return engine.objects_params(**engine_fields("series objects", "ObjectsParams", vars(args)))
 
 
 def _run_objects(args) -> int:

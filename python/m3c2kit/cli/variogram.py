@@ -9,6 +9,7 @@ from pathlib import Path
 
 import numpy as np
 
+from .command_index import summary
 from ..analysis import variogram as vg
 from ..analysis.common import figure_format, repeated_positions
 from ..analysis.error_model import LAG_DISTANCES, model_bytes
@@ -22,8 +23,7 @@ from .options import add, add_table_option
 
 
 def variogram_parser(sub) -> None:
-    p = sub.add_parser("variogram", help="the variogram of the distance over stable core points: the error model "
-                                         "of --error-model",
+    p = sub.add_parser("variogram", help=summary("variogram"),
                        description="The empirical variogram of the M3C2 distance over the stable core points of a "
                                    "compare output (sampled pairs, seeded), fitted by nugget + spherical + exponential "
                                    "(Rolstad et al. 2009; Hugonnet et al. 2022). Writes MODEL.json for "

@@ -127,9 +127,15 @@ def params_fields(p: _core.Params) -> dict:
     return out
 
 
-def default_fields() -> dict:
-    """The engine's defaults (params.hpp), the one place every default of the front end comes from."""
-    return params_fields(_core.Params())
+def default_fields(struct: str = "Params") -> dict:
+    """The engine's defaults, the one place every default of the front end comes from: those of
+    Params (params.hpp) or of another bound parameter struct by name (ObjectsParams,
+    Tam3c2Params, KalmanParams: the series steps' options); enum fields by member name."""
+    if struct == "Params":
+        return params_fields(_core.Params())
+    defaults = getattr(_core, struct)()
+    values = {name: getattr(defaults, name) for name in dir(defaults) if not name.startswith("_")}
+    return {name: value.name if isinstance(value, enum.Enum) else value for name, value in values.items()}
 
 
 def compute(reference: np.ndarray, compared: np.ndarray, core: np.ndarray, params: _core.Params,

@@ -109,12 +109,13 @@ def read_cloud(path: str | os.PathLike, *, columns: tuple[int, int, int] | None 
         finite = np.isfinite(cloud.xyz).all(axis=1)
         bad = int(len(finite) - np.count_nonzero(finite))
     if bad:
-        if not drop_nonfinite:
-            raise CloudReadError(f"{path}: {bad} of {len(cloud)} points have non-finite (NaN or "
-                                 f"infinite) coordinates; use {DROP_NONFINITE_FLAG} to drop them")
+        # Every point non-finite: dropping them leaves nothing, so the advice would be no help.
         if bad == len(cloud):
             raise CloudReadError(f"{path}: contains no points with finite coordinates "
                                  f"({bad} non-finite)")
+        if not drop_nonfinite:
+            raise CloudReadError(f"{path}: {bad} of {len(cloud)} points have non-finite (NaN or "
+                                 f"infinite) coordinates; use {DROP_NONFINITE_FLAG} to drop them")
         cloud = cloud.select(finite)
         cloud.dropped_nonfinite = bad
     fault_checkpoint("reading")  # a testing aid (m3c2kit.base.fault_hook)

@@ -97,6 +97,22 @@ def check_input_file(path, *, label: str | None = None, error: Callable[[str], M
     os.close(_open_regular(path, str(path) if label is None else label, error, directory_note))
 
 
+def file_sha256(path, *, label: str | None = None, error: Callable[[str], M3C2Error] = UsageError) -> str:
+    """The SHA-256 (hex) of the input `path`, a regular file of any size, read safely: `error`
+    (``"{label}: {problem}"``) for a missing, special or unreadable file."""
+    import hashlib
+    label = str(path) if label is None else label
+    fd = _open_regular(path, label, error, "not a file")
+    digest = hashlib.sha256()
+    try:
+        with os.fdopen(fd, "rb") as f:
+            for block in iter(lambda: f.read(1 << 20), b""):
+                digest.update(block)
+    except OSError as e:
+        raise error(f"{label}: cannot read: {os_problem(e)}") from None
+    return digest.hexdigest()
+
+
 def read_small_bytes(path, kind: str, *, label: str | None = None,
                      error: Callable[[str], M3C2Error] = UsageError) -> bytes:
     """The bytes of the small input `path` of `kind` (a key of SMALL_FILE_LIMITS), read safely:

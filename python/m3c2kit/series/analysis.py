@@ -4,27 +4,28 @@ table and as a label per core point and epoch.
 
 A step that replaces a variable (smooth, objects' labels) holds the store's lock (series/step.py),
 writes the new variable whole in the store's staging folder, invisible to zarr and xarray, and
-then publishes it (:func:`publish`): a kill or a full disk while it computes or writes leaves the
-previous variable whole and in use; a kill inside the publication leaves the variable marked
-half-written (store.REWRITING), which every later step refuses, naming the step to rerun."""
+then publishes it (series/view.py, the store view every analysis step shares): a kill or a full
+disk while it computes or writes leaves the previous variable whole and in use; a kill inside the
+publication leaves the variable marked half-written (store.REWRITING), which every later step
+refuses, naming the step to rerun."""
 from __future__ import annotations
 
 import csv
-import os
-import shutil
 from pathlib import Path
 
 import numpy as np
 
 from ..base import fault_hook
-from ..base.errors import M3C2Error, UsageError
+from ..base.errors import UsageError
 from ..io.arrays import bounds
 from ..io.atomic import staged_outputs
 from . import engine
 from . import integrity
-from . import step
 from . import store as st
-from .outputs import members_path
+from .outputs import members_path, table_digests
+from .view import StoreView, writing
+# Moved to series/view.py with the store view (issue 41); importable from here as before.
+from .view import publish, publish_many, what_was_kept  # noqa: F401
 
 SMOOTHED = "smoothed_distance"
 KALMAN = st.KALMAN_VARIABLES[0]  # series/kalman.py's smoothed distance, which 4D-OBC can segment (--use kalman)
@@ -34,99 +35,23 @@ LABEL = "object"
 DERIVED = st.DERIVED_VARIABLES  # smooth's, objects' labels and the Kalman filter's, listed once (store.py)
 
 
-def _core_chunks(group, name="distance"):
-    n, chunk = group[name].shape[0], group[name].chunks[0]
-    return [(b, min(n, b + chunk)) for b in range(0, n, chunk)]
-
-
-def _variable_spec(group, dtype, fill, attrs: dict) -> dict:
-    """A (core, epoch) array's settings, shaped and chunked like `distance`."""
-    model = group["distance"]
-    return dict(shape=model.shape, chunks=model.chunks, dtype=dtype, fill_value=fill, compressors=st.codecs(),
-                dimension_names=("core", "epoch"), attributes=dict(attrs, coordinates="time"))
-
-
-def _new_variable(store: Path, name: str, dtype, fill, attrs: dict):
-    """A (core, epoch) array in the group itself (replacing any earlier one), for a store nobody
-    sees yet (an import's private folder); a published store gets _staged_variable and publish."""
-    xr, zarr = st.require_extra()
-    group = zarr.open_group(str(store), mode="r+", use_consolidated=False)
-    if name in group:
-        del group[name]
-    array = group.create_array(name, **_variable_spec(group, dtype, fill, attrs)).with_config(st.WRITE_CONFIG)
-    return group, array
-
-
-def _staged_variable(folder: Path, group, name: str, dtype, fill, attrs: dict):
-    """A new array for `name` in the store's staging folder (integrity.STAGING), not yet in the store."""
-    _, zarr = st.require_extra()
-    path = integrity.make_staging(folder) / name
-    return zarr.create_array(store=str(path), zarr_format=3, config=st.WRITE_CONFIG,
-                             **_variable_spec(group, dtype, fill, attrs))
-
-
-def publish(folder: Path, name: str) -> None:
-    """Replaces the store's `name` by its staged array: marked (store.REWRITING) in one commit,
-    the folders swapped, the metadata consolidated, the mark cleared in a last commit. A kill
-    between the first and last commit leaves `name` marked half-written, never silently mixed."""
-    publish_many(folder, [name])
-
-
-def publish_many(folder: Path, names, removed=()) -> None:
-    """publish() of several staged arrays as one (a step's variables that only make sense
-    together, such as the Kalman filter's): all marked in one commit, swapped, the `removed`
-    ones (a variable of the step's earlier run it no longer writes) deleted, consolidated, the
-    marks cleared in a last commit. A kill in between leaves every one of them marked."""
-    names, removed = list(names), [r for r in removed if (Path(folder) / r).exists()]
-    marked = st.rewriting(st.open_group(folder))
-    st.set_rewriting(folder, [*marked, *names, *removed])
-    for name in names:
-        target, staged = Path(folder) / name, integrity.staged_name(folder, name)  # pinned: never through a link
-        old = staged.with_name(name + ".old")
-        shutil.rmtree(old, ignore_errors=True)
-        if target.exists():
-            os.rename(target, old)
-        os.rename(staged, target)
-    for name in removed:
-        shutil.rmtree(Path(folder) / name)
-    st.commit(folder)
-    st.set_rewriting(folder, [m for m in marked if m not in names and m not in removed])
-    integrity.remove_staging(folder)  # the step's only: it holds the lock
-
-
-def what_was_kept(store: Path, folder: Path, names: tuple[str, ...], what: str) -> str:
-    """What an interrupted or failed step kept of its variables `names` (`what`, in words), from
-    the store as it is now: its last commit, the half-written ones and the command that rewrites
-    them, or the variables unchanged."""
-    try:
-        group = st.open_group(folder)
-    except M3C2Error:
-        return f"{store} is at its last commit"
-    marked = [n for n in st.rewriting(group) if n in names]
-    if marked:
-        return (f"{', '.join(marked)} {'is' if len(marked) == 1 else 'are'} marked half-written in {store}; "
-                f"rerun {integrity.rerun_command(group, marked[0], store)}")
-    return f"{what} unchanged in {store}" if any(n in group for n in names) else f"{store} unchanged (it has no {what})"
-
-
 def smooth(store: Path, window: int, threads: int = 0) -> int:
     """Writes `smoothed_distance`: the temporal median of `distance` over `window` epochs."""
     if window < 1:
         raise UsageError(f"--window must be >= 1 epoch, got {window}")
     store = Path(store)
-    with step.writing(store, "smooth", lambda folder: what_was_kept(store, folder, (SMOOTHED,), SMOOTHED)) as folder:
-        group = st.open_group(folder)
-        epochs = group["distance"].shape[1]
+    with writing(store, "smooth", (SMOOTHED,), SMOOTHED) as view:
+        epochs = view.n_epochs
         if epochs == 0:
             raise UsageError(f"{store} has no epoch to smooth")
-        out = _staged_variable(folder, group, SMOOTHED, np.float64, np.nan,
-                               {"long_name": f"temporal median of distance over {window} epochs",
-                                "window": int(window), "epochs": int(epochs)})
+        out = view.staged(SMOOTHED, np.float64, np.nan,
+                          {"long_name": f"temporal median of distance over {window} epochs",
+                           "window": int(window), "epochs": int(epochs)})
         fault_hook.checkpoint("store-write")
-        for begin, end in _core_chunks(group):
-            block = st.read(store, group, "distance", (slice(begin, end), slice(0, epochs)))
+        for begin, end in view.core_chunks():
+            block = view.read("distance", (slice(begin, end), slice(0, epochs)))
             out[begin:end, :epochs] = engine.temporal_median(block, window, threads)
-        publish(folder, SMOOTHED)
+        view.publish([SMOOTHED])
     return epochs
 
 
@@ -165,19 +90,19 @@ def distances_for_analysis(store: Path, use: str = "auto", epochs: slice | None 
     at a time; only that variable is read. Larger than `in_memory_limit` (IN_MEMORY_LIMIT) bytes,
     it is a numpy.memmap of an unlinked temporary file."""
     shown = store if shown is None else shown
-    group = st.open_group(store)
-    n = group["distance"].shape[1]
+    view = StoreView(shown, store)
+    n = view.n_epochs
     name = analysed_variable(store, use, shown)
     sl = epochs or slice(0, n)
-    shape = (group[name].shape[0], len(range(*sl.indices(n))))
+    shape = (view.group[name].shape[0], len(range(*sl.indices(n))))
     limit = IN_MEMORY_LIMIT if in_memory_limit is None else in_memory_limit
     if shape[0] * shape[1] * 8 > limit:
         import tempfile
         values = np.memmap(tempfile.TemporaryFile(prefix="m3c2-series-"), dtype=np.float64, mode="w+", shape=shape)
     else:
         values = np.empty(shape)
-    for begin, end in _core_chunks(group, name):
-        values[begin:end] = st.read(shown, group, name, (slice(begin, end), sl)).astype(np.float64)
+    for begin, end in view.core_chunks(name):
+        values[begin:end] = view.read(name, (slice(begin, end), sl)).astype(np.float64)
     return values, name
 
 
@@ -198,23 +123,22 @@ def objects(store: Path, output: Path, params, *, use="auto", threads=0, first_e
     store = Path(store)
     tables = []  # the tables once written, for the message of a later failure
 
-    def kept(folder):
-        written = f"{output} and its members table written; " if tables else f"no objects table written; "
-        return written + what_was_kept(store, folder, (LABEL,), LABEL)
+    def tables_kept() -> str:
+        return f"{output} and its members table written; " if tables else "no objects table written; "
 
-    with step.writing(store, "objects", kept) as folder:
-        group = st.open_group(folder)
-        n_epochs = group["distance"].shape[1]
-        values, name = distances_for_analysis(folder, use, slice(first_epoch, n_epochs), shown=store)
-        core = np.column_stack([st.read(store, group, a) for a in "xyz"])
+    with writing(store, "objects", (LABEL,), LABEL, other_outputs=tables_kept) as view:
+        n_epochs = view.n_epochs
+        values, name = distances_for_analysis(view.folder, use, slice(first_epoch, n_epochs), shown=store)
+        core = view.core()
         out = engine.objects_by_change(values, core, params, threads, progress)
         out["first_epoch"] = first_epoch
         out["variable"] = name
-        times = st.read(store, group, "time", slice(0, n_epochs))
-        write_labels(folder, out, first_epoch, n_epochs, staged=True)  # published after the tables
+        times = view.read("time", slice(0, n_epochs))
+        labels_array = write_labels(view, out, first_epoch, n_epochs)  # published after the tables
         write_tables(output, out, core, times, first_epoch)
         tables.append(output)
-        publish(folder, LABEL)
+        labels_array.attrs.update(table_digests(output))  # a report takes these tables only (outputs.py)
+        view.publish([LABEL])
     return out
 
 
@@ -265,18 +189,13 @@ def labels(out: dict, n_core: int, n_epochs: int, first_epoch: int, rows=None) -
     return lab
 
 
-def write_labels(store: Path, out: dict, first_epoch: int, n_epochs: int, staged: bool = False) -> None:
-    """The `object` variable. `staged`: written to the staging folder of a store whose writing
-    step publishes it (publish); else into the group and committed (a store nobody sees yet)."""
+def write_labels(view: StoreView, out: dict, first_epoch: int, n_epochs: int):
+    """The `object` variable, staged in the store's staging folder (its writing step publishes
+    it: StoreView.publish) and returned."""
     attrs = {"long_name": "4D object-by-change holding the core point at the epoch (-1: none)",
              "epochs": int(n_epochs), "_FillValue": -1, "source_variable": out["variable"]}
-    if staged:
-        group = st.open_group(store)
-        array = _staged_variable(store, group, LABEL, np.int32, -1, attrs)
-    else:
-        group, array = _new_variable(store, LABEL, np.int32, -1, attrs)
+    array = view.staged(LABEL, np.int32, -1, attrs)
     fault_hook.checkpoint("store-write")
-    for begin, end in _core_chunks(group):
+    for begin, end in view.core_chunks():
         array[begin:end, :n_epochs] = labels(out, array.shape[0], n_epochs, first_epoch, (begin, end))
-    if not staged:
-        st.commit(store)
+    return array

@@ -37,7 +37,7 @@ def rerun_command(group, name: str, store: Path) -> str:
     except (KeyError, TypeError, ValueError):
         pass
     return REWRITTEN_BY.get(name, "the step that writes it").format(store=store, window=window)
-#: A step's private folder inside the store for arrays being written (analysis.publish): no zarr.json, so
+#: A step's private folder inside the store for arrays being written (view.publish_many): no zarr.json, so
 #: neither zarr nor xarray sees it.
 STAGING = ".m3c2-staging"
 

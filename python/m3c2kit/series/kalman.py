@@ -9,7 +9,7 @@ model, observes each distance with the variance (LOD / c)^2, c the critical valu
 with (the engine's own rule, kalman.hpp: lod_observation_variance). Times are the epochs' (in days
 since the first epoch). The step writes the smoothed distance, rate (and acceleration) with their standard
 deviations, `kalman_significant` (|d| > z_C sigma) and `kalman_moments`, the filtered state at
-every epoch, in the staging folder and publishes them together (analysis.publish_many): a kill
+every epoch, in the staging folder and publishes them together (view.publish_many): a kill
 leaves the previous variables, or all of them marked half-written, never a mix.
 
 Incremental (independent only): after `add`, a rerun with the same model, noise, process noise
@@ -20,7 +20,6 @@ pooled scatter changes with each epoch added, so every shared run filters from s
 moments are kept for inspection, never resumed from)."""
 from __future__ import annotations
 
-import json
 import math
 from dataclasses import dataclass
 from pathlib import Path
@@ -32,21 +31,19 @@ from ..base.errors import UsageError
 from .. import engine as facade
 from ..run.checks import threads_count
 from ..base.quantiles import z_critical
+from ..settings.series_rows import KALMAN_ORDERS, row
 from .epochs import microseconds
-from . import analysis
 from . import integrity
-from . import parameters
-from . import step
 from . import store as st
+from .view import MICROSECONDS_PER_DAY, StoreView, writing
 
-MODELS = {"velocity": 2, "acceleration": 3}
-NOISES = ("continuous", "discrete")
-OBSERVATIONS = ("shared", "independent")
+MODELS = KALMAN_ORDERS  # the state's name -> its size (the parameter table's --model)
+NOISES = row("noise").choices
+OBSERVATIONS = row("observation").choices
 #: The smoothed state's variables, (mean, standard deviation) per state component (d, d', d''),
 #: then the flag and the filtered moments: the store's names (store.KALMAN_VARIABLES, in that order).
 STATE_VARIABLES = tuple(zip(st.KALMAN_VARIABLES[0:6:2], st.KALMAN_VARIABLES[1:6:2]))
 SIGNIFICANT, MOMENTS = st.KALMAN_VARIABLES[6:8]
-MICROSECONDS_PER_DAY = 86_400_000_000
 #: Bytes of float64 per core point and epoch a block holds (inputs, moments, outputs), and the
 #: most a block may hold: memory is bounded by one block of core points.
 BLOCK_BYTES = 256 << 20
@@ -57,13 +54,14 @@ AUTO_SAMPLE = 2_000_000
 
 @dataclass(frozen=True)
 class KalmanOptions:
-    model: str = "velocity"
-    process_noise: float | str = "auto"  # q >= 0, or "auto"
-    noise: str = "continuous"
+    """`m3c2 series kalman`'s options; their defaults the parameter table's (settings/series_rows.py)."""
+    model: str = row("model").default_for()
+    process_noise: float | str = row("process_noise").default_for()  # q >= 0, or "auto"
+    noise: str = row("noise").default_for()
     confidence: float | None = None  # the store's when None
-    from_scratch: bool = False
+    from_scratch: bool = row("from_scratch").default_for()
     threads: int = 0
-    observation: str = "shared"  # or "independent" (kalman4d's and the tum-rsa fork's, over-confident)
+    observation: str = row("observation").default_for()  # or independent (kalman4d's, over-confident)
 
 
 def _check(options: KalmanOptions) -> None:
@@ -85,25 +83,6 @@ def variables(model: str) -> list[str]:
     """The variables a run of `model` writes."""
     names = [n for pair in STATE_VARIABLES[:MODELS[model]] for n in pair]
     return [*names, SIGNIFICANT, MOMENTS]
-
-
-def _days(store: Path, group, n: int) -> np.ndarray:
-    """The epochs' times in days since the first epoch; every epoch needs one."""
-    times = st.read(store, group, "time", slice(0, n)).astype(np.int64)
-    if (times == st.NAT).any():
-        first = int(np.flatnonzero(times == st.NAT)[0])
-        raise UsageError(f"{store}: epoch {first} has no time (NaT): the Kalman filter needs every epoch's time "
-                         f"(give it in the epoch list file, 'PATH, TIME')")
-    return (times - times[0]).astype(np.float64) / MICROSECONDS_PER_DAY
-
-
-def _engine_params(store: Path, group):
-    """The store's engine Params (its LOD's rule and confidence). An imported py4dgeo store keeps
-    no parameters: py4dgeo's LOD is 1.96 (...), z at 95 %."""
-    if "imported_from" in group.attrs:
-        return facade.make_params({"lod": "z", "confidence": 0.95})
-    core = np.column_stack([st.read(store, group, a) for a in "xyz"])
-    return parameters.engine_params(json.loads(group.attrs["parameters"]), core)
 
 
 def _counts(values: np.ndarray) -> np.ndarray:
@@ -136,10 +115,10 @@ class Inputs:
                       None if first.spread is None else tuple(cat([p.spread[i] for p in parts]) for i in range(4)))
 
 
-def _observations(store: Path, group, params, rows: slice, n: int, observation: str, threads: int) -> Inputs:
+def _observations(view: StoreView, params, rows: slice, n: int, observation: str, threads: int) -> Inputs:
     """The observations of core points `rows` over the first n epochs."""
     sel = (rows, slice(0, n))
-    read = lambda name: st.read(store, group, name, sel)  # noqa: E731
+    read = lambda name: view.read(name, sel)  # noqa: E731
     contiguous = lambda a: np.ascontiguousarray(a, dtype=np.float64)  # noqa: E731
     z = contiguous(read("distance"))
     spread = tuple(contiguous(a) for a in (read("sigma1"), _counts(read("n1")), read("sigma2"), _counts(read("n2"))))
@@ -150,20 +129,20 @@ def _observations(store: Path, group, params, rows: slice, n: int, observation: 
     return Inputs(z, variance=var)
 
 
-def _reference(store: Path, group, n: int) -> tuple[float | None, int | None]:
+def _reference(view: StoreView, n: int) -> tuple[float | None, int | None]:
     """(the reference's time in days since the first epoch, the epoch that is the reference file):
     each None when the store does not know it (docs/series.md, "Kalman filter", the anchor)."""
     epoch = None
-    sha = str(group.attrs.get("reference_sha256", "") or "")
-    if sha and "source_sha256" in group:
-        hashes = st.read(store, group, "source_sha256", slice(0, n))
+    sha = str(view.group.attrs.get("reference_sha256", "") or "")
+    if sha and "source_sha256" in view.group:
+        hashes = view.read("source_sha256", slice(0, n))
         same = [e for e in range(n) if str(hashes[e]) == sha]
         epoch = same[0] if same else None
-    text = str(group.attrs.get("reference_time", "") or "")
+    text = str(view.group.attrs.get("reference_time", "") or "")
     if not text:
         return None, epoch
-    first = st.read(store, group, "time", slice(0, 1)).astype(np.int64)[0]
-    ref = microseconds(text, f"{store}: reference_time")
+    first = view.read("time", slice(0, 1)).astype(np.int64)[0]
+    ref = microseconds(text, f"{view.shown}: reference_time")
     return (ref - int(first)) / MICROSECONDS_PER_DAY, epoch
 
 
@@ -181,14 +160,13 @@ def _kalman_params(model: str, noise: str, q: float, observation: str = "indepen
                                 population_spread=population)
 
 
-def _sample(store: Path, group, params, n: int, observation: str, threads: int) -> Inputs:
+def _sample(view: StoreView, params, n: int, observation: str, threads: int) -> Inputs:
     """Evenly spread core points (at most AUTO_SAMPLE observations) for `auto`, read block by block."""
-    n_core = group["distance"].shape[0]
-    stride = max(1, -(-n_core * n // AUTO_SAMPLE))
+    stride = max(1, -(-view.n_core * n // AUTO_SAMPLE))
     parts = []
-    for begin, end in _block_rows(group, n, 3):
+    for begin, end in _blocks(view, n, 3):
         first = -begin % stride  # rows begin + first, + stride, ... are the sample's
-        block = _observations(store, group, params, slice(begin, end), n, observation, threads)
+        block = _observations(view, params, slice(begin, end), n, observation, threads)
         parts.append(block.rows(slice(first, None, stride)))
     return Inputs.stacked(parts)
 
@@ -206,14 +184,10 @@ def fit_process_noise(inputs: Inputs, days: np.ndarray, kalman_params, threads: 
     return q, note
 
 
-def _block_rows(group, n: int, k: int) -> list[tuple[int, int]]:
-    """Core-point blocks: the store's core chunks, split so that one holds at most BLOCK_BYTES."""
+def _blocks(view: StoreView, n: int, k: int) -> list[tuple[int, int]]:
+    """Core-point blocks of at most BLOCK_BYTES (a state of k components over n epochs)."""
     per_row = max(1, n) * 8 * (10 + 3 * k + (k + 1) * (k + 2) // 2)  # the shared state's moments at most
-    most = max(1, BLOCK_BYTES // per_row)
-    out = []
-    for begin, end in analysis._core_chunks(group):
-        out.extend((b, min(end, b + most)) for b in range(begin, end, most))
-    return out
+    return view.blocks(per_row, BLOCK_BYTES)
 
 
 def _resumable(group, options: KalmanOptions, n: int) -> tuple[int, float | None]:
@@ -259,23 +233,21 @@ def kalman(store: Path, options: KalmanOptions = KalmanOptions()) -> dict:
     _check(options)
     store = Path(store)
     threads = threads_count(options.threads)
-    kept = lambda folder: analysis.what_was_kept(store, folder, st.KALMAN_VARIABLES, "Kalman variables")  # noqa: E731
-    with step.writing(store, "kalman", kept) as folder:
-        group = st.open_group(folder)
+    with writing(store, "kalman", st.KALMAN_VARIABLES, "Kalman variables") as view:
         if not options.from_scratch:  # a half-written run is resumed from nothing but replaced whole
-            integrity.require_whole(group, st.KALMAN_VARIABLES, store)
-        n = group["distance"].shape[1]
+            integrity.require_whole(view.group, st.KALMAN_VARIABLES, store)
+        n = view.n_epochs
         if n == 0:
             raise UsageError(f"{store} has no epoch to filter")
-        days = _days(store, group, n)
-        params = _engine_params(store, group)
+        days = view.days("the Kalman filter")
+        params = view.engine_params()
         confidence = params.confidence if options.confidence is None else options.confidence
-        reference = _reference(store, group, n)
-        resume, q = _resumable(group, options, n)
+        reference = _reference(view, n)
+        resume, q = _resumable(view.group, options, n)
         note = ""
         if q is None:
             if options.process_noise == "auto":
-                sample = _sample(store, group, params, n, options.observation, threads)
+                sample = _sample(view, params, n, options.observation, threads)
                 fit = _kalman_params(options.model, options.noise, 0.0, options.observation, reference=reference,
                                      params=params)
                 q, note = fit_process_noise(sample, days, fit, threads)
@@ -284,9 +256,9 @@ def kalman(store: Path, options: KalmanOptions = KalmanOptions()) -> dict:
         source = "auto" if options.process_noise == "auto" else "given"
         _require_representable(q, days, options.model)
         run = _Run(options, q, source, confidence, params, days, resume, threads, reference)
-        done = _write(store, folder, group, run)
-        removed = [name for name in st.KALMAN_VARIABLES if name in group and name not in done]
-        analysis.publish_many(folder, done, removed)
+        done = _write(view, run)
+        removed = [name for name in st.KALMAN_VARIABLES if name in view.group and name not in done]
+        view.publish(done, removed)
     return {"epochs": n, "resumed_from": resume, "process_noise": q, "source": source, "note": note,
             "confidence": confidence, "variables": done}
 
@@ -305,35 +277,39 @@ class _Run:
 
 
 
-def _write(store: Path, folder: Path, group, run: _Run) -> list[str]:
+def _write(view: StoreView, run: _Run) -> list[str]:
     """The run's variables in the staging folder, block by block of core points."""
     model, k, observation = run.options.model, MODELS[run.options.model], run.options.observation
     size = k + (observation == "shared")  # the state: d, d' (d'') and, shared, b
     n, m = len(run.days), size + size * (size + 1) // 2
     names = variables(model)
+    p = _kalman_params(model, run.options.noise, run.q, observation, reference=run.reference, params=run.params)
     common = {"model": model, "noise": run.options.noise, "observation": observation, "process_noise": run.q,
               "process_noise_source": run.source, "epochs": int(n), "time_unit": "days since the first epoch"}
-    integrity.make_staging(folder)  # once: every variable of the run is staged in it
+    if observation == "shared":  # the step test's false-alarm rate (kalman.hpp), which the estimates depend on
+        common["step_false_alarm"] = p.step_false_alarm
     out = {}
     for j, (mean, sd) in enumerate(STATE_VARIABLES[:k]):
         what = ("distance", "rate (per day)", "acceleration (per day^2)")[j]
-        out[mean] = _staged(folder, group, mean, np.float64, np.nan, dict(common, long_name=f"Kalman-smoothed {what}"))
-        out[sd] = _staged(folder, group, sd, np.float64, np.nan,
-                          dict(common, long_name=f"standard deviation of the smoothed {what}"))
-    out[SIGNIFICANT] = _staged(
-        folder, group, SIGNIFICANT, np.int8, -1,
+        out[mean] = view.staged(mean, np.float64, np.nan, dict(common, long_name=f"Kalman-smoothed {what}"))
+        out[sd] = view.staged(sd, np.float64, np.nan,
+                              dict(common, long_name=f"standard deviation of the smoothed {what}"))
+    out[SIGNIFICANT] = view.staged(
+        SIGNIFICANT, np.int8, -1,
         dict(common, confidence=run.confidence, _FillValue=-1,
              long_name="|kalman_distance| > z_C kalman_distance_sigma (1 yes, 0 no, -1 no estimate)"))
-    out[MOMENTS] = _staged_moments(folder, group, m, common)
+    # The filtered moments: (core, epoch, moment), whole along moment.
+    out[MOMENTS] = view.staged(MOMENTS, np.float64, np.nan,
+                               dict(common, long_name="filtered state at each epoch: mean, then the covariance's "
+                                                      "upper triangle row by row"), extra=("kalman_moment", m))
     z_c = z_critical(run.confidence)
-    p = _kalman_params(model, run.options.noise, run.q, observation, reference=run.reference, params=run.params)
-    kept = group[MOMENTS] if run.resume else None
+    kept = view.group[MOMENTS] if run.resume else None
     fault_hook.checkpoint("store-write")
-    for begin, end in _block_rows(group, n, k):
-        block = _observations(store, group, run.params, slice(begin, end), n, observation, run.threads)
+    for begin, end in _blocks(view, n, k):
+        block = _observations(view, run.params, slice(begin, end), n, observation, run.threads)
         moments = np.full((end - begin, n, m), np.nan)
         if kept is not None:
-            moments[:, :run.resume] = st.read(store, group, MOMENTS, (slice(begin, end), slice(0, run.resume)))
+            moments[:, :run.resume] = view.read(MOMENTS, (slice(begin, end), slice(0, run.resume)))
         r = facade.kalman_smooth(block.values, block.variance, run.days, moments, p, resume_from=run.resume,
                                  spread=block.spread, threads=run.threads)
         for j, (mean, sd) in enumerate(STATE_VARIABLES[:k]):
@@ -344,22 +320,3 @@ def _write(store: Path, folder: Path, group, run: _Run) -> list[str]:
             out[SIGNIFICANT][begin:end, :n] = np.where(np.isnan(d), -1, np.abs(d) > z_c * s).astype(np.int8)
         out[MOMENTS][begin:end, :n] = moments
     return names
-
-
-def _staged(folder: Path, group, name: str, dtype, fill, attrs: dict):
-    """A (core, epoch) array `name` in the step's staging folder, shaped and chunked like distance."""
-    _, zarr = st.require_extra()
-    return zarr.create_array(store=str(integrity.staged_name(folder, name)), zarr_format=3, config=st.WRITE_CONFIG,
-                             **analysis._variable_spec(group, dtype, fill, attrs))
-
-
-def _staged_moments(folder: Path, group, m: int, attrs: dict):
-    """The (core, epoch, moment) array of the filtered moments, chunked as distance and whole along moment."""
-    _, zarr = st.require_extra()
-    model = group["distance"]
-    return zarr.create_array(store=str(integrity.staged_name(folder, MOMENTS)), zarr_format=3, config=st.WRITE_CONFIG,
-                             shape=(*model.shape, m), chunks=(*model.chunks, m), dtype=np.float64,
-                             fill_value=np.nan, compressors=st.codecs(),
-                             dimension_names=("core", "epoch", "kalman_moment"),
-                             attributes=dict(attrs, long_name="filtered state at each epoch: mean, then the "
-                                                              "covariance's upper triangle row by row"))

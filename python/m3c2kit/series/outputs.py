@@ -19,6 +19,33 @@ def members_path(table: Path) -> Path:
     return Path(table).with_name(Path(table).stem + "_members.csv")
 
 
+#: The `object` labels' attributes holding the SHA-256 of the objects and members tables written
+#: with them: a report reads a table with the store's objects only (hostile round 2: a table of
+#: another store was drawn over this one's core points).
+TABLE_DIGESTS = ("objects_table_sha256", "members_table_sha256")
+
+
+def table_digests(table: Path) -> dict:
+    """TABLE_DIGESTS of the objects table `table` and its members table (regular files only)."""
+    from ..io.input_file import file_sha256
+    return dict(zip(TABLE_DIGESTS, (file_sha256(Path(table)), file_sha256(members_path(table)))))
+
+
+def require_objects_of(store: Path, labels_attrs, table: Path) -> None:
+    """A UsageError unless `table` (and its members table) is the one `m3c2 series objects`
+    wrote with the store's `object` labels (`labels_attrs`: their attributes, None when the store
+    has none). Labels written before the digests were recorded are taken on trust."""
+    rerun = f"run m3c2 series objects {store} -o {table}"
+    if labels_attrs is None:
+        raise UsageError(f"--objects {table}: {store} has no object labels, so the table is not of its objects; {rerun}")
+    recorded = {k: labels_attrs.get(k) for k in TABLE_DIGESTS}
+    if None in recorded.values():
+        return
+    if table_digests(table) != recorded:
+        raise UsageError(f"--objects {table}: not the objects table written with {store}'s object labels (another "
+                         f"store's, another run's, or edited since); {rerun}")
+
+
 def store_inputs(store: Path) -> dict:
     """The files a store stands for, labelled: its reference and its epochs' sources, as recorded."""
     attrs = st.attributes(store)  # a clear StoreError for what is not a committed store

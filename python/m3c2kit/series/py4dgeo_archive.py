@@ -347,8 +347,9 @@ def _write_store(folder: Path, data: dict, archive: Path) -> None:
 
 
 def _import_smoothed(store: Path, smoothed: np.ndarray, n_epochs: int) -> None:
-    from .analysis import SMOOTHED, _new_variable
-    _, array = _new_variable(store, SMOOTHED, np.float64, np.nan,
-                             {"long_name": "py4dgeo's smoothed_distances", "epochs": int(n_epochs)})
+    from .analysis import SMOOTHED
+    from .view import new_variable
+    _, array = new_variable(store, SMOOTHED, np.float64, np.nan,
+                            {"long_name": "py4dgeo's smoothed_distances", "epochs": int(n_epochs)})
     array[:, :] = smoothed
     st.commit(store)

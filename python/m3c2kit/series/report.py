@@ -24,7 +24,8 @@ from ..output.report.figures import png
 from . import report_kalman as rk
 from . import report_tam3c2 as rt
 from . import store as st
-from .outputs import members_path
+from .analysis import LABEL
+from .outputs import members_path, require_objects_of
 
 MAX_OBJECT_PLOTS = 12
 
@@ -60,6 +61,8 @@ def write_report(store: Path, output: Path, cores=None, objects_table=None) -> N
     group = st.open_group(store)
     n_core, n = group["distance"].shape
     objects = read_objects(Path(objects_table), n_core, n) if objects_table is not None else None
+    if objects_table is not None:  # read (and checked as a table) first: then, is it this store's?
+        require_objects_of(store, group[LABEL].attrs if LABEL in group else None, Path(objects_table))
     x, xlabel = _x_axis(store, group, n)
     if cores is None:
         cores = sorted({0, n_core // 2, n_core - 1}) if n_core else []

@@ -66,7 +66,7 @@ def writing(store: Path, step: str, kept: Callable[[Path], str], *, held: "lock_
                     try:
                         yield folder
                     except BaseException:
-                        # The step's unpublished arrays: never part of the store (analysis.publish).
+                        # The step's unpublished arrays: never part of the store (view.publish_many).
                         integrity.remove_staging(folder)
                         raise
     finally:

@@ -40,7 +40,7 @@ CHECKSUMMED_FROM = 2
 EPOCH_COLUMNS = COMPARISON_COLUMNS
 EPOCH_INFO = ("time", "source", "source_size", "source_mtime_ns", "time_source", "points", "source_sha256")
 TEXT_INFO = ("source", "time_source", "source_sha256")
-#: Root attribute: the variables a step is replacing (analysis.publish); set in a commit before
+#: Root attribute: the variables a step is replacing (view.publish_many); set in a commit before
 #: the replacement and cleared in the commit after it, so a kill in between leaves them marked
 #: and every later step refuses them.
 REWRITING = "rewriting"

@@ -13,12 +13,12 @@ per-epoch M3C2 series.
 The step writes tam3c2_distance, tam3c2_lod, tam3c2_significant, tam3c2_window (epochs
 aggregated, both sides together; 0: the epoch's own M3C2; -1: no distance), tam3c2_n1, tam3c2_n2
 (counts, or Kish's effective n when weighted) in the staging folder, one block of core points at a time, and publishes them together
-(analysis.publish_many): a kill leaves the previous variables, or all of them marked
+(view.publish_many): a kill leaves the previous variables, or all of them marked
 half-written, never a mix."""
 from __future__ import annotations
 
-import json
 import math
+import warnings
 from contextlib import ExitStack
 from dataclasses import dataclass
 from pathlib import Path
@@ -26,25 +26,24 @@ from pathlib import Path
 import numpy as np
 
 from ..base import fault_hook
-from ..base.errors import M3C2Error, UsageError
+from ..base.errors import M3C2Error, M3C2Warning, UsageError
 from .. import engine as facade
 from ..io import read_cloud
 from ..io.private import private_folder
 from ..run.checks import threads_count
-from . import analysis
+from ..settings.needs import check_effective
+from ..settings.series_rows import row
+from ..settings.table import parameters_of
 from . import epoch_files
 from .epoch_crops import EpochCrops
 from .epochs import microseconds
-from . import integrity
-from . import parameters
-from . import step
 from . import store as st
+from .view import StoreView, writing
 
 DISTANCE, LOD, SIGNIFICANT, WINDOW, N1, N2 = st.TAM3C2_VARIABLES
 CHOICES = facade.TAM3C2_CHOICES  # weights, lod, fallback, breaks: the engine's names
 WEIGHTS, LODS = CHOICES["weights"], CHOICES["lod"]
 FROM_EPOCH = st.TAM3C2_FROM_EPOCH
-MICROSECONDS_PER_DAY = 86_400_000_000
 #: Bytes of a block's per-(core, epoch) results and epochs' own M3C2 (17 arrays of 8 bytes): memory
 #: is bounded by one block of core points: those and its pool (the epochs' points within its reach).
 BLOCK_BYTES = 256 << 20
@@ -52,17 +51,18 @@ BLOCK_BYTES = 256 << 20
 
 @dataclass(frozen=True)
 class Tam3c2Options:
+    """`m3c2 series tam3c2`'s options; their defaults the parameter table's (settings/series_rows.py)."""
     normal_radii: tuple | None = None  # the store's normal diameters / 2 when None
-    window_ratios: tuple = (0.2,)  # the reference's example; each in (0, 1]
-    min_points: int = 10  # the reference's required_points default
-    weights: str = "none"
-    sigma_ratio: float | None = None  # with gaussian weights; 1 when None
-    space_time_ratio: float | None = None  # with weights; 1 when None
+    window_ratios: tuple = tuple(row("window_ratio").default_for())  # the reference's example; each in (0, 1]
+    min_points: int = row("required_points").default_for()  # the reference's required_points default
+    weights: str = row("weights").default_for()
+    sigma_ratio: float | None = None  # with gaussian weights; the engine's default when None
+    space_time_ratio: float | None = None  # with weights; the engine's default when None
     reference_time: str | None = None  # the store's when None
     confidence: float | None = None  # the store's when None
     lod: str | None = None  # the LOD's statistic, z, t or auto (tam3c2.hpp, Tam3c2Lod); the store's when None
-    fallback: str = "m3c2"  # a short cell: the epoch's own M3C2 (m3c2) or the authors' rule (none)
-    breaks: str = "none"  # windows stop at change points (changepoints) or not (none, the authors')
+    fallback: str = row("fallback").default_for()  # a short cell: the epoch's own M3C2 (m3c2) or the authors' rule
+    breaks: str = row("window_breaks").default_for()  # windows stop at change points, or not (none, the authors')
     break_width: int | None = None  # the breaks' change-point detection; the engine's default when None
     break_min_size: int | None = None
     break_penalty: float | None = None
@@ -82,15 +82,12 @@ def _check(o: Tam3c2Options) -> None:
         raise UsageError(f"--space-time-ratio must be finite and > 0, got {o.space_time_ratio!r}")
     if o.sigma_ratio is not None and not (math.isfinite(o.sigma_ratio) and o.sigma_ratio > 0):
         raise UsageError(f"--sigma-ratio must be finite and > 0, got {o.sigma_ratio!r}")
-    # Nothing silently ignored (docs/errors.md): an option its mode never reads is refused.
-    moot = [("--sigma-ratio", o.sigma_ratio, o.weights != "gaussian", "--weights gaussian"),
-            ("--space-time-ratio", o.space_time_ratio, o.weights == "none", "--weights linear or gaussian"),
-            *((flag, value, o.breaks != "changepoints", "--window-breaks changepoints") for flag, value in (
-                ("--break-width", o.break_width), ("--break-min-size", o.break_min_size),
-                ("--break-penalty", o.break_penalty)))]
-    for flag, value, unused, needs in moot:
-        if value is not None and unused:
-            raise UsageError(f"{flag} would change nothing in this run: it is read only with {needs}")
+    # Nothing silently ignored (docs/errors.md): an option its mode never reads is refused, by
+    # the conditions its row names (settings/series_rows.py, `needs`).
+    values = {"weights": o.weights, "window_breaks": o.breaks}
+    given = {name: getattr(o, name) for name in ("sigma_ratio", "space_time_ratio", "break_width", "break_min_size",
+                                                 "break_penalty")}
+    check_effective(parameters_of("series tam3c2"), values, given)
     if o.confidence is not None and not 0.0 < o.confidence < 1.0:
         raise UsageError(f"--confidence must be in (0, 1), got {o.confidence!r}")
     for name in ("fallback", "breaks"):
@@ -107,18 +104,29 @@ def _check(o: Tam3c2Options) -> None:
         raise UsageError(f"--lod: TAM3C2's LOD is {', '.join(LODS)} (it cannot resample a bootstrap), got {o.lod!r}")
 
 
-def _days(store: Path, group, n: int, reference_time: str | None) -> np.ndarray:
-    """The epochs' times in days since the reference's; every one needed."""
-    given = reference_time if reference_time is not None else group.attrs.get("reference_time", "")
-    if not given:
-        raise UsageError(f"{store}: its reference has no recorded time: TAM3C2 needs it; give --reference-time TIME")
-    ref = microseconds(given, "--reference-time" if reference_time is not None else f"{store}: reference_time")
-    times = st.read(store, group, "time", slice(0, n)).astype(np.int64)
-    if (times == st.NAT).any():
-        first = int(np.flatnonzero(times == st.NAT)[0])
-        raise UsageError(f"{store}: epoch {first} has no time (NaT): TAM3C2 needs every epoch's time "
-                         f"(give it in the epoch list file, 'PATH, TIME')")
-    return (times - ref).astype(np.float64) / MICROSECONDS_PER_DAY
+def _reference_microseconds(view: StoreView, reference_time: str | None) -> int:
+    """The reference's time: the store's, else --reference-time (for a store without one; one
+    that contradicts the store's is refused); TAM3C2 needs it. A time after every epoch is said:
+    each epoch is then compared with a later reference (hostile round 2: a mistyped year passed
+    unnoticed)."""
+    recorded = str(view.group.attrs.get("reference_time", "") or "")
+    if not recorded and reference_time is None:
+        raise UsageError(f"{view.shown}: its reference has no recorded time: TAM3C2 needs it; "
+                         f"give --reference-time TIME")
+    ours = microseconds(recorded, f"{view.shown}: reference_time") if recorded else None
+    if reference_time is not None:
+        given = microseconds(reference_time, "--reference-time")
+        if ours is not None and given != ours:
+            raise UsageError(f"--reference-time {reference_time} contradicts {view.shown}'s recorded reference time "
+                             f"{recorded}: the option is for a store that has none")
+        ours = given
+    last = int(view.times("TAM3C2").max())
+    if ours > last:
+        warnings.warn(M3C2Warning(
+            f"{view.shown}: the reference's time {np.datetime64(ours, 'us')} is after every epoch (the last: "
+            f"{np.datetime64(last, 'us')}): each epoch is compared with a later reference; check "
+            f"{'--reference-time' if reference_time is not None else 'the time given when the store was made'}"))
+    return ours
 
 
 def _checked_file(store: Path, path: str, sha256: str, what: str) -> tuple[Path, tuple]:
@@ -132,14 +140,14 @@ def _checked_file(store: Path, path: str, sha256: str, what: str) -> tuple[Path,
     return p, state
 
 
-def _files(store: Path, group, n: int) -> list[tuple[Path, tuple]]:
+def _files(view: StoreView, n: int) -> list[tuple[Path, tuple]]:
     """The reference's and the n epochs' recorded files, each checked against its SHA-256."""
-    attrs = group.attrs
-    files = [_checked_file(store, attrs["reference"], attrs.get("reference_sha256", ""), "its reference")]
-    info = {name: st.read(store, group, name, slice(0, n)) for name in ("source", "source_sha256") if name in group}
+    attrs = view.group.attrs
+    files = [_checked_file(view.shown, attrs["reference"], attrs.get("reference_sha256", ""), "its reference")]
+    info = {name: view.read(name, slice(0, n)) for name in ("source", "source_sha256") if name in view.group}
     for e in range(n):
         sha = str(info["source_sha256"][e]) if "source_sha256" in info else ""
-        files.append(_checked_file(store, str(info["source"][e]), sha, f"epoch {e}'s file"))
+        files.append(_checked_file(view.shown, str(info["source"][e]), sha, f"epoch {e}'s file"))
     return files
 
 
@@ -158,39 +166,37 @@ def _crops(store: Path, files, core: np.ndarray, blocks, reach: float, folder: P
     return crops
 
 
-def _settings(store: Path, group, o: Tam3c2Options) -> tuple[dict, float]:
+def _settings(view: StoreView, o: Tam3c2Options) -> tuple[dict, float]:
     """The engine's settings from the store's parameters (cylinder, normal scales, registration
     error, confidence, the LOD's statistic) and the options; and the confidence."""
-    if "imported_from" in group.attrs:
-        raise UsageError(f"{store} was imported: its M3C2 parameters are unknown; TAM3C2 needs its cylinder")
-    core = np.column_stack([st.read(store, group, a) for a in "xyz"])
-    params = parameters.engine_params(json.loads(group.attrs["parameters"]), core)
+    if view.imported:
+        raise UsageError(f"{view.shown} was imported: its M3C2 parameters are unknown; TAM3C2 needs its cylinder")
+    params = view.engine_params()
     confidence = params.confidence if o.confidence is None else o.confidence
     lod = o.lod or params.lod.name
     if lod not in LODS:
-        raise UsageError(f"{store}: its LOD is the {lod}, which TAM3C2 cannot resample; give --lod "
+        raise UsageError(f"{view.shown}: its LOD is the {lod}, which TAM3C2 cannot resample; give --lod "
                          f"{'|'.join(LODS)}")
     radii = o.normal_radii or tuple(d / 2.0 for d in params.normal_diameters)
     settings = dict(normal_radii=[float(r) for r in radii], window_ratios=[float(r) for r in o.window_ratios],
                     min_points=int(o.min_points), cylinder_radius=params.projection_diameter / 2.0,
-                    max_distance=params.max_depth, weights=o.weights, sigma_ratio=float(o.sigma_ratio or 1.0),
-                    space_time_ratio=float(o.space_time_ratio or 1.0), registration_error=params.registration_error,
+                    max_distance=params.max_depth, weights=o.weights, registration_error=params.registration_error,
                     lod=lod, confidence=float(confidence),
                     orientation=[0.0, 0.0, 1.0], fallback=o.fallback, breaks=o.breaks)
     defaults = facade.tam3c2_params()
-    for name in ("break_width", "break_min_size", "break_penalty"):
+    for name in ("sigma_ratio", "space_time_ratio", "break_width", "break_min_size", "break_penalty"):
         given = getattr(o, name)
         settings[name] = getattr(defaults, name) if given is None else given
     return settings, confidence
 
 
-def _epochwise(store: Path, group, rows: slice, n: int, order: np.ndarray) -> dict:
+def _epochwise(view: StoreView, rows: slice, n: int, order: np.ndarray) -> dict:
     """The store's own M3C2 of the rows (distance, lod, significant, n1, n2; NaN where none) as
     the engine's pool columns: the reference's (pool position of 0 in `order`) distance 0, the
     reference against itself."""
     out = {}
     for name in facade.TAM3C2_EPOCHWISE:
-        raw = st.read(store, group, name, (rows, slice(0, n)))
+        raw = view.read(name, (rows, slice(0, n)))
         values = raw.astype(np.float64)
         if name in st.INT_FILL:
             values[raw == st.INT_FILL[name][1]] = np.nan
@@ -200,12 +206,9 @@ def _epochwise(store: Path, group, rows: slice, n: int, order: np.ndarray) -> di
     return out
 
 
-def _block_rows(group, n: int) -> list[tuple[int, int]]:
-    most = max(1, BLOCK_BYTES // (max(1, n) * 8 * 17))
-    out = []
-    for begin, end in analysis._core_chunks(group):
-        out.extend((b, min(end, b + most)) for b in range(begin, end, most))
-    return out
+def _blocks(view: StoreView) -> list[tuple[int, int]]:
+    """Core-point blocks of at most BLOCK_BYTES of results over the store's epochs."""
+    return view.blocks(max(1, view.n_epochs) * 8 * 17, BLOCK_BYTES)
 
 
 def tam3c2(store: Path, options: Tam3c2Options = Tam3c2Options()) -> dict:
@@ -213,25 +216,23 @@ def tam3c2(store: Path, options: Tam3c2Options = Tam3c2Options()) -> dict:
     _check(options)
     store = Path(store)
     threads = threads_count(options.threads)
-    kept = lambda folder: analysis.what_was_kept(store, folder, st.TAM3C2_VARIABLES, "TAM3C2 variables")  # noqa: E731
-    with ExitStack() as held, step.writing(store, "tam3c2", kept) as folder:
-        group = st.open_group(folder)
-        n = group["distance"].shape[1]
+    with ExitStack() as held, writing(store, "tam3c2", st.TAM3C2_VARIABLES, "TAM3C2 variables") as view:
+        n = view.n_epochs
         if n == 0:
             raise UsageError(f"{store} has no epoch to compare")
-        days = _days(store, group, n, options.reference_time)
-        settings, confidence = _settings(store, group, options)
-        core = np.ascontiguousarray(np.column_stack([st.read(store, group, a) for a in "xyz"]), dtype=np.float64)
+        days = view.days("TAM3C2", since=_reference_microseconds(view, options.reference_time))
+        settings, confidence = _settings(view, options)
+        core = view.core()
         # Each core point's normal turned to the side of the store's (which followed its --orient),
         # so that tam3c2_distance and distance share a sign; +z where the store has no normal.
-        towards = np.column_stack([st.read(store, group, a) for a in ("nx", "ny", "nz")])
+        towards = view.normals()
         reach = max(max(settings["normal_radii"]),
                     math.hypot(settings["cylinder_radius"], settings["max_distance"]))
         # The pool in time order (the engine breaks ties in time distance by pool order: the
         # earlier epoch first), the reference among the epochs where its time falls.
         times = np.array([0.0, *days])
         order = np.argsort(times, kind="stable")
-        recorded = _files(store, group, n)
+        recorded = _files(view, n)
         files = [recorded[k] for k in order]
         position = np.argsort(order)  # of the reference (0) and epoch e (e + 1) in the pool
         common = {"epochs": int(n), "min_points": settings["min_points"], "weights": options.weights,
@@ -242,17 +243,16 @@ def tam3c2(store: Path, options: Tam3c2Options = Tam3c2Options()) -> dict:
                   **({k: settings[k] for k in ("break_width", "break_min_size", "break_penalty")}
                      if options.breaks != "none" else {})}
         needs_epochwise = options.fallback != "none" or options.breaks != "none"
-        integrity.make_staging(folder)
-        out = _staged_all(folder, group, common)
+        out = _staged_all(view, common)
         fault_hook.checkpoint("store-write")
         computed = from_epoch = 0
-        blocks = _block_rows(group, n)
+        blocks = _blocks(view)
         spill = held.enter_context(private_folder(store.resolve().parent, store))
         crops = _crops(store, files, core, blocks, reach, Path(spill.path))
         for k, (begin, end) in enumerate(blocks):
             pool = facade.tam3c2_pool(crops.block(k), times[order].tolist())
             rows = slice(begin, end)
-            epochwise = _epochwise(store, group, rows, n, order) if needs_epochwise else None
+            epochwise = _epochwise(view, rows, n, order) if needs_epochwise else None
             r = facade.tam3c2(pool, core[begin:end], int(position[0]), position[1:].tolist(), settings,
                               orientations=towards[begin:end], epochwise=epochwise, threads=threads)
             out[DISTANCE][rows, :n] = r["distance"]
@@ -265,13 +265,12 @@ def tam3c2(store: Path, options: Tam3c2Options = Tam3c2Options()) -> dict:
                 r["source"] == facade.TAM3C2_SOURCE_WINDOWS, r["epochs1"] + r["epochs2"], -1)).astype(np.int32)
             out[N1][rows, :n] = r["n1"]
             out[N2][rows, :n] = r["n2"]
-        analysis.publish_many(folder, list(st.TAM3C2_VARIABLES))
+        view.publish(st.TAM3C2_VARIABLES)
     return {"epochs": n, "variables": list(st.TAM3C2_VARIABLES), "confidence": confidence, "lod": settings["lod"],
             "computed": computed, "from_epoch": from_epoch, "cells": n * len(core)}
 
 
-def _staged_all(folder: Path, group, common: dict) -> dict:
-    _, zarr = st.require_extra()
+def _staged_all(view: StoreView, common: dict) -> dict:
     spec = [(DISTANCE, np.float64, np.nan, "TAM3C2 distance (reference side to the epoch's side); where tam3c2_window is 0, the "
                                             "epoch's own M3C2 distance, LOD, significant, n1, n2"),
             (LOD, np.float64, np.nan, "TAM3C2 level of detection: z or Welch's t (attribute lod) x sqrt(s1^2/n1 + s2^2/n2) + registration error"),
@@ -284,6 +283,5 @@ def _staged_all(folder: Path, group, common: dict) -> dict:
     out = {}
     for name, dtype, fill, long_name in spec:
         attrs = dict(common, long_name=long_name, **({"_FillValue": -1} if fill == -1 else {}))
-        out[name] = zarr.create_array(store=str(integrity.staged_name(folder, name)), zarr_format=3,
-                                      config=st.WRITE_CONFIG, **analysis._variable_spec(group, dtype, fill, attrs))
+        out[name] = view.staged(name, dtype, fill, attrs)
     return out

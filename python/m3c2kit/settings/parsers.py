@@ -97,8 +97,9 @@ def integer(name: str, value, lo: int, hi: int, rule: str) -> int:
     """`value` as an int in [lo, hi] (the engine's field width), or a UsageError naming the option."""
     try:
         v = int(value)
-        # An int is exact as it is (float() would round 2**64 - 1 up); other values must be whole.
-        exact = isinstance(value, (int, np.integer)) or v == float(value)
+        # An int, or a text int() read (it refuses "1.5"), is exact as it is (float() would round
+        # 2**64 - 1 up and call a 30-digit count inexact); other values must be whole.
+        exact = isinstance(value, (int, np.integer, str)) or v == float(value)
     except (TypeError, ValueError, OverflowError):
         raise UsageError(f"{name} must be {rule}, got {value!r}") from None
     if not exact or not lo <= v <= hi:
@@ -225,3 +226,40 @@ class Orientation:
 
     def describe(self) -> str:
         return "+x -x +y -y +z -z, X,Y,Z, FILE, origin, barycentre, sensor, away:POINT"
+
+
+class Numbers:
+    """Comma-separated finite numbers, at least one, each > 0 and, with `at_most`, <= it (a
+    series step's lists: TAM3C2's window ratios and radii, 4D-OBC's DTW thresholds). An empty
+    item ("0.2,,0.3") is a typo, not a value to drop."""
+
+    def __init__(self, at_most: float | None = None):
+        self.at_most = at_most
+
+    def __call__(self, name: str, value) -> list[float]:
+        items = value.split(",") if isinstance(value, str) else list(np.atleast_1d(value))
+        try:
+            values = [float(v) for v in items]
+        except (TypeError, ValueError):
+            raise UsageError(f"{name} must be a list of numbers like 0.1,0.2, got {value!r}") from None
+        top = math.inf if self.at_most is None else self.at_most
+        if not values or not all(0 < v <= top and math.isfinite(v) for v in values):
+            raise UsageError(f"{name} must be {self.describe()}, at least one, got {value!r}")
+        return values
+
+    def describe(self) -> str:
+        inside = "> 0" if self.at_most is None else f"in (0, {self.at_most:g}]"
+        return f"numbers {inside}, comma-separated"
+
+
+class AutoOr:
+    """'auto' (the step estimates it) or a value of `kind`."""
+
+    def __init__(self, kind):
+        self.kind = kind
+
+    def __call__(self, name: str, value):
+        return value if value == "auto" else self.kind(name, value)
+
+    def describe(self) -> str:
+        return f"auto, or {self.kind.describe()}"

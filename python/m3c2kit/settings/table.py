@@ -1,6 +1,7 @@
 """THE parameter table: every parameter of `m3c2 compare` (and the ones `m3c2 normals` shares)
 once, with its flag, type and range, default, CloudCompare-compatible default, engine field(s),
-help text, paper section, CloudCompare params-file key(s) and py4dgeo name.
+help text, paper section, CloudCompare params-file key(s) and py4dgeo name; then the series steps'
+options (:mod:`.series_rows`, their defaults from the steps' engine structs).
 
 Derived from it: the command line's options (m3c2kit.cli.main), the API's keyword check and defaults
 (:mod:`m3c2kit.settings.resolve`), the building of the engine's Params, the params-file mapping
@@ -11,45 +12,15 @@ nowhere else. How to add a parameter: docs/architecture.md.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
-from typing import Any, Callable
-
 from .. import engine
 from . import error_model, orientation, parsers
+from .row import FROM_ENGINE, SAME, EngineField, Parameter, _shown, enum, same, unset_is_zero
+from .series_rows import SERIES_ROWS
 from .needs import (A_VARIANCE, BOOTSTRAP, EP, EQ1, FITTED_NORMALS, MOVED_OR_PROPAGATED, NOT_CORE_NORMALS,
     PARAMETRIC_MEDIAN, PM, SEVERAL_SCALES, TRANSFORM, TWO_PASS, WEIGHTED_CENTRES, WELCH_T, Needs)
 from .parsers import UINT32_MAX, UINT64_MAX, Choice, Flag, Integer, Positives, Real, Scales, Text
 
 __all__ = ["Parameter", "EngineField", "PARAMETERS", "FROM_ENGINE", "SAME", "by_name", "parameters_of"]
-
-FROM_ENGINE = "<the engine's default>"
-SAME = "<the same>"
-
-
-@dataclass(frozen=True)
-class EngineField:
-    """How a parameter's value becomes engine Params fields, and back (for its default)."""
-
-    fields: tuple[str, ...]
-    to_engine: Callable[..., dict]
-    from_engine: Callable[[dict], Any]
-
-
-def same(field: str) -> EngineField:
-    """The value is the engine field's."""
-    return EngineField((field,), lambda v, **_: {field: v}, lambda f: f[field])
-
-
-def enum(field: str) -> EngineField:
-    """A choice spelled with '-' for the engine enum member spelled with '_'."""
-    return EngineField((field,), lambda v, **_: {field: v.replace("-", "_")},
-                       lambda f: f[field].replace("_", "-"))
-
-
-def unset_is_zero(field: str, zero: Any = 0.0) -> EngineField:
-    """None (not given) is the engine's `zero`, which means off."""
-    return EngineField((field,), lambda v, **_: {field: zero if v is None else v},
-                       lambda f: f[field] or None)
 
 
 def _orientation_fields(spec, read_points=None, core_points=None, scan_positions=None, **_) -> dict:
@@ -79,56 +50,6 @@ ERROR_MODEL = EngineField(("correlated_variance",),
                           lambda f: None)
 STATISTIC = EngineField(("statistic",), lambda v, **_: {"statistic": "median" if v else "mean"},
                         lambda f: f["statistic"] == "median")
-
-
-@dataclass(frozen=True)
-class Parameter:
-    """One user-facing parameter. `kind(flag, value)` checks a value (its range: kind.describe());
-    `cli_type` is argparse's type (None: an on/off flag); `commands` the subcommands that take it."""
-
-    name: str
-    flag: str
-    kind: Callable
-    help: str
-    section: str
-    engine: EngineField | None = None
-    default: Any = FROM_ENGINE
-    cloudcompare: Any = SAME
-    cloudcompare_keys: tuple[str, ...] = ()
-    py4dgeo: str = ""
-    cli_type: Callable | None = float
-    metavar: str | None = None
-    commands: tuple[str, ...] = ("compare",)
-    scope: str = "engine"  # "engine": sets engine fields; "run": how the run is made; "output": how it is written
-    needs: tuple[Needs, ...] = ()  # when it acts (m3c2kit.settings.needs): given where one fails, a usage error
-
-    def default_for(self, compat: str | None = None):
-        """The default, under --compat cloudcompare when `compat` says so."""
-        if compat == "cloudcompare" and self.cloudcompare is not SAME:
-            return self.cloudcompare
-        if self.default is FROM_ENGINE:
-            return self.engine.from_engine(engine.default_fields())
-        return self.default
-
-    @property
-    def choices(self):
-        return self.kind.values if isinstance(self.kind, Choice) else None
-
-    def help_text(self) -> str:
-        """The help with the default shown (and the CloudCompare-compatible one where it differs)."""
-        default = self.default_for()
-        text = f"{self.help} (default {_shown(default)}"
-        if self.cloudcompare is not SAME:
-            text += f"; {_shown(self.cloudcompare)} with --compat cloudcompare"
-        return text + ")"
-
-
-def _shown(value) -> str:
-    if value is None:
-        return "none"
-    if value is True or value is False:
-        return "on" if value else "off"
-    return str(value)
 
 
 #: --fdr-method acts with --fdr only.
@@ -318,6 +239,8 @@ PARAMETERS: tuple[Parameter, ...] = (
               help="LAS/LAZ: also write sigma1, sigma2, the normal (nx, ny, nz), normal_scale, roughness "
                    "and spread1, spread2 (otherwise only distance, lod, significant, n1, n2 and status, as "
                    "CloudCompare; text and PLY files have every column)"),
+    # The series steps' options (smooth, kalman, tam3c2, objects, changepoints; the store's layout)
+    *SERIES_ROWS,
 )
 
 

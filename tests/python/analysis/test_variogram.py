@@ -181,3 +181,14 @@ def test_the_change_taken_for_error_is_said_only_past_the_false_alarm_rate():
         message = vg.change_taken_for_error(cloud)
         assert (message is not None) == said, share
     assert vg.change_taken_for_error(SimpleNamespace(fields={"distance": distance})) is None
+
+
+@pytest.mark.parametrize("value", ["nan", "inf", "-inf", "NaN"])
+def test_a_stable_field_value_that_equals_nothing_is_refused(value):
+    """Hostile round 2: --stable-field class=nan was accepted (NaN equals no value), so the
+    selection was empty and the failure came later, in other words."""
+    from m3c2kit.io.cloud import Cloud
+    cloud = Cloud(np.zeros((3, 3)), {"class": np.array([np.nan, 1.0, 2.0])}, path="r.csv")
+    with pytest.raises(UsageError, match=r"--stable-field 'class=.*': VALUE must be a finite number"):
+        vg.stable_mask(cloud, field=f"class={value}")
+    assert vg.stable_mask(cloud, field="class=2").tolist() == [False, False, True]

@@ -297,10 +297,12 @@ def test_drop_nonfinite_runs_and_reports_the_drop(pair, capsys):
     assert f"m3c2: note: dropped 2 points with non-finite coordinates from {pair / 'bad.xyz'}" in err
 
 
-def test_all_nonfinite_with_drop_is_an_error(pair, capsys):
+@pytest.mark.parametrize("drop", [["--drop-nonfinite"], []])
+def test_all_nonfinite_is_an_error_with_or_without_drop(pair, capsys, drop):
+    """Without --drop-nonfinite the message advised it, which would have dropped every point
+    (hostile round 2): a file with no finite point says so, whichever the option."""
     write_xyz(pair / "nan.xyz", np.full((4, 3), np.nan))
-    code, _, err = run(capsys, "compare", pair / "nan.xyz", pair / "cmp.xyz", "-o", pair / "out.csv",
-                       "--drop-nonfinite", *BASE)
+    code, _, err = run(capsys, "compare", pair / "nan.xyz", pair / "cmp.xyz", "-o", pair / "out.csv", *drop, *BASE)
     assert code == 1
     assert err == f"m3c2: error: {pair / 'nan.xyz'}: contains no points with finite coordinates (4 non-finite)\n"
 

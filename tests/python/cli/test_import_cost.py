@@ -44,6 +44,35 @@ def test_version_imports_no_library():
         ("m3c2kit.base", "m3c2kit.cli"))], modules
 
 
+@pytest.mark.parametrize("argv", [["--help"], ["-h"], [], ["comapre"]])
+def test_the_top_level_help_imports_no_library(argv):
+    """Issue 45: `m3c2 --help` took 0.8 s, building every subcommand's parser (numpy, the engine,
+    the series). It lists them from cli/command_index.py; an unknown command too."""
+    probe = (f"from m3c2kit.cli.main import main\nimport contextlib, io\n"
+             f"with contextlib.redirect_stdout(io.StringIO()), contextlib.redirect_stderr(io.StringIO()):\n"
+             f"    try:\n        main({argv!r})\n    except SystemExit:\n        pass")
+    modules = _imported_after(probe)
+    assert "numpy" not in modules and not [m for m in modules if m.startswith("m3c2kit.") and not m.startswith(
+        ("m3c2kit.base", "m3c2kit.cli"))], modules
+    assert not [m for m in modules if m.startswith("m3c2kit.cli.") and m not in (
+        "m3c2kit.cli.main", "m3c2kit.cli.parser", "m3c2kit.cli.command_index")], modules
+
+
+def test_a_command_builds_its_own_parser_only():
+    modules = _imported_after("from m3c2kit.cli import main as cli\nparser = cli.make_parser('info')\n"
+                              "parser.parse_args(['info', 'a.laz'])")
+    assert "m3c2kit.cli.commands" in modules
+    assert not {"m3c2kit.cli.series", "m3c2kit.cli.classify", "m3c2kit.cli.compare"} & set(modules)
+
+
+def test_the_index_lists_every_subcommand_the_parser_builds():
+    from m3c2kit.cli.command_index import COMMANDS
+    from m3c2kit.cli.main import make_parser
+    sub = next(a for a in make_parser()._actions if a.dest == "command")
+    assert list(sub.choices) == list(COMMANDS)
+    assert [c.help for c in sub._choices_actions] == [text for _, _, text in COMMANDS.values()]
+
+
 def test_the_lazy_public_names_are_the_modules_own():
     import m3c2kit
     from m3c2kit import api, engine, io, output, run

@@ -102,8 +102,10 @@ def test_the_acceleration_model_replaces_the_velocity_variables_and_back(base, t
     assert {"kalman_acceleration", "kalman_acceleration_sigma"} <= set(ds)
     assert ds["kalman_moments"].shape[2] == 14  # [d, d', d'', b]: 4 means, 10 covariances
     assert ds["kalman_moments"].attrs["observation"] == "shared"
+    assert ds["kalman_distance"].attrs["step_false_alarm"] == 1e-4  # the engine's, which the estimates depend on
     assert run(capsys, "series", "kalman", store, "--process-noise", "0.1", "--observation", "independent")[0] == 0
     ds = xr.open_zarr(store)
+    assert "step_false_alarm" not in ds["kalman_distance"].attrs  # the independent model has no step test
     assert "kalman_acceleration" not in ds and ds["kalman_moments"].shape[2] == 5
     assert run(capsys, "series", "check", store)[0] == 0
 

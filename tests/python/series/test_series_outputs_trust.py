@@ -129,6 +129,25 @@ def test_the_report_of_a_store_with_objects(series, tmp_path):
     assert [p.name for p in tmp_path.iterdir()] == ["r.html"]  # no temporary left
 
 
+def test_a_table_not_written_with_the_stores_labels_is_refused(series, capsys, tmp_path):
+    """Hostile round 2: `series report --objects` drew another store's objects table over this
+    store's core points. The labels record their tables' SHA-256 (series/outputs.py)."""
+    import shutil
+    folder, store, _, table = series
+    other = tmp_path / "other.csv"  # a well-formed table, as another store's objects run writes it
+    other.write_text("object,start_epoch,end_epoch\n0,0,1\n")
+    (tmp_path / "other_members.csv").write_text("object,core,dtw\n0,1,0.1\n")
+    edited = tmp_path / "edited.csv"  # this store's table, edited since
+    edited.write_text(table.read_text() + "\n")
+    shutil.copy(folder / "objects_members.csv", tmp_path / "edited_members.csv")
+    for given, why in ((other, "another store's"), (edited, "or edited since")):
+        out = tmp_path / f"r_{given.stem}.html"
+        err = refused(capsys, ["series", "report", str(store), "-o", str(out), "--objects", str(given)])
+        assert f"--objects {given}: not the objects table written with {store}'s object labels" in err, err
+        assert why in err and not out.exists()
+    assert main(["series", "report", str(store), "-o", str(tmp_path / "r.html"), "--objects", str(table)]) == 0
+
+
 BAD_TABLES = {
     "no columns": ("a,b\n1,2\n", None, "not a table of m3c2 series objects: no column object, start_epoch, end_epoch"),
     "not an integer": ("object,start_epoch,end_epoch\n0,x,1\n", None, "line 2: start_epoch 'x' is not an integer"),

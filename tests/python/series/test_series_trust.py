@@ -588,10 +588,10 @@ def test_a_link_planted_as_the_staging_folder_is_never_followed(action, base, tm
         assert xr.open_zarr(store)["smoothed_distance"].attrs["window"] == 5
 
 
-@pytest.mark.parametrize("argv, words", [(["--core-chunk", "0"], "must be an integer from"),
-                                         (["--epoch-chunk", "-1"], "must be an integer from"),
+@pytest.mark.parametrize("argv, words", [(["--core-chunk", "0"], "must be an integer >= 1, got '0'"),
+                                         (["--epoch-chunk", "-1"], "must be an integer >= 1, got '-1'"),
                                          (["--threads", "-2"], "must be 0 (all) or a positive integer"),  # the table's
-                                         (["--core-chunk", "9" * 30], "must be an integer from")])
+                                         (["--core-chunk", "9" * 30], "must be an integer >= 1, at most 4294967295")])
 def test_a_chunk_or_thread_count_out_of_range_is_a_usage_error(argv, words, epochs, tmp_path, capsys):
     out = tmp_path / "s.zarr"
     code, _, err = run(capsys, "series", epochs[0], epochs[1], "-o", out, *PARAMS, *argv, "--quiet")

@@ -210,6 +210,36 @@ def test_the_window_breaks_keep_a_step_out_of_the_epoch_before_it(step, tmp_path
     assert errors["changepoints"][1] < 0.005, errors  # and the epoch after it: its own side of the step
 
 
+def test_a_reference_after_every_epoch_is_said(base, tmp_path, capsys):
+    """Hostile round 2: --reference-time after every epoch (a mistyped year) ran without a word."""
+    store = copy(base[0], tmp_path)
+    code, _, err = run(capsys, "series", "tam3c2", store, "--reference-time", "2034-01-01T00:00")
+    assert code == 0 and "is after every epoch (the last: 2024-01-01T15:00" in err and "--reference-time" in err, err
+    code, _, err = run(capsys, "series", "tam3c2", store, "--reference-time", REF_TIME)
+    assert code == 0 and "after every epoch" not in err, err
+
+
+class _Recorded:
+    """A store view whose store records its reference's time."""
+
+    def __init__(self, recorded):
+        self.shown, self.group = Path("s.zarr"), type("G", (), {"attrs": {"reference_time": recorded}})()
+
+    def times(self, needed_by):
+        return np.array([np.datetime64("2024-01-02T00:00", "us").astype(np.int64)])
+
+
+def test_a_reference_time_that_contradicts_the_stores_is_refused():
+    from m3c2kit.base.errors import UsageError
+    from m3c2kit.series.tam3c2 import _reference_microseconds
+    view = _Recorded("2024-01-01T00:00")
+    expected = np.datetime64("2024-01-01T00:00", "us").astype(np.int64)
+    assert _reference_microseconds(view, None) == expected == _reference_microseconds(view, "2024-01-01T00:00")
+    with pytest.raises(UsageError, match="--reference-time 2024-01-01T06:00 contradicts s.zarr's recorded reference "
+                                         "time 2024-01-01T00:00: the option is for a store that has none"):
+        _reference_microseconds(view, "2024-01-01T06:00")
+
+
 def test_bad_input_is_refused_naming_it(base, tmp_path, capsys):
     store = copy(base[0], tmp_path)
     code, _, err = run(capsys, "series", "tam3c2", store)
@@ -291,11 +321,12 @@ def test_each_file_is_read_once_whatever_the_blocks_and_no_spill_is_left(base, t
     """The store's core chunks make several blocks; each recorded file is decoded once (its crops
     spilled, series/epoch_crops.py), and the private spill folder is gone after the run."""
     from m3c2kit.series import tam3c2 as tam
+    from m3c2kit.series.view import StoreView
     store = copy(base[0], tmp_path)
     reads = []
     real = tam.read_cloud
     monkeypatch.setattr(tam, "read_cloud", lambda path, *a, **k: reads.append(Path(path)) or real(path, *a, **k))
-    blocks = tam._block_rows(st.open_group(store), 10)
+    blocks = tam._blocks(StoreView(store))
     assert len(blocks) > 1  # else the test would not test the spill
     assert run(capsys, "series", "tam3c2", store, "--reference-time", REF_TIME)[0] == 0
     assert len(reads) == 11 and len(set(reads)) == 11
@@ -350,7 +381,7 @@ def test_an_option_its_mode_never_reads_is_refused(tmp_path, capsys, extra, need
     """Hostile round 2: --sigma-ratio 3 --space-time-ratio 5 under --weights none ran with the same
     bits and recorded both; the break options without --window-breaks changepoints changed nothing."""
     code, _, err = run(capsys, "series", "tam3c2", tmp_path / "none.zarr", *extra)
-    assert code == 2 and err.endswith(f"would change nothing in this run: it is read only with {needs}\n"), err
+    assert code == 2 and err.endswith(f"would change nothing in this run: it applies only with {needs}\n"), err
 
 
 def test_a_list_of_fractions_with_an_empty_item_is_refused(capsys):
