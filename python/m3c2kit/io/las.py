@@ -62,7 +62,8 @@ def read(path: Path) -> Cloud:
     return Cloud(xyz, _fields(las), crs=crs, scale=tuple(map(float, header.scales)),
                  offset=tuple(map(float, header.offsets)), path=Path(path), units_hint=units, format=fmt,
                  meta={"version": f"{header.version.major}.{header.version.minor}",
-                       "point_format": int(header.point_format.id)},
+                       "point_format": int(header.point_format.id),
+                       "creation_date": header.creation_date},  # a datetime.date, or None
                  _crs_vlrs=crs_vlrs)
 
 

@@ -105,7 +105,9 @@ def test_max_distance_below_the_radius_is_raised_to_it(golden):
     a, _ = p4.M3C2(epochs=(e1, e2), corepoints=core, normal_radii=[1.5], cyl_radius=1.0).run()
     r = m3c2kit.compare(e1.cloud, e2.cloud, core, normal_scale=3.0, projection_scale=2.0, max_depth=1.0,
                         min_points=1)
-    np.testing.assert_array_equal(a, r.distance)
+    # run() takes its normals from directions(), as py4dgeo's; the engine renormalises given
+    # normals, so the last bit may differ from normals it fits itself.
+    np.testing.assert_allclose(a, r.distance, rtol=0, atol=1e-15)
     b, _ = p4.M3C2(epochs=(e1, e2), corepoints=core, normal_radii=[1.5], cyl_radius=1.0, max_distance=3.0).run()
     np.testing.assert_allclose(b, golden["distances"], atol=1e-6, rtol=0)
 
@@ -118,13 +120,13 @@ def test_unknown_and_unsupported_arguments_are_named():
         p4.M3C2(epochs=(e, e), corepoints=e.cloud, normal_radii=[1.0]).run()
     with pytest.raises(UsageError, match="cyl_radii must hold exactly one"):
         p4.M3C2(epochs=(e, e), corepoints=e.cloud, normal_radii=[1.0], cyl_radii=[1.0, 2.0]).run()
-    with pytest.raises(p4.UnsupportedArgument, match="orientation_vector"):
+    with pytest.raises(UsageError, match="orientation_vector must be a finite non-zero 3-vector"):
         p4.M3C2(epochs=(e, e), corepoints=e.cloud, normal_radii=[1.0], cyl_radius=1.0,
-                orientation_vector=[1.0, 1.0, 0.0]).run()
+                orientation_vector=[0.0, 0.0, 0.0]).run()
     with pytest.raises(UsageError, match="normal_radii"):
         p4.M3C2(epochs=(e, e), corepoints=e.cloud, cyl_radius=1.0).run()
-    with pytest.raises(p4.UnsupportedArgument, match="scanpos_info"):
-        p4.Epoch(np.zeros((3, 3)), scanpos_info={})
+    with pytest.raises(p4.UnsupportedArgument, match="scanpos"):
+        p4.Epoch(np.zeros((3, 3)), scanpos={})
 
 
 def test_orientation_and_normal_options_reach_the_engine():
@@ -148,7 +150,7 @@ def test_orientation_and_normal_options_reach_the_engine():
                        cloud_for_normals=e2).run()
     r = m3c2kit.compare(e1.cloud, e2.cloud, core, normal_scale=3.0, normal_source="compared",
                         projection_scale=2.0, max_depth=3.0, min_points=1)
-    np.testing.assert_array_equal(other, r.distance)
+    np.testing.assert_allclose(other, r.distance, rtol=0, atol=1e-15)  # given normals renormalised
 
 
 def test_read_from_xyz_forms(tmp_path):
