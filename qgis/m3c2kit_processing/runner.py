@@ -26,6 +26,18 @@ NOT_FOUND = ("m3c2 not found: install m3c2kit (docs/qgis.md) or set its path in 
 _PROGRESS = '{"phase"'
 _MESSAGE = re.compile(r"m3c2: (?:(?P<kind>warning|error): )?(?P<text>.*)")
 POLL_S = 0.1
+#: After Cancel's SIGTERM, how long m3c2 has to unwind (it removes its private folders) before it
+#: is killed: a child that ignores the TERM (or hangs) never holds QGIS (the hostile harness,
+#: tests/python/qgis_runner).
+KILL_AFTER_S = 5.0
+#: How long the pipes' readers may outlive the child: a grandchild that inherited them (a shell
+#: wrapper's background job) must not hold the algorithm open.
+READERS_AFTER_EXIT_S = 2.0
+#: The longest line kept whole: longer output without a line break is cut here, so that memory
+#: stays bounded whatever the child prints.
+LONGEST_LINE = 64 * 1024
+#: The lines of stdout kept for the algorithm (its result); beyond them, only the count.
+MOST_LINES = 100_000
 
 
 def _setting() -> str:
@@ -71,6 +83,8 @@ def progress_of(line: str):
         percent = float(json.loads(text)["percent"])
     except (ValueError, KeyError, TypeError):
         return None
+    if percent != percent or percent in (float("inf"), float("-inf")):  # NaN or infinite: no progress
+        return None
     return min(max(percent, 0.0), 100.0)
 
 
@@ -83,20 +97,27 @@ class _Stream(threading.Thread):
 
     def run(self):
         pending = ""
-        while True:
-            chunk = self.pipe.read1(4096) if hasattr(self.pipe, "read1") else self.pipe.read(4096)
-            if not chunk:
-                break
-            pending += chunk.decode("utf-8", "replace")
-            parts = re.split(r"[\r\n]", pending)
-            pending = parts.pop()
-            for part in parts:
-                self._line(part)
+        try:
+            while True:
+                chunk = self.pipe.read1(4096) if hasattr(self.pipe, "read1") else self.pipe.read(4096)
+                if not chunk:
+                    break
+                pending += chunk.decode("utf-8", "replace")
+                parts = re.split(r"[\r\n]", pending)
+                pending = parts.pop()
+                for part in parts:
+                    self._line(part)
+                while len(pending) > LONGEST_LINE:  # no line break for 64 KiB: cut, memory stays bounded
+                    self._line(pending[:LONGEST_LINE])
+                    pending = pending[LONGEST_LINE:]
+        except (OSError, ValueError):  # the pipe failed under us: what was read is kept
+            return
         if pending:
             self._line(pending)
 
     def _line(self, text):
-        self.lines.append(text)
+        if len(self.lines) < MOST_LINES:
+            self.lines.append(text)
         self.handle(text)
 
 
@@ -148,27 +169,44 @@ class Run:
         out, err = _Stream(child.stdout, self._stdout), _Stream(child.stderr, self._stderr)
         out.start()
         err.start()
-        cancelled = False
+        cancelled_at = None
+        killed = False
         while child.poll() is None:
-            if not cancelled and self.feedback is not None and self.feedback.isCanceled():
-                cancelled = True
+            if cancelled_at is None and self.feedback is not None and self.feedback.isCanceled():
+                cancelled_at = time.monotonic()
                 child.terminate()  # SIGTERM: m3c2 turns it into a clean exit without outputs (cli/main.py)
                 if hasattr(signal, "SIGCONT"):  # a stopped child would never see the TERM
                     try:
                         os.kill(child.pid, signal.SIGCONT)
                     except OSError:
                         pass
+            elif cancelled_at is not None and not killed and time.monotonic() - cancelled_at > KILL_AFTER_S:
+                killed = True
+                child.kill()  # it ignored the TERM: QGIS is never held by a child that does not stop
             time.sleep(POLL_S)
-        out.join()
-        err.join()
-        child.stdout.close()
-        child.stderr.close()
-        if cancelled:
-            raise QgsProcessingException("cancelled: m3c2 was stopped (SIGTERM) and wrote no output")
+        for stream, pipe in ((out, child.stdout), (err, child.stderr)):
+            stream.join(READERS_AFTER_EXIT_S)
+            if not stream.is_alive():  # else a grandchild holds it: the (daemon) reader is left to it
+                pipe.close()
+        if cancelled_at is not None:
+            how = "killed (it ignored SIGTERM; it may have left a temporary file)" if killed else \
+                "stopped (SIGTERM) and wrote no output"
+            raise QgsProcessingException(f"cancelled: m3c2 was {how}")
         if child.returncode != 0:
-            message = "; ".join(self.errors) or f"m3c2 failed (exit status {child.returncode}): {self.last_line}"
-            raise QgsProcessingException(message)
+            raise QgsProcessingException("; ".join(self.errors) or self._failure(child.returncode))
         return "\n".join(out.lines)
+
+    def _failure(self, code: int) -> str:
+        """The message of a run that ended without m3c2's own error line (a crash, a signal)."""
+        if code < 0:
+            try:
+                name = signal.Signals(-code).name
+            except ValueError:
+                name = f"signal {-code}"
+            status = f"killed by {name}"
+        else:
+            status = f"exit status {code}"
+        return f"m3c2 failed ({status}){': ' + self.last_line if self.last_line else ''}"
 
 
 def run(arguments, feedback, progress=False) -> str:
