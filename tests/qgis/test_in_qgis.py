@@ -112,17 +112,37 @@ def check_distance_renderer(layer):
     assert len(ranges) == style.CLASSES
     for low, high in zip(ranges, reversed(ranges)):  # symmetric about 0
         assert abs(low.lowerValue() + high.upperValue()) < 1e-9 and abs(low.upperValue() + high.lowerValue()) < 1e-9
-    assert abs(ranges[len(ranges) // 2].lowerValue()) < 1e-9  # 0 is a class boundary
+    middle = ranges[len(ranges) // 2]  # the neutral class: |d| <= the layer's median LOD (issue 44)
+    lods = sorted(number(f["lod"]) for f in layer.getFeatures() if number(f["lod"]) is not None and number(f["lod"]) > 0)
+    assert abs(middle.upperValue() - lods[len(lods) // 2]) < 1e-9 and abs(middle.lowerValue() + middle.upperValue()) < 1e-12
+    unit = style.unit_of(layer)
+    assert "no significant change" in middle.label() and f"{middle.upperValue():.3g}{' ' + unit if unit else ''} (" \
+        in middle.label(), middle.label()  # in the projected CRS's unit; none for a layer without one (degrees)
+    assert unit in ("", "m"), unit
+    assert middle.symbol().color().name() == style.NEUTRAL_COLOUR
+    assert not middle.symbol().dataDefinedProperties().property(style._opacity_property()).isActive()
     magnitudes = sorted(abs(number(f["distance"])) for f in layer.getFeatures() if number(f["distance"]) is not None)
     assert abs(ranges[-1].upperValue() - magnitudes[-1]) < 1e-9  # the outer classes reach every point
     inner = magnitudes[int(0.95 * len(magnitudes))]  # the inner classes span the 95th percentile of |distance|
     assert abs(ranges[-2].upperValue() - inner) < 1e-9 and inner < magnitudes[-1]
     first, last = ranges[0].symbol().color(), ranges[-1].symbol().color()
     assert first.blue() > first.red() and last.red() > last.blue()  # lowering blue, raising red
-    for r in ranges:  # not-significant points faded
+    for r in ranges[:len(ranges) // 2] + ranges[len(ranges) // 2 + 1:]:  # not-significant points faded
         prop = r.symbol().dataDefinedProperties().property(style._opacity_property())
         assert prop.isActive() and '"significant" = 1' in prop.expressionString(), prop.expressionString()
         assert f", {style.FADED_OPACITY})" in prop.expressionString()
+
+
+def test_the_legend_unit_is_the_projected_crs_unit():
+    from qgis.core import QgsVectorLayer
+    assert style.unit_of(QgsVectorLayer("PointZ?crs=EPSG:32617", "utm", "memory")) == "m"
+    assert style.unit_of(QgsVectorLayer("PointZ?crs=EPSG:4326", "lonlat", "memory")) == ""  # never degrees
+    assert style.unit_of(QgsVectorLayer("PointZ", "none", "memory")) == ""
+    edges = style.class_edges([-0.3, -0.1, 0.05, 0.2, 0.4] * 20, lod=0.02)
+    assert len(edges) == style.CLASSES + 1 and edges[style.CLASSES // 2 + 1] == 0.02
+    labels = style.class_labels(edges, "m", True)
+    assert labels[style.CLASSES // 2] == "|d| <= 0.02 m (within the typical LOD: no significant change)"
+    assert labels[-1].startswith("+") and labels[0].startswith("-") and labels[-1].endswith(" m")
 
 
 def test_rasters_are_styled_symmetric_about_zero():

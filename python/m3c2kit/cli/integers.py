@@ -12,7 +12,7 @@ import argparse
 from .. import engine
 from ..settings.parsers import non_negative, positive
 
-__all__ = ["COUNT_MAX", "SEED_MAX", "integer", "positive_real", "fraction_list"]
+__all__ = ["COUNT_MAX", "SEED_MAX", "integer", "positive_real", "non_negative_real"]
 
 COUNT_MAX = engine.COUNT_MAX
 SEED_MAX = 2**64 - 1  # numpy's seeds are unsigned
@@ -50,14 +50,3 @@ def non_negative_real(flag: str):
     parse.__name__ = "non_negative"
     parse.bounds = (0.0, None)  # >= 0 (settings.export)
     return parse
-
-
-def fraction_list(text: str) -> list[float]:
-    """An argparse ``type`` reading comma-separated numbers in (0, 1], at least one."""
-    try:  # an empty item ("0.2,,0.3") is a typo, not a value to drop
-        values = [float(t) for t in text.split(",")]
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"must be a list of numbers like 0.1,0.2, got {text!r}") from None
-    if not values or not all(0 < v <= 1 for v in values):
-        raise argparse.ArgumentTypeError(f"must be numbers in (0, 1], at least one, got {text!r}")
-    return values
