@@ -6,6 +6,7 @@
 #include <m3c2/m3c2.hpp>
 #include <m3c2/objects_by_change.hpp>
 #include <m3c2/region_covariance.hpp>
+#include <m3c2/registration.hpp>
 #include <m3c2/series.hpp>
 #include <m3c2/tam3c2.hpp>
 #include <m3c2/variogram.hpp>
@@ -505,6 +506,34 @@ NB_MODULE(_core, m) {
         return d;
       },
       "points"_a, "cell"_a);
+
+  // Point-to-plane ICP on stable areas (include/m3c2/registration.hpp, docs/registration.md).
+  nb::class_<m3c2::RegistrationParams>(m, "RegistrationParams")
+      .def(nb::init<>())
+      .def_rw("normal_diameter", &m3c2::RegistrationParams::normal_diameter)
+      .def_rw("max_distance", &m3c2::RegistrationParams::max_distance)
+      .def_rw("reject", &m3c2::RegistrationParams::reject)
+      .def_rw("max_iterations", &m3c2::RegistrationParams::max_iterations)
+      .def_rw("tolerance", &m3c2::RegistrationParams::tolerance)
+      .def_rw("min_pairs", &m3c2::RegistrationParams::min_pairs)
+      .def_rw("max_points", &m3c2::RegistrationParams::max_points);
+  m.def(
+      "register_clouds",
+      [](const Points& reference, const Points& compared, const m3c2::RegistrationParams& params, int threads,
+         nb::object progress) {
+        const m3c2::Registration r = run_engine(std::move(progress), threads, [&](const m3c2::RunOptions& run) {
+          return m3c2::register_clouds(view(reference), view(compared), params, run);
+        });
+        nb::dict d;
+        d["matrix"] = std::vector<double>(r.matrix.begin(), r.matrix.end());
+        d["covariance"] = std::vector<double>(r.covariance.begin(), r.covariance.end());
+        d["centre"] = std::vector<double>(r.centre.begin(), r.centre.end());
+        d["registration_error"] = r.registration_error, d["rms"] = r.rms;
+        d["pairs"] = r.pairs, d["candidates"] = r.candidates;
+        d["iterations"] = r.iterations, d["converged"] = r.converged;
+        return d;
+      },
+      "reference"_a, "compared"_a, "params"_a, "threads"_a = 0, "progress"_a = nb::none());
 
   // C2C baselines of section 3.4 (include/m3c2/baselines.hpp, docs/analysis.md).
   m.def(

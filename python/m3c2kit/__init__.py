@@ -13,11 +13,12 @@ from .base.errors import Cancelled, M3C2Error, M3C2Warning, UsageError
 #: m3c2kit` and the command line import only what a run uses (issue 45: the CANUPO classifier's
 #: modules were imported by every compare, through api, and `m3c2 --version` took 0.29 s).
 _LAZY = {"compare": ("api", "compare"), "normals": ("run.in_memory", "normals"),
-         "subsample": ("run.in_memory", "subsample"), "read": ("io", "read_cloud"), "write": ("output.writing", "write"),
+         "subsample": ("run.in_memory", "subsample"), "register": ("analysis.registration", "register"),
+         "read": ("io", "read_cloud"), "write": ("output.writing", "write"),
          "info": ("io", "info"), "Cloud": ("io", "Cloud"), "Result": ("engine.result", "Result"),
          "COLUMNS": ("engine.result", "COLUMNS"), "STATUS_NAMES": ("engine.result", "STATUS_NAMES")}
 
-__all__ = ["compare", "normals", "subsample", "read", "write", "info", "Cloud", "Result", "COLUMNS",
+__all__ = ["compare", "normals", "subsample", "register", "read", "write", "info", "Cloud", "Result", "COLUMNS",
            "STATUS_NAMES", "M3C2Error", "UsageError", "Cancelled", "M3C2Warning"]
 __version__ = "0.1.0"
 

@@ -27,6 +27,8 @@ COMMANDS = {
     "series": ("series", "series_parsers", "M3C2 time series: a store of many epochs, 4D objects-by-change"),
     "variogram": ("variogram", "variogram_parser",
                   "the variogram of the distance over stable core points: the error model of --error-model"),
+    "register": ("register", "register_parser",
+                 "point-to-plane ICP on stable areas: the transform, its covariance and reg of eq. (1) for compare"),
     "aggregate": ("aggregate", "aggregate_parser",
                   "per region: mean change, volume and area of significant change, with intervals that account for "
                   "spatially correlated errors"),

@@ -273,6 +273,22 @@ def c2c(reference, compared, **kwargs) -> dict:
         return _core.c2c(reference, compared, **kwargs)
 
 
+def register_clouds(reference: np.ndarray, compared: np.ndarray, params: dict, *, threads: int = 0,
+                    progress=None) -> dict:
+    """Point-to-plane ICP of `compared` onto `reference` (include/m3c2/registration.hpp); `params`:
+    RegistrationParams' fields by name (the engine's defaults for the others). Returns matrix (4, 4),
+    covariance (6, 6), centre (3,), registration_error, rms, pairs, candidates, iterations, converged."""
+    bound = _bound_struct(_core.RegistrationParams, params)
+    with translated():
+        out = _core.register_clouds(np.ascontiguousarray(reference, dtype=np.float64),
+                                    np.ascontiguousarray(compared, dtype=np.float64), bound, threads=_threads(threads),
+                                    progress=_progress(progress))
+    out["matrix"] = np.asarray(out["matrix"]).reshape(4, 4)
+    out["covariance"] = np.asarray(out["covariance"]).reshape(6, 6)
+    out["centre"] = np.asarray(out["centre"])
+    return out
+
+
 def max_abs_coordinate(params: _core.Params) -> float:
     """The largest |coordinate| compute() accepts with these parameters (its spatial index)."""
     return float(_core.max_abs_coordinate(params))

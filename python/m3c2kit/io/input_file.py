@@ -38,6 +38,7 @@ SMALL_FILE_LIMITS: dict[str, int] = {
     "CRS file": 1 * _MiB,
     "epoch list file": 16 * _MiB,
     "error model file": 16 * _MiB,
+    "registration file": 1 * _MiB,
 }
 
 

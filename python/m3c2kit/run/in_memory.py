@@ -8,7 +8,7 @@ from typing import Callable
 
 import numpy as np
 
-from . import diagnostics, uncertainty_inputs
+from . import diagnostics, registration_inputs, uncertainty_inputs
 from .. import engine
 from ..base.errors import UsageError
 from ..engine.result import Result
@@ -50,7 +50,7 @@ def run(reference, compared, core_points=None, *, core_normals=None, vegetation=
     given = (reference, compared)  # the warnings look at the clouds as given
     reference, compared = filtered_clouds(plan.filter, reference, compared, threads=values["threads"])
     ref = as_points("reference", reference)
-    cmp_ = as_points("compared", compared)
+    cmp_ = registration_inputs.moved_compared_cloud(values, as_points("compared", compared))  # --transform T.json
     for name, cloud in (("reference", ref), ("compared", cmp_)):
         if len(cloud) == 0:
             raise UsageError(f"the {name} cloud is empty (0 points)")

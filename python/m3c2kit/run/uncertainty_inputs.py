@@ -23,6 +23,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .. import engine
+from . import registration_inputs
 from ..base.errors import UsageError
 from ..io.input_file import parse_json, read_small_text
 
@@ -362,13 +363,18 @@ def shared_inputs(values: dict, reference, compared) -> dict:
     table1 = _table_or_file(files[0], getattr(reference, "scan_positions", None), "--scan-positions")
     table2 = _table_or_file(files[-1], getattr(compared, "scan_positions", None), "--scan-positions")
     transform = values.get("transform")  # --transform-applied without it: m3c2kit.settings.needs
+    red = np.zeros(3) if values.get("reduction_point") is None else parse_reduction_point(values["reduction_point"])
+    # m3c2 register's T.json: its motion and covariance at EP's reduction point (run/registration_inputs.py)
+    registered = registration_inputs.registration_of(transform, "--transform")
     kw = dict(scan_positions1=table1, scan_positions2=table2,
-              transform=np.eye(3, 4) if transform is None else transform_matrix(transform),
-              reduction_point=np.zeros(3) if values.get("reduction_point") is None
-              else parse_reduction_point(values["reduction_point"]),
-              transform_applied=bool(values.get("transform_applied", False)))
+              transform=np.eye(3, 4) if transform is None else transform_matrix(
+                  transform if registered is None else registration_inputs.ep_transform(registered, red)),
+              reduction_point=red, transform_applied=bool(values.get("transform_applied", False)))
     if values.get("alignment_covariance") is not None:
-        kw["alignment_covariance"] = alignment_covariance(values["alignment_covariance"])
+        covariance = registration_inputs.registration_of(values["alignment_covariance"], "--alignment-covariance")
+        kw["alignment_covariance"] = alignment_covariance(
+            values["alignment_covariance"] if covariance is None
+            else registration_inputs.ep_alignment_covariance(covariance, red))
     return kw
 
 

@@ -9,6 +9,7 @@ from dataclasses import dataclass
 from typing import Callable, Mapping
 
 from ..base.errors import UsageError
+from ..io.registration_file import is_registration_path
 
 __all__ = ["Needs", "FITTING_SOURCES", "check_effective", "inapplicable"]
 
@@ -53,6 +54,8 @@ PM = Needs(lambda v: _uncertainty(v) == "pm", "with --uncertainty pm (an M3C2-PM
 EQ1 = Needs(lambda v: _uncertainty(v) == "eq1",
             "with eq. (1)'s LOD: --uncertainty pm and ep model the correlated errors themselves (counted twice)")
 EP = Needs(lambda v: _uncertainty(v) == "ep", "with --uncertainty ep (an M3C2-EP input)")
+EP_OR_REGISTRATION = Needs(lambda v: _uncertainty(v) == "ep" or is_registration_path(v.get("transform")),
+                           "with m3c2 register's T.json (any run) or with --uncertainty ep (its 3x4 text file)")
 WEIGHTED_CENTRES = Needs(lambda v: v.get("ep_covariance") != "empirical",
                          "with --ep-covariance independent or mean-of-points: the empirical covariance takes eq. (1)'s "
                          "centres, not weighted ones")

@@ -151,6 +151,28 @@ class Real:
         return f"finite, {'>=' if self.closed else '>'} {self.lo:g}"
 
 
+class RealOrRegistration(Real):
+    """A finite float >= 0, or m3c2 register's T.json whose registration_error it takes
+    (m3c2kit.io.registration_file: a value ending in .json is a registration file)."""
+
+    def __init__(self):
+        super().__init__(closed=True)
+
+    def __call__(self, name: str, value) -> float:
+        from ..io.registration_file import is_registration_path, read_registration
+        if is_registration_path(value):
+            return read_registration(value, name).registration_error
+        if isinstance(value, str):  # the command line's text: its messages name the number, as float's
+            try:
+                value = float(value)
+            except ValueError:
+                pass
+        return super().__call__(name, value)
+
+    def describe(self) -> str:
+        return f"{super().describe()}, or m3c2 register's T.json (its registration_error)"
+
+
 class Choice:
     """One of `values`."""
 

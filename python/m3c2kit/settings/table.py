@@ -16,9 +16,10 @@ from .. import engine
 from . import error_model, orientation, parsers
 from .row import FROM_ENGINE, SAME, EngineField, Parameter, _shown, enum, same, unset_is_zero
 from .series_rows import SERIES_ROWS
-from .needs import (A_VARIANCE, BOOTSTRAP, EP, EQ1, FITTED_NORMALS, MOVED_OR_PROPAGATED, NOT_CORE_NORMALS,
+from .needs import (A_VARIANCE, BOOTSTRAP, EP, EP_OR_REGISTRATION, EQ1, FITTED_NORMALS, MOVED_OR_PROPAGATED, NOT_CORE_NORMALS,
     PARAMETRIC_MEDIAN, PM, SEVERAL_SCALES, TRANSFORM, TWO_PASS, WEIGHTED_CENTRES, WELCH_T, Needs)
-from .parsers import UINT32_MAX, UINT64_MAX, Choice, Flag, Integer, Positives, Real, Scales, Text
+from .parsers import (UINT32_MAX, UINT64_MAX, Choice, Flag, Integer, Positives, Real, RealOrRegistration, Scales,
+                      Text)
 
 __all__ = ["Parameter", "EngineField", "PARAMETERS", "FROM_ENGINE", "SAME", "by_name", "parameters_of"]
 
@@ -122,9 +123,10 @@ PARAMETERS: tuple[Parameter, ...] = (
               engine=same("variance"), cloudcompare="population", cli_type=str, commands=BOTH, needs=(A_VARIANCE,),
               help="denominator of every variance: n - 1 (sample, as py4dgeo) or n (population, as CloudCompare)"),
     # Confidence (section 3.3, Appendix B)
-    Parameter("registration_error", "--registration-error", Real(closed=True), section="3.3 eq. (1)",
+    Parameter("registration_error", "--registration-error", RealOrRegistration(), section="3.3 eq. (1)",
               engine=same("registration_error"), cloudcompare_keys=("RegistrationError", "RegistrationErrorEnabled"),
-              py4dgeo="registration_error", help="reg of eq. (1), in the clouds' unit"),
+              py4dgeo="registration_error", cli_type=str, metavar="REG|T.json",
+              help="reg of eq. (1), in the clouds' unit, or m3c2 register's T.json (its registration_error)"),
     Parameter("confidence", "--confidence", Real(0.0, below=1.0), section="3.3",
               engine=same("confidence"), help="confidence level of the LOD"),
     Parameter("min_points", "--min-points", COUNT, section="5.2.1", engine=same("min_points"), cloudcompare=5,
@@ -193,15 +195,17 @@ PARAMETERS: tuple[Parameter, ...] = (
               default="point_source_id", cli_type=str, metavar="NAME", scope="run", needs=(EP,),
               help="M3C2-EP: the field holding each point's scan-position id (LAS point source id, an extra "
                    "dimension, or scan_index for E57)"),
-    Parameter("transform", "--transform", Text("a file (3x4)"), section="6.2", default=None, cli_type=str,
-              metavar="FILE", scope="run", needs=(EP,),
-              help="M3C2-EP: the compared epoch's 3x4 transformation tfM, applied to it about the reduction "
-                   "point unless --transform-applied"),
+    Parameter("transform", "--transform", Text("m3c2 register's T.json, or a file (3x4)"), section="6.2",
+              default=None, cli_type=str, metavar="FILE", scope="run", needs=(EP_OR_REGISTRATION,),
+              help="m3c2 register's T.json: the compared cloud moved onto the reference before comparing (in "
+                   "memory; M3C2-EP: as its tfM); M3C2-EP: also the compared epoch's 3x4 transformation tfM (a "
+                   "text file), applied to it about the reduction point unless --transform-applied"),
     Parameter("transform_applied", "--transform-applied", Flag(), section="6.2", default=False, cli_type=None,
               scope="run", needs=(EP, TRANSFORM), help="M3C2-EP: the compared cloud is given already transformed by --transform"),
-    Parameter("alignment_covariance", "--alignment-covariance", Text("a file (12x12)"), section="6.2",
+    Parameter("alignment_covariance", "--alignment-covariance", Text("a file (12x12) or T.json"), section="6.2",
               default=None, cli_type=str, metavar="FILE", scope="run", needs=(EP,),
-              help="M3C2-EP: 12x12 covariance Cxx of the transformation's parameters (r11..r33, tx, ty, tz)"),
+              help="M3C2-EP: 12x12 covariance Cxx of the transformation's parameters (r11..r33, tx, ty, tz), "
+                   "or m3c2 register's T.json (its 6x6 covariance converted at the reduction point)"),
     Parameter("reduction_point", "--reduction-point", Text("X,Y,Z or a file"), section="6.2", default=None,
               cli_type=str, metavar="X,Y,Z", scope="run", needs=(EP, MOVED_OR_PROPAGATED),
               help="M3C2-EP: the point the transformation rotates about (default 0,0,0)"),

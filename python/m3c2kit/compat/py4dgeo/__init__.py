@@ -44,9 +44,11 @@ NOT_PROVIDED = {
     "RegionGrowingAlgorithm": "m3c2 series objects STORE -o OBJECTS.csv --dtw py4dgeo",
     "temporal_averaging": "m3c2 series smooth STORE --window N",
     "PBM3C2": "nothing yet: m3c2kit has no plane-based M3C2",
-    "iterative_closest_point": "nothing in this module yet",
-    "point_to_plane_icp": "nothing in this module yet",
-    "icp_with_stable_areas": "nothing in this module yet",
+    "iterative_closest_point": "m3c2kit.register(reference, compared) (point-to-plane ICP; m3c2 register)",
+    "point_to_plane_icp": "m3c2kit.register(reference, compared, normal_scale=2 * radius) (its own normals at D; "
+                          "m3c2 register), then Epoch.transform(affine_transformation=r.matrix)",
+    "icp_with_stable_areas": "m3c2kit.register(reference, compared, stable=polygons or auto_stable=True) "
+                             "(m3c2 register --stable | --auto-stable)",
     "C2C": "m3c2 c2c REFERENCE COMPARED -o OUT",
     "SearchTree": "nothing: m3c2kit's engine builds its index in every run",
     "save_epoch": "m3c2kit.write(path, ...) to a point-cloud file",
