@@ -43,7 +43,7 @@ struct Registration {
   /// a small rotation vector (radians) about `centre` c after the estimate M, then a shift.
   /// sigma^2 (J^T J)^-1, sigma^2 = sum r^2 / (pairs - 6): valid when the residuals are independent.
   std::array<double, 36> covariance{};
-  std::array<double, 3> centre{};  ///< the mean of the paired compared points (conditioning)
+  std::array<double, 3> centre{};   ///< the mean of the paired compared points (conditioning)
   double registration_error = 0.0;  ///< sqrt(sum r^2 / (pairs - 6)) over the final pairs
   double rms = 0.0;                 ///< sqrt(mean r^2) over the final pairs
   std::uint64_t pairs = 0;          ///< pairs of the final estimate (after rejection)

@@ -66,8 +66,8 @@ std::uint32_t Targets::nearest(const Vec3& q, double max_distance) const {
   }
 }
 
-void pair_sources(const Targets& targets, const Sources& sources, const Pose& pose, double max_distance,
-                  Pairing& out, const RunOptions& run) {
+void pair_sources(const Targets& targets, const Sources& sources, const Pose& pose, double max_distance, Pairing& out,
+                  const RunOptions& run) {
   out.target.assign(sources.count, Targets::kNone);
   out.residual.assign(sources.count, std::numeric_limits<double>::quiet_NaN());
   parallel_blocks<int>(

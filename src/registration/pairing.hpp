@@ -60,8 +60,8 @@ struct Pairing {
   std::vector<double> residual;
 };
 
-void pair_sources(const Targets& targets, const Sources& sources, const Pose& pose, double max_distance,
-                  Pairing& out, const RunOptions& run);
+void pair_sources(const Targets& targets, const Sources& sources, const Pose& pose, double max_distance, Pairing& out,
+                  const RunOptions& run);
 
 /// J^T J, J^T r and sum r^2 over the pairs whose residual is in [low, high], J's row of a pair
 /// being d r / d (w, t) = ((q' - centre) x n, n) for a rotation w about the centre after the pose
