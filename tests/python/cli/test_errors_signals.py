@@ -196,15 +196,20 @@ def _newest_inputs(folder: Path) -> dict:
     (folder / "regions.geojson").write_text(json.dumps({"type": "FeatureCollection", "features": [
         {"type": "Feature", "properties": {"name": "r"},
          "geometry": {"type": "Polygon", "coordinates": [[[0, 0], [10, 0], [10, 10], [0, 10], [0, 0]]]}}]}))
+    # two epochs of a rough surface, the second shifted: what m3c2 register aligns (issue 43)
+    terrain = np.column_stack([xy, 0.3 * np.sin(xy[:, 0]) + 0.2 * np.cos(1.3 * xy[:, 1])])
+    np.savetxt(folder / "epoch1.xyz", terrain)
+    np.savetxt(folder / "epoch2.xyz", terrain + [0.01, -0.02, 0.03])
     return {"convert": ["convert", folder / "result.csv", "-o"],
             "variogram": ["variogram", folder / "result.csv", "--projection-scale", "1", "-o"],
-            "aggregate": ["aggregate", folder / "result.csv", "--regions", folder / "regions.geojson", "-o"]}
+            "aggregate": ["aggregate", folder / "result.csv", "--regions", folder / "regions.geojson", "-o"],
+            "register": ["register", folder / "epoch1.xyz", folder / "epoch2.xyz", "--normal-scale", "2", "-o"]}
 
 
 @pytest.mark.slow
 @pytest.mark.parametrize("signal_name", ["SIGKILL", "SIGTERM", "SIGINT", "SIGHUP"])
 @pytest.mark.parametrize("command, output", [("convert", "out.ply"), ("variogram", "model.json"),
-                                             ("aggregate", "table.csv")])
+                                             ("aggregate", "table.csv"), ("register", "t.json")])
 def test_the_newest_commands_killed_while_writing_keep_the_older_output(tmp_path, command, output, signal_name):
     """Issue 42's harness: each newest writing command stopped at its write (the testing aid,
     M3C2_TEST_SIGNAL_AT=writing:SIGNAL) keeps the older output byte for byte (a handled signal

@@ -157,6 +157,17 @@ OPTIONS = {
                                                              D / "regions.geojson", "--error-model", P, "-o", O]),
     "compare --error-model": (".json", 2, lambda D, O, P: ["compare", D / "a.xyz", D / "b.xyz", "-o", O, *SCALES,
                                                            "--error-model", P]),
+    # m3c2 register and its file in compare (issue 43)
+    "register reference": (".xyz", 1, lambda D, O, P: ["register", P, D / "b.xyz", "-o", O.with_suffix(".json"),
+                                                       "--normal-scale", "1"]),
+    "register compared": (".xyz", 1, lambda D, O, P: ["register", D / "a.xyz", P, "-o", O.with_suffix(".json"),
+                                                      "--normal-scale", "1"]),
+    "register --stable": (".geojson", 2, lambda D, O, P: ["register", D / "a.xyz", D / "b.xyz", "--stable", P, "-o",
+                                                          O.with_suffix(".json"), "--normal-scale", "1"]),
+    "compare --transform (T.json)": (".json", 2, lambda D, O, P: ["compare", D / "a.xyz", D / "b.xyz", "-o", O,
+                                                                  *SCALES, "--transform", P]),
+    "compare --registration-error (T.json)": (".json", 2, lambda D, O, P: [
+        "compare", D / "a.xyz", D / "b.xyz", "-o", O, *SCALES, "--registration-error", P]),
 }
 
 
