@@ -18,7 +18,7 @@ from ..base.errors import UsageError
 from ..io.registration_file import Registration, is_registration_path, read_registration
 
 __all__ = ["registration_of", "moves_compared", "moved_compared_cloud", "ep_transform", "ep_jacobian",
-           "ep_alignment_covariance", "check_not_tiled"]
+           "ep_alignment_covariance", "MovedSource"]
 
 
 def registration_of(value, option: str) -> Registration | None:
@@ -71,8 +71,18 @@ def ep_alignment_covariance(reg: Registration, reduction_point) -> np.ndarray:
     return np.ascontiguousarray(0.5 * (c + c.T))
 
 
-def check_not_tiled(values: dict) -> None:
-    """A tiled run streams the compared file into tiles as it is: it cannot move it first."""
-    if moves_compared(values):
-        raise UsageError("--transform T.json (a registration) moves the compared cloud in memory only: leave out "
-                         "--tile-size / --memory-limit, or write the moved cloud first")
+class MovedSource:
+    """A streamed compared cloud whose points come moved by --transform T.json (moves_compared),
+    for a tiled run: each chunk is moved as it is read, so the tiles hold the points where an
+    in-memory run compares them (the same motion, Registration.moved, hence the same bits)."""
+
+    def __init__(self, source, values: dict):
+        self.source = source
+        self.kind = source.kind
+        self._registration = read_registration(values["transform"], "--transform")
+
+    def chunks(self, rows: int):
+        return (self._registration.moved(xyz) for xyz in self.source.chunks(rows))
+
+    def records(self, rows: int, names):
+        return ((self._registration.moved(xyz), fields) for xyz, fields in self.source.records(rows, names))

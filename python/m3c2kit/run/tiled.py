@@ -42,7 +42,7 @@ from pathlib import Path
 import numpy as np
 
 from . import dask as dask_run
-from . import diagnostics, uncertainty_inputs
+from . import diagnostics, registration_inputs, uncertainty_inputs
 from ..base.errors import M3C2Error, UsageError
 from ..base.fault_hook import checkpoint as fault_checkpoint
 from ..io.arrays import bounds
@@ -330,12 +330,16 @@ def _partition(run: _Run) -> list[TileTask]:
     if "transform" in shared and not shared.get("transform_applied"):  # EP: the engine moves the compared cloud
         moved["compared"] = lambda xyz: uncertainty_inputs.moved_compared(shared, xyz)
     counted = {}
-    for name, src, given in zip(("reference", "compared"), run.sources, run.given):
-        run.streamed[name] = src.kind != "copc" or bool(run.plan.carried[name]) or moved[name] is not None
+    sources = list(run.sources)
+    if registration_inputs.moves_compared(run.values):  # --transform T.json: moved as read, as in memory
+        sources[1] = registration_inputs.MovedSource(sources[1], run.values)
+    for name, src, given in zip(("reference", "compared"), sources, run.given):
+        mover = isinstance(src, registration_inputs.MovedSource)
+        run.streamed[name] = src.kind != "copc" or bool(run.plan.carried[name]) or moved[name] is not None or mover
         if run.streamed[name]:
             n = distribute(src, run.spills, name, tiles, hp, rows, carried=run.plan.carried[name],
                            moved=moved[name], name=name)
-            if src is given:  # the points read from the file (with --classifier, those kept)
+            if (src.source if mover else src) is given:  # the points read from the file (--classifier: those kept)
                 counted[name] = n
             release_memory()
     report.reference_points = counted.get("reference", 0)

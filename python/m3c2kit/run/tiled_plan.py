@@ -12,7 +12,6 @@ from .. import engine
 from ..base.errors import UsageError
 from ..io.streaming import DEFAULT_CHUNK
 from ..settings.limits import check_halo, check_tile_size, usable_length
-from . import registration_inputs
 from .memory import parse_memory
 from .plan import Plan, make_plan
 from .tasks import compute_tile
@@ -73,7 +72,6 @@ def prepare(params: dict, tiling: TiledOptions = TiledOptions(), *, vegetation=N
         raise UsageError("--normal-subsample cannot be combined with tiling (--tile-size, --memory-limit, "
                          "--dask-scheduler): the subsampled normal cloud depends on the whole cloud's order, "
                          "so tiles would not reproduce the untiled result")
-    registration_inputs.check_not_tiled(values)
     if values["lod"] == "bootstrap":
         raise UsageError("--bootstrap cannot be combined with tiling: the bootstrap stream is seeded by the "
                          "core point's index in the run, which a tile does not know")

@@ -197,8 +197,8 @@ PARAMETERS: tuple[Parameter, ...] = (
                    "dimension, or scan_index for E57)"),
     Parameter("transform", "--transform", Text("m3c2 register's T.json, or a file (3x4)"), section="6.2",
               default=None, cli_type=str, metavar="FILE", scope="run", needs=(EP_OR_REGISTRATION,),
-              help="m3c2 register's T.json: the compared cloud moved onto the reference before comparing (in "
-                   "memory; M3C2-EP: as its tfM); M3C2-EP: also the compared epoch's 3x4 transformation tfM (a "
+              help="m3c2 register's T.json: the compared cloud moved onto the reference before comparing "
+                   "(M3C2-EP: as its tfM); M3C2-EP: also the compared epoch's 3x4 transformation tfM (a "
                    "text file), applied to it about the reduction point unless --transform-applied"),
     Parameter("transform_applied", "--transform-applied", Flag(), section="6.2", default=False, cli_type=None,
               scope="run", needs=(EP, TRANSFORM), help="M3C2-EP: the compared cloud is given already transformed by --transform"),

@@ -71,10 +71,16 @@ def test_a_json_that_is_not_a_registration_is_refused(files, tmp_path, capsys, o
     assert not (tmp_path / "o.csv").exists()
 
 
-def test_a_tiled_run_refuses_a_registration_transform(files, tmp_path, capsys):
-    code, _, err = run(capsys, "compare", files / "ref.npy", files / "cmp.npy", "-o", tmp_path / "o.csv",
-                       "--transform", files / "t.json", "--tile-size", "5", *SCALES)
-    assert code == 2 and "in memory only" in err, err
+def test_a_tiled_run_moves_the_compared_cloud_as_it_streams(files, tmp_path, capsys):
+    """The tiles hold the compared points moved as they are read (run/registration_inputs.MovedSource):
+    the output is the in-memory run's, byte for byte."""
+    whole, tiled = tmp_path / "whole.csv", tmp_path / "tiled.csv"
+    common = ("--transform", files / "t.json", *SCALES)
+    assert run(capsys, "compare", files / "ref.npy", files / "cmp.npy", "-o", whole, *common)[0] == 0
+    code, _, err = run(capsys, "compare", files / "ref.npy", files / "cmp.npy", "-o", tiled, "--tile-size", "2",
+                       *common)
+    assert code == 0, err
+    assert tiled.read_bytes() == whole.read_bytes()
 
 
 def _ep_parameters(reg: Registration, delta: np.ndarray, red: np.ndarray) -> np.ndarray:
