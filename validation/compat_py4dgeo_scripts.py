@@ -71,6 +71,9 @@ SCRIPTS = {
         d, u = py4dgeo.M3C2(epochs=(e1, e2), corepoints=e1.cloud[::40], normal_radii=[1.0], cyl_radius=0.5,
                             max_distance=1.0).run()
         out = {"distance": d}""",
+    "Epoch.calculate_normals": """
+        e1, e2 = py4dgeo.read_from_xyz(S1, S2)
+        out = {"normals": e1.calculate_normals(radius=1.0, orientation_vector=np.array([0.0, 0.0, 1.0]))[::50]}""",
     "timestamps": """
         e = py4dgeo.Epoch(np.zeros((3, 3)), timestamp="2024-05-01T12:30:00")
         out = {"timestamp": np.array([str(e.timestamp)]), "day_of_year": np.array([str(

@@ -218,3 +218,15 @@ def test_epoch_transform_as_py4dgeos():
 def test_a_py4dgeo_name_not_provided_says_what_to_use(name):
     with pytest.raises(AttributeError, match=f"does not provide py4dgeo's {name}; use instead"):
         getattr(p4, name)
+
+
+def test_calculate_normals_as_py4dgeos():
+    e1, _, _ = tilted(n=1500)
+    n = e1.calculate_normals(radius=1.0, orientation_vector=np.array([1.0, 0.0, 0.0]))
+    assert n is e1.normals and n.shape == e1.cloud.shape
+    ok = np.isfinite(n).all(axis=1)
+    assert ok.mean() > 0.99 and (n[ok] @ [1.0, 0.0, 0.0] >= 0).all()  # towards +x: the plane rises along x
+    np.testing.assert_allclose(np.abs(n[ok]), np.abs(m3c2kit.normals(e1.cloud, normal_scale=2.0)["normal"][ok]),
+                               atol=0)
+    with pytest.raises(ValueError, match="radius must be a positive number"):
+        e1.calculate_normals(radius=0)

@@ -143,6 +143,18 @@ class Epoch:
         """The transformations applied by :meth:`transform`: (4x4 matrix, reduction point) each."""
         return list(self._transformations)
 
+    @translated
+    def calculate_normals(self, radius: float = 1.0, orientation_vector=(0.0, 0.0, 1.0)) -> np.ndarray:
+        """py4dgeo's ``Epoch.calculate_normals``: every point's normal from its neighbours within
+        `radius` (m3c2kit's normal at D = 2 radius), towards `orientation_vector`; kept as
+        :attr:`normals` (NaN where no plane could be fitted) and returned."""
+        from .normals import direction, oriented_normals
+        if not (isinstance(radius, (int, float)) and np.isfinite(radius) and radius > 0):
+            raise UsageError(f"Epoch.calculate_normals: radius must be a positive number, got {radius!r}")
+        self.normals, _ = oriented_normals(self._cloud, self._cloud, [radius],
+                                           direction(orientation_vector, "Epoch.calculate_normals"))
+        return self.normals
+
     def build_kdtree(self, leaf_size: int = 10, force_rebuild: bool = False) -> None:
         """Accepted for py4dgeo scripts: m3c2kit builds its own index in every run."""
 

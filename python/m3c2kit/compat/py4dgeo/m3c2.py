@@ -17,9 +17,10 @@ import numpy as np
 
 from ...base.errors import UsageError
 from ...engine.result import Result
-from ...run.in_memory import compare, normals as fit_normals
+from ...run.in_memory import compare
 from . import util
 from .epoch import Epoch, as_epoch
+from .normals import direction, oriented_normals
 from .errors import UnsupportedArgument, refuse, translated
 
 __all__ = ["M3C2", "CloudCompareM3C2", "write_m3c2_results_to_las", "uncertainties_of", "UNCERTAINTY_DTYPE"]
@@ -42,13 +43,6 @@ def _positive(name: str, value: Any) -> float:
         raise UsageError(f"M3C2: {name} must be a positive number, got {value!r}") from None
     if not v > 0 or not np.isfinite(v):
         raise UsageError(f"M3C2: {name} must be a positive number, got {value!r}")
-    return v
-
-
-def _direction(vector: Any) -> np.ndarray:
-    v = np.asarray(vector, dtype=np.float64).ravel()
-    if v.shape != (3,) or not np.isfinite(v).all() or not np.linalg.norm(v) > 0:
-        raise UsageError(f"M3C2: orientation_vector must be a finite non-zero 3-vector, got {vector!r}")
     return v
 
 
@@ -129,18 +123,11 @@ class M3C2:
             return normals
         if not self.normal_radii:
             raise UsageError("M3C2: give normal_radii (a list of radii; m3c2kit's normal_scale is 2 x radius)")
-        orientation = _direction(self.orientation_vector)
-        scales = [2.0 * _positive("normal_radii", r) for r in self.normal_radii]
+        radii = [_positive("normal_radii", r) for r in self.normal_radii]
         source = self.cloud_for_normals if self.cloud_for_normals is not None else self._epochs()[0]
-        # Several scales: py4dgeo's rule (the largest (l2 - l3) / l1) among the scales with a
-        # plane (3 points), as py4dgeo; m3c2kit's own default is the paper's most planar scale.
-        extra = {"min_points_multiscale": 3, "scale_selection": "py4dgeo"} if len(scales) > 1 else {}
-        out = fit_normals(as_epoch(source).cloud, core, normal_scale=scales if len(scales) > 1 else scales[0],
-                          orient="+z", threads=util.get_num_threads(), **extra)
-        normals = out["normal"]
-        with np.errstate(invalid="ignore"):
-            normals[normals @ orientation < 0] *= -1.0  # towards the orientation vector, as py4dgeo's
-        self.corepoint_normals, self._directions_radii = normals, out["normal_scale"] / 2.0
+        normals, self._directions_radii = oriented_normals(as_epoch(source).cloud, core, radii,
+                                                           direction(self.orientation_vector))
+        self.corepoint_normals = normals
         return normals
 
     @translated
