@@ -44,11 +44,12 @@ def qgis_name(row) -> str:
 
 
 def title(row) -> str:
-    return f"{row['name'].replace('_', ' ').capitalize()} ({row['flag']})"
+    """The row's label (the parameter table's, in words; its flag is in the help)."""
+    return row.get("label") or row["name"].replace("_", " ").capitalize()
 
 
 def help_text(row) -> str:
-    return f"{row['help']}. Range: {row['range']}. Default: {row['default_text']}."
+    return f"{row['help']}. Range: {row['range']}. Default: {row['default_text']}. m3c2 option: {row['flag']}."
 
 
 def _is_file(row) -> bool:

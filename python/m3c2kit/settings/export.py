@@ -42,7 +42,7 @@ def _default(p: Parameter):
 
 def exported() -> dict:
     """Every row of the table, in the table's order."""
-    rows = [dict(name=p.name, flag=p.flag, help=p.help, range=p.kind.describe(), default=_default(p),
+    rows = [dict(name=p.name, flag=p.flag, label=p.title(), help=p.help, range=p.kind.describe(), default=_default(p),
                  default_text=p.default_text(), commands=list(p.commands), section=p.section, scope=p.scope,
                  metavar=p.metavar, **_kind(p)) for p in PARAMETERS]
     return {"format": FORMAT, "generated_by": "python -m m3c2kit.settings.export", "parameters": rows}

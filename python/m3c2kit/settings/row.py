@@ -68,6 +68,11 @@ class Parameter:
     scope: str = "engine"
     needs: tuple[Needs, ...] = ()  # when it acts (m3c2kit.settings.needs): given where one fails, a usage error
     unset: str = ""  # what not giving it means, in words, where its default is none ("the store's")
+    label: str = ""  # a dialog's name for it (QGIS); its name in words when empty
+
+    def title(self) -> str:
+        """What a dialog calls it: the label, else the name in words."""
+        return self.label or self.name.replace("_", " ").capitalize()
 
     def default_for(self, compat: str | None = None):
         """The default, under --compat cloudcompare when `compat` says so."""

@@ -56,12 +56,12 @@ BREAKS = Needs(lambda v: v.get("window_breaks") == "changepoints", "with --windo
 
 
 def _row(name, flag, kind, help, section, commands, *, engine_field=None, default=None, cli_type=str,
-         metavar=None, needs=(), unset=""):
+         metavar=None, needs=(), unset="", label=""):
     """A series row; `default`: the row's own (None: not given) where no engine field holds it."""
     return Parameter(name, flag, kind, help, section, engine=engine_field,
                      default=FROM_ENGINE if engine_field is not None and default is None else default,
                      cli_type=cli_type, metavar=metavar, commands=tuple(commands), scope="series", needs=needs,
-                     unset=unset)
+                     unset=unset, label=label)
 
 
 SERIES_ROWS: tuple[Parameter, ...] = (
@@ -127,40 +127,40 @@ SERIES_ROWS: tuple[Parameter, ...] = (
          unset="the store's"),
     # 4D objects-by-change: seeds from change points (Anders et al. 2021, 2.3.1; py4dgeo's defaults)
     _row("window_width", "--window-width", WINDOW, "sliding window of the change-point detection",
-         "Anders et al. 2021, 2.3.1", SEEDS, engine_field=_objects("window_width")),
+         "Anders et al. 2021, 2.3.1", SEEDS, engine_field=_objects("window_width"), label='Change-point window'),
     _row("window_min_size", "--window-min-size", COUNT_OR_ZERO, "fewest epochs between two change points",
-         "Anders et al. 2021, 2.3.1", SEEDS, engine_field=_objects("window_min_size")),
+         "Anders et al. 2021, 2.3.1", SEEDS, engine_field=_objects("window_min_size"), label='Fewest epochs between change points'),
     _row("window_jump", "--window-jump", COUNT, "epochs between the change-point candidates",
-         "Anders et al. 2021, 2.3.1", SEEDS, engine_field=_objects("window_jump")),
+         "Anders et al. 2021, 2.3.1", SEEDS, engine_field=_objects("window_jump"), label='Change-point step'),
     _row("window_penalty", "--window-penalty", Real(), "least cost decrease of a change point",
-         "Anders et al. 2021, 2.3.1", SEEDS, engine_field=_objects("window_penalty")),
+         "Anders et al. 2021, 2.3.1", SEEDS, engine_field=_objects("window_penalty"), label='Change-point penalty'),
     _row("min_period", "--min-period", COUNT, "fewest epochs of a seed's change", "Anders et al. 2021, 2.3.1",
-         (OBJECTS,), engine_field=_objects("min_period")),
+         (OBJECTS,), engine_field=_objects("min_period"), label='Fewest epochs of a change'),
     _row("height_threshold", "--height-threshold", Real(closed=True), "least magnitude of a seed's change, a change "
          "still going on at the last epoch's too (--dtw py4dgeo: not that one's, as py4dgeo)",
-         "Anders et al. 2021, 2.3.1", (OBJECTS,), engine_field=_objects("height_threshold")),
+         "Anders et al. 2021, 2.3.1", (OBJECTS,), engine_field=_objects("height_threshold"), label='Least change of a seed'),
     _row("finished_only", "--finished-only", Flag(), "drop seeds still growing at the last epoch",
-         "Anders et al. 2021, 2.3.1", (OBJECTS,), engine_field=FINISHED_ONLY, cli_type=None),
+         "Anders et al. 2021, 2.3.1", (OBJECTS,), engine_field=FINISHED_ONLY, cli_type=None, label='Finished changes only'),
     _row("seed_subsampling", "--seed-subsampling", COUNT, "search every k-th core point for seeds",
-         "Anders et al. 2021, 2.3.1", (OBJECTS,), engine_field=_objects("seed_subsampling")),
+         "Anders et al. 2021, 2.3.1", (OBJECTS,), engine_field=_objects("seed_subsampling"), label='Every k-th core point as a seed'),
     _row("use", "--use", Choice(*OBJECTS_SERIES), "the series: smoothed_distance when present (auto), distance "
-         "(raw), or kalman_distance (after m3c2 series kalman)", "docs/series.md", SEEDS, default="auto"),
+         "(raw), or kalman_distance (after m3c2 series kalman)", "docs/series.md", SEEDS, default="auto", label='Series analysed'),
     # 4D objects-by-change: region growing (2.3.2) and filters (2.3.3)
     _row("neighbourhood_radius", "--neighbourhood-radius", Real(), "core points this close are adjacent",
-         "Anders et al. 2021, 2.3.2", (OBJECTS,), engine_field=_objects("neighbourhood_radius")),
+         "Anders et al. 2021, 2.3.2", (OBJECTS,), engine_field=_objects("neighbourhood_radius"), label='Neighbourhood radius'),
     _row("thresholds", "--thresholds", Numbers(at_most=1.0), "DTW thresholds to choose from",
-         "Anders et al. 2021, 2.3.2", (OBJECTS,), engine_field=_objects("thresholds")),
+         "Anders et al. 2021, 2.3.2", (OBJECTS,), engine_field=_objects("thresholds"), label='DTW thresholds'),
     _row("min_segments", "--min-segments", COUNT_OR_ZERO, "fewest core points of an object",
-         "Anders et al. 2021, 2.3.3", (OBJECTS,), engine_field=_objects("min_segments")),
+         "Anders et al. 2021, 2.3.3", (OBJECTS,), engine_field=_objects("min_segments"), label='Fewest core points of an object'),
     _row("max_segments", "--max-segments", COUNT_OR_ZERO, "the choice of the DTW threshold stops at the first whose "
          "object reaches this many core points (0: no limit; at least --min-segments)", "Anders et al. 2021, 2.3.3",
-         (OBJECTS,), engine_field=_objects("max_segments")),
+         (OBJECTS,), engine_field=_objects("max_segments"), label='Most core points of an object'),
     _row("max_cv", "--max-cv", Real(), "largest coefficient of variation of an object's DTW",
-         "Anders et al. 2021, 2.3.3", (OBJECTS,), engine_field=_objects("max_cv")),
+         "Anders et al. 2021, 2.3.3", (OBJECTS,), engine_field=_objects("max_cv"), label='Largest coefficient of variation'),
     _row("dtw", "--dtw", Choice("baseline", "seed-start", "py4dgeo"), "seeds and DTW alignment: baseline (each "
          "series from its median before the change), seed-start (from its value at the seed's first epoch), py4dgeo "
          "(py4dgeo 1.2.0's rule: from the series' first epoch, D_max of the raw seed slice; docs/series.md, "
-         "Analysis)", "Anders et al. 2021, 2.3.2", (OBJECTS,), engine_field=enum("dtw", OBJECTS_PARAMS)),
+         "Analysis)", "Anders et al. 2021, 2.3.2", (OBJECTS,), engine_field=enum("dtw", OBJECTS_PARAMS), label='DTW alignment'),
 )
 
 

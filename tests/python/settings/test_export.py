@@ -41,3 +41,13 @@ def test_main_writes_the_file(tmp_path):
     out = tmp_path / "p.json"
     assert export.main([str(out)]) == 0
     assert json.loads(out.read_text(encoding="utf-8")) == export.exported()
+
+
+def test_every_row_has_a_label_in_words_for_the_dialog():
+    """Issue 44: QGIS's labels read like flags ("Lod (--lod)"). Each row's label is words; the
+    flag is in its help."""
+    rows = export.exported()["parameters"]
+    for row, p in zip(rows, PARAMETERS):
+        assert row["label"] == p.title() and "--" not in row["label"] and row["label"][0].isupper(), row["label"]
+    labels = {r["name"]: r["label"] for r in rows}
+    assert labels["lod"] == "LOD statistic" and labels["normal_scale"] == "Normal scale D (diameter)"
