@@ -24,17 +24,27 @@ def reads_point_clouds() -> bool:
     return "pdal" in QgsProviderRegistry.instance().providerList()
 
 
-def _double_field(name):
+def _field(name, integer: bool):
+    """A Double field, or an Int one for a column of whole numbers (counts, flags, status codes)."""
     if Qgis.QGIS_VERSION_INT >= 33800:  # QgsField takes a QMetaType from 3.38 on (QGIS 4: only it)
         from qgis.PyQt.QtCore import QMetaType
-        return QgsField(name, QMetaType.Type.Double)
+        return QgsField(name, QMetaType.Type.Int if integer else QMetaType.Type.Double)
     from qgis.PyQt.QtCore import QVariant
-    return QgsField(name, QVariant.Double)
+    return QgsField(name, QVariant.Int if integer else QVariant.Double)
 
 
 def _number(text):
     value = float(text)
     return None if math.isnan(value) else value
+
+
+INT_LIMIT = 2**31  # QGIS's Int field
+
+
+def _whole(values) -> bool:
+    """Whether a column holds whole numbers only (NULL aside) that an Int field holds: m3c2's
+    counts, flags and status codes stay integers in the layer (issue 44: every column was Real)."""
+    return all(v is None or (v.is_integer() and abs(v) < INT_LIMIT) for v in values)
 
 
 def geopackage_path(output) -> str:
@@ -53,9 +63,10 @@ def write_geopackage(output, feedback, context) -> str:
     # QGIS's Python has no m3c2kit: m3c2 itself copies the output into a CSV (every column, float64
     # written losslessly) and says its CRS.
     table = QgsProcessingUtils.generateTempFilename("m3c2kit_table.csv")
-    runner.run(["convert", runner.path_argument(output), "-o", table], feedback)
-    wkt = (json.loads(runner.run(["info", "--json", runner.path_argument(output)], feedback)).get("crs") or {}).get(
-        "wkt") or ""
+    # Internal runs: their command lines are logged, their outputs (a copy's summary, JSON) are not.
+    runner.run(["convert", runner.path_argument(output), "-o", table, "-q"], feedback, echo=False)
+    info = runner.run(["info", "--json", runner.path_argument(output)], feedback, echo=False)
+    wkt = (json.loads(info).get("crs") or {}).get("wkt") or ""
     name = os.path.basename(str(output))
     memory = QgsVectorLayer("PointZ", name, "memory")
     if wkt:
@@ -63,19 +74,20 @@ def write_geopackage(output, feedback, context) -> str:
     with open(table, newline="", encoding="utf-8") as f:
         rows = csv.reader(f)
         header = next(rows)
-        fields = QgsFields()
-        for column in header:
-            fields.append(_double_field(column))
-        memory.dataProvider().addAttributes(fields.toList())
-        memory.updateFields()
-        features = []
-        for row in rows:
-            values = [_number(v) for v in row]
-            feature = QgsFeature(memory.fields())
-            x, y, z = (float(v) for v in row[:3])
-            feature.setGeometry(QgsGeometry(QgsPoint(x, y, z)))
-            feature.setAttributes(values)
-            features.append(feature)
+        data = [[_number(v) for v in row] for row in rows]
+    whole = [_whole(column) for column in zip(*data)] if data else [False] * len(header)
+    fields = QgsFields()
+    for column, integer in zip(header, whole):
+        fields.append(_field(column, integer))
+    memory.dataProvider().addAttributes(fields.toList())
+    memory.updateFields()
+    features = []
+    for values in data:
+        feature = QgsFeature(memory.fields())
+        x, y, z = (math.nan if v is None else v for v in values[:3])  # a row without a position: NaN
+        feature.setGeometry(QgsGeometry(QgsPoint(x, y, z)))
+        feature.setAttributes([v if v is None or not integer else int(v) for v, integer in zip(values, whole)])
+        features.append(feature)
     memory.dataProvider().addFeatures(features)
     os.remove(table)
     path = geopackage_path(output)

@@ -124,15 +124,16 @@ class _Stream(threading.Thread):
 class Run:
     """One m3c2 run: stdout lines, stderr messages, the exit status."""
 
-    def __init__(self, command, feedback, progress=False):
+    def __init__(self, command, feedback, progress=False, echo=True):
         self.command = [str(a) for a in command]
         self.feedback = feedback
         self.progress = progress
+        self.echo = echo  # False: stdout is data for the plugin (m3c2 info --json), not the log's
         self.errors = []
         self.last_line = ""  # of stderr: the message of a crash that printed no "m3c2: error:"
 
     def _stdout(self, line):
-        if line.strip() and self.feedback is not None:
+        if self.echo and line.strip() and self.feedback is not None:
             self.feedback.pushConsoleInfo(line)
 
     def _stderr(self, segment):
@@ -209,6 +210,6 @@ class Run:
         return f"m3c2 failed ({status}){': ' + self.last_line if self.last_line else ''}"
 
 
-def run(arguments, feedback, progress=False) -> str:
-    """`m3c2 ARGUMENTS...`; its stdout."""
-    return Run([executable(), *arguments], feedback, progress).execute()
+def run(arguments, feedback, progress=False, echo=True) -> str:
+    """`m3c2 ARGUMENTS...`; its stdout (logged unless `echo` is False)."""
+    return Run([executable(), *arguments], feedback, progress, echo).execute()

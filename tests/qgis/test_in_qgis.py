@@ -83,6 +83,12 @@ def test_result_layer_has_every_column_and_the_distance_style():
         assert layer.isValid() and layer.featureCount() == info["point_count"] == 499
         names = [f.name() for f in layer.fields() if f.name() != "fid"]
         assert names == ["x", "y", "z"] + info["fields"], names
+        kinds = {f.name(): f.typeName().lower() for f in layer.fields()}
+        # counts, flags and codes stay integers (issue 44: every column was Real); measures stay Real
+        assert all(kinds[n].startswith(("int", "mediumint")) for n in ("n1", "n2", "significant", "status")), kinds
+        assert all(kinds[n] in ("real", "double") for n in ("distance", "lod")), kinds
+        logged = "\n".join(feedback.infos)
+        assert '"point_count"' not in logged and '"fields"' not in logged  # the internal m3c2 info --json
         check_distance_renderer(layer)
         # the post-processor Processing runs on the loaded layer styles one without a saved style too
         details = context.layersToLoadOnCompletion()[results["OUTPUT_LAYER"]]
@@ -101,8 +107,8 @@ def test_result_layer_has_every_column_and_the_distance_style():
 
 
 def number(value):
-    """A feature's double, None for NULL (a QVariant in QGIS 3)."""
-    return value if isinstance(value, float) else None
+    """A feature's number as a float, None for NULL (a QVariant in QGIS 3)."""
+    return float(value) if isinstance(value, (int, float)) and not isinstance(value, bool) else None
 
 
 def check_distance_renderer(layer):
