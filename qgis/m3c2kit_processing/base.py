@@ -10,6 +10,16 @@ from .compat import FILE
 
 CLOUD_FILTER = "Point clouds (*.laz *.las *.ply *.e57 *.csv *.txt *.xyz *.asc *.npy);;All files (*)"
 DOCS = "https://github.com/m3c2kit/m3c2kit/blob/main/docs/qgis.md"
+#: The help the plugin's zip carries (scripts/build-qgis-plugin.sh copies docs/qgis.md there).
+BUNDLED_HELP = os.path.join(os.path.dirname(os.path.abspath(__file__)), "help", "qgis.md")
+
+
+def help_url() -> str:
+    """The installed plugin's own copy of its help, else (a plugin run from the repository) docs/qgis.md online."""
+    if os.path.isfile(BUNDLED_HELP):
+        from qgis.PyQt.QtCore import QUrl
+        return QUrl.fromLocalFile(BUNDLED_HELP).toString()
+    return DOCS
 
 
 def cloud_parameter(name, description, optional=False):
@@ -43,7 +53,7 @@ class M3C2Algorithm(QgsProcessingAlgorithm):
         return type(self)()
 
     def helpUrl(self):  # noqa: N802 - QGIS's name
-        return DOCS
+        return help_url()
 
     def shortHelpString(self):  # noqa: N802 - QGIS's name
         lines = [self.HELP, ""]

@@ -18,8 +18,8 @@ import time
 from qgis.core import QgsProcessingException
 
 SETTING = "M3C2_EXECUTABLE"
-NOT_FOUND = ("m3c2 not found: install m3c2kit (docs/qgis.md) or set its path in Settings > Options > Processing > "
-             "Providers > m3c2kit > m3c2 executable (" + SETTING + ")")
+NOT_FOUND = ("m3c2 not found: install m3c2kit (the plugin's help, help/qgis.md in its folder, says how) or set its "
+             "path in Settings > Options > Processing > Providers > m3c2kit > m3c2 executable (" + SETTING + ")")
 
 # `m3c2 ... --progress json` writes one JSON line per update on stderr, {"phase", "done", "total",
 # "percent"}: the run's percent, monotone, from m3c2's own table of its phases (m3c2kit.base.phases).
@@ -55,7 +55,7 @@ def executable() -> str:
         if os.path.isfile(configured) and os.access(configured, os.X_OK):
             return configured
         raise QgsProcessingException(f"m3c2 not found at {configured} (the m3c2kit provider's setting {SETTING}): "
-                                     "install m3c2kit (docs/qgis.md) or correct the setting")
+                                     "install m3c2kit (the plugin's help, help/qgis.md in its folder) or correct the setting")
     found = shutil.which("m3c2")
     if found is None:
         raise QgsProcessingException(NOT_FOUND)

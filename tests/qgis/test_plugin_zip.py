@@ -23,7 +23,10 @@ def test_the_zip_holds_the_plugin_folder():
             for name in files:
                 if not name.endswith(".pyc"):
                     expected.add(os.path.relpath(os.path.join(folder, name), os.path.dirname(PLUGIN)))
+        expected.add("m3c2kit_processing/help/qgis.md")  # the help it refers to (issue 44)
         assert names == expected, names ^ expected
+        with open(os.path.join(ROOT, "docs", "qgis.md"), "rb") as f:
+            assert z.read("m3c2kit_processing/help/qgis.md") == f.read()
         assert all(n.startswith("m3c2kit_processing/") for n in names)
         assert not any("__pycache__" in n or n.endswith(".pyc") for n in names)
         for name in ("metadata.txt", "__init__.py", "parameters.json"):

@@ -115,7 +115,7 @@ def test_a_missing_m3c2_is_named():
         env = environment(PATH="/usr/bin:/bin")
         ran = run("compare", f"--REFERENCE={REFERENCE}", f"--COMPARED={COMPARED}", *SMALL_QGIS,
                   f"--OUTPUT={os.path.join(d, 'x.laz')}", env=env)
-        assert ran.returncode != 0 and "m3c2 not found: install m3c2kit (docs/qgis.md)" in ran.stdout + ran.stderr
+        assert ran.returncode != 0 and "m3c2 not found: install m3c2kit (the plugin's help, help/qgis.md" in ran.stdout + ran.stderr
         assert os.listdir(d) == []
 
 
