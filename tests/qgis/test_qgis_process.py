@@ -48,9 +48,12 @@ def test_help_of_every_algorithm():
                  "UNCERTAINTY", "PRECISION_FIELDS", "SCAN_POSITIONS", "OUTPUT", "REPORT"):
         assert f"\n{name}: " in compare_help, name
     pdal_help = qgis_process("help", "m3c2kit:pdal_compare").stdout
-    for name in ("NORMAL_RADIUS", "CYL_RADIUS", "CYL_HALFLEN", "REG_ERROR", "MIN_POINTS", "ORIENTATION"):
+    # QGIS 4's pdal:compare ids (issue 44: a model written for it runs by changing the algorithm id)
+    for name in ("INPUT", "INPUT_COMPARE", "SUBSAMPLING_CELL_SIZE", "NORMAL_RADIUS", "CYLINDER_RADIUS",
+                 "CYLINDER_HALF_LENGTH", "REGISTRATION_ERROR", "CYLINDER_ORIENTATION", "OUTPUT", "MIN_POINTS", "CORE"):
         assert f"\n{name}: " in pdal_help, name
-    assert "sum(x^2)/n - mean^2" in pdal_help and "16-bit" in pdal_help and "1.96" in pdal_help
+    assert "16-bit" in pdal_help and "1.96" in pdal_help and "Origin" in pdal_help
+    assert "sum(x^2)" not in pdal_help  # a claim no case showed: PDAL's variance matched ours to 1e-9 m
 
 
 def test_compare_gives_the_command_lines_bytes():
@@ -66,23 +69,31 @@ def test_compare_gives_the_command_lines_bytes():
         assert os.path.isfile(plugin + ".gpkg")  # the layer QGIS loads (Debian's QGIS reads no LAZ)
 
 
-def test_pdal_compare_with_radii_is_compare_with_diameters():
+def test_pdal_compare_with_qgis4s_ids_is_compare_with_diameters():
     with Folder() as d:
         pdal, ours = os.path.join(d, "pdal.laz"), os.path.join(d, "ours.laz")
-        ran = run("pdal_compare", f"--REFERENCE={REFERENCE}", f"--COMPARED={COMPARED}", "--NORMAL_RADIUS=8",
-                  "--CYL_RADIUS=5", "--CYL_HALFLEN=30", "--REG_ERROR=0.05", "--MIN_POINTS=2", "--ORIENTATION=0",
-                  f"--CORE={REFERENCE}", f"--OUTPUT={pdal}")
+        ran = run("pdal_compare", f"--INPUT={REFERENCE}", f"--INPUT_COMPARE={COMPARED}", "--NORMAL_RADIUS=8",
+                  "--CYLINDER_RADIUS=5", "--CYLINDER_HALF_LENGTH=30", "--REGISTRATION_ERROR=0.05",
+                  "--SUBSAMPLING_CELL_SIZE=20", "--CYLINDER_ORIENTATION=0", f"--OUTPUT={pdal}")
         assert ran.returncode == 0, ran.stdout[-3000:] + ran.stderr[-3000:]
-        # --core REFERENCE: PDAL's third view; ORIENTATION 0 (up) is +z; PDAL's z statistic and population variance
-        ran = run("compare", f"--REFERENCE={REFERENCE}", f"--COMPARED={COMPARED}", f"--CORE={REFERENCE}",
+        # SUBSAMPLING_CELL_SIZE: core points at that spacing; Up is +z; PDAL's z statistic, population
+        # variance and m3c2_* columns, every one in LAS (m3c2_std_dev1 and 2 among them)
+        ran = run("compare", f"--REFERENCE={REFERENCE}", f"--COMPARED={COMPARED}", "--CORE_SPACING=20",
                   "--NORMAL_SCALE=16", "--PROJECTION_SCALE=10", "--MAX_DEPTH=30", "--REGISTRATION_ERROR=0.05",
-                  "--MIN_POINTS=2", "--ORIENTATION=+z", "--LOD=0", "--VARIANCE=1", "--FIELD_NAMES=2",
-                  f"--OUTPUT={ours}")
+                  "--MIN_POINTS=1", "--ORIENTATION=+z", "--LOD=0", "--VARIANCE=1", "--FIELD_NAMES=2",
+                  "--ALL_FIELDS=true", f"--OUTPUT={ours}")
         assert ran.returncode == 0, ran.stdout[-3000:] + ran.stderr[-3000:]
         assert read(pdal) == read(ours)
-        none = run("pdal_compare", f"--REFERENCE={REFERENCE}", f"--COMPARED={COMPARED}", "--ORIENTATION=2",
+        fields = json.loads(m3c2("info", pdal, "--json").stdout)["fields"]
+        assert {"m3c2_distance", "m3c2_uncertainty", "m3c2_significant", "m3c2_std_dev1", "m3c2_std_dev2",
+                "m3c2_count1", "m3c2_count2"} <= set(fields), fields  # PDAL's seven
+        origin = run("pdal_compare", f"--INPUT={REFERENCE}", f"--INPUT_COMPARE={COMPARED}", "--NORMAL_RADIUS=8",
+                     "--CYLINDER_RADIUS=5", "--CYLINDER_HALF_LENGTH=30", "--SUBSAMPLING_CELL_SIZE=20",
+                     "--CYLINDER_ORIENTATION=1", f"--OUTPUT={os.path.join(d, 'origin.laz')}")
+        assert origin.returncode == 0 and "--orient origin" in origin.stdout + origin.stderr
+        none = run("pdal_compare", f"--INPUT={REFERENCE}", f"--INPUT_COMPARE={COMPARED}", "--CYLINDER_ORIENTATION=2",
                    f"--OUTPUT={os.path.join(d, 'none.laz')}")
-        assert none.returncode != 0 and "ORIENTATION none" in none.stdout + none.stderr
+        assert none.returncode != 0 and "CYLINDER_ORIENTATION None" in none.stdout + none.stderr
         assert not os.path.exists(os.path.join(d, "none.laz"))
 
 
