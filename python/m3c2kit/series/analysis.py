@@ -24,8 +24,6 @@ from . import integrity
 from . import store as st
 from .outputs import members_path, table_digests
 from .view import StoreView, writing
-# Moved to series/view.py with the store view (issue 41); importable from here as before.
-from .view import publish, publish_many, what_was_kept  # noqa: F401
 
 SMOOTHED = "smoothed_distance"
 KALMAN = st.KALMAN_VARIABLES[0]  # series/kalman.py's smoothed distance, which 4D-OBC can segment (--use kalman)
