@@ -13,14 +13,9 @@ from m3c2kit.io.registration_file import Registration, read_registration, regist
 from m3c2kit.run import registration_inputs
 
 from terrain import epochs, rotation
+from test_register import run  # the command line's (code, stdout, stderr)
 
 SCALES = ["--normal-scale", "0.6", "--projection-scale", "0.5", "--max-depth", "1", "-q"]
-
-
-def run(capsys, *argv):
-    code = main([str(a) for a in argv])
-    out = capsys.readouterr()
-    return code, out.out, out.err
 
 
 @pytest.fixture(scope="module")
