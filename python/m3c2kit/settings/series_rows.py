@@ -55,13 +55,13 @@ WEIGHTED = Needs(lambda v: v.get("weights") not in (None, "none"), "with --weigh
 BREAKS = Needs(lambda v: v.get("window_breaks") == "changepoints", "with --window-breaks changepoints")
 
 
-def _row(name, flag, kind, help, section, commands, *, engine_field=None, default=None, cli_type=str,
-         metavar=None, needs=(), unset="", label=""):
-    """A series row; `default`: the row's own (None: not given) where no engine field holds it."""
+def _row(name, flag, kind, help, section, commands, *, engine_field=None, default=None, **more):
+    """A series row; `default`: the row's own (None: not given) where no engine field holds it;
+    `more`: Parameter's other fields (cli_type, str unless given; metavar, needs, unset, label)."""
+    more.setdefault("cli_type", str)
     return Parameter(name, flag, kind, help, section, engine=engine_field,
                      default=FROM_ENGINE if engine_field is not None and default is None else default,
-                     cli_type=cli_type, metavar=metavar, commands=tuple(commands), scope="series", needs=needs,
-                     unset=unset, label=label)
+                     commands=tuple(commands), scope="series", **more)
 
 
 SERIES_ROWS: tuple[Parameter, ...] = (
