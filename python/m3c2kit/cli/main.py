@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import os
+import re
 import signal
 import sys
 import warnings
@@ -74,6 +75,27 @@ def main(argv=None) -> int:
         return _main(argv)
 
 
+def _interrupted(stop: BaseException) -> int:
+    """A stop (SIGINT, SIGTERM, ...): before any output was published, nothing was written (exit
+    1). After one was, the run stops there: what it published is whole (io/atomic.py) and said,
+    and the process ends by the signal itself, as a stopped program does. A stop a step reworded
+    (a series store's: what it kept) is said as it is."""
+    generic = re.fullmatch(r"interrupted by (\w+); no output written", str(stop))
+    name = "SIGINT" if isinstance(stop, KeyboardInterrupt) and not str(stop) else generic and generic.group(1)
+    written = interrupt.published()
+    if not name or not written:
+        text = f"interrupted by {name}; no output written" if name else printable(stop)
+        print(f"m3c2: error: {text}", file=sys.stderr)
+        return 1
+    print(f"m3c2: error: interrupted by {name} after writing {', '.join(map(str, written))} (whole); "
+          f"nothing after it was written", file=sys.stderr)
+    sys.stderr.flush()
+    number = getattr(signal, name)
+    signal.signal(number, signal.SIG_DFL)
+    os.kill(os.getpid(), number)
+    return 1  # where the signal does not end the process (a caller that handles it itself)
+
+
 def _main(argv) -> int:
     try:
         with warnings.catch_warnings():
@@ -98,9 +120,8 @@ def _main(argv) -> int:
     except UsageError as e:
         print(f"m3c2: error: {printable(e)}", file=sys.stderr)
         return 2
-    except KeyboardInterrupt:
-        print("m3c2: error: interrupted by SIGINT; no output written", file=sys.stderr)
-        return 1
+    except (KeyboardInterrupt, interrupt.Interrupted) as e:
+        return _interrupted(e)
     except M3C2Error as e:
         print(f"m3c2: error: {printable(e)}", file=sys.stderr)
         return 1

@@ -132,10 +132,12 @@ def staged_outputs(targets) -> Iterator[dict[Path, Path]]:
             for target, tmp in staged.items():
                 folders[target].check()
                 _seal(folders[target], tmp.name, target)
-            for target, tmp in staged.items():
-                folder = folders[target]
-                os.replace(tmp.name, target.name, src_dir_fd=folder.fd, dst_dir_fd=folder.parent_fd)
-                _fsync_dir(folder.parent_fd)
+            with interrupt.deferred():  # every target replaced, or none: a stop waits for the last
+                for target, tmp in staged.items():
+                    folder = folders[target]
+                    os.replace(tmp.name, target.name, src_dir_fd=folder.fd, dst_dir_fd=folder.parent_fd)
+                    _fsync_dir(folder.parent_fd)
+                interrupt.note_published(staged)
         except OSError as e:
             target = next((t for t, tmp in staged.items() if e.filename in (str(tmp), tmp, tmp.name)), None)
             target = target or (next(iter(staged)) if len(staged) == 1 else None)
@@ -184,14 +186,16 @@ def _publish(folder: PrivateFolder, target: Path) -> None:
     # A folder is renamed by name (no call renames a descriptor): the name is checked to be ours
     # just before and the target just after, so a swap in between is caught, never published.
     folder.check_name()
-    try:
-        os.rename(folder.name, target.name, src_dir_fd=folder.parent_fd, dst_dir_fd=folder.parent_fd)
-    except OSError as e:
-        if e.errno in (errno.ENOTEMPTY, errno.EEXIST, errno.ENOTDIR, errno.EISDIR):
-            raise _occupied(target) from None
-        raise CloudWriteError(f"{target}: cannot create: {describe(e)}") from None
-    folder.published(target.name)
-    _fsync_dir(folder.parent_fd)
+    with interrupt.deferred():  # renamed and recorded as published, or not renamed at all
+        try:
+            os.rename(folder.name, target.name, src_dir_fd=folder.parent_fd, dst_dir_fd=folder.parent_fd)
+        except OSError as e:
+            if e.errno in (errno.ENOTEMPTY, errno.EEXIST, errno.ENOTDIR, errno.EISDIR):
+                raise _occupied(target) from None
+            raise CloudWriteError(f"{target}: cannot create: {describe(e)}") from None
+        folder.published(target.name)
+        _fsync_dir(folder.parent_fd)
+        interrupt.note_published([target])
 
 
 @contextmanager

@@ -68,3 +68,34 @@ def test_outside_a_run_nothing_is_kept_and_handlers_are_restored(tmp_path):
     with atomic_output(tmp_path / "out.txt") as tmp:
         tmp.write_text("whole")
     assert (tmp_path / "out.txt").read_text() == "whole"
+
+
+def test_a_stop_while_publishing_waits_until_every_output_is_in_place():
+    """Hostile round: a stop inside the renames would leave some outputs new and some old."""
+    import os
+    import signal
+    from m3c2kit.base import interrupt
+    with interrupt.handled([signal.SIGINT]):
+        reached = []
+        with pytest.raises(KeyboardInterrupt):
+            with interrupt.deferred():
+                os.kill(os.getpid(), signal.SIGINT)  # the handler keeps it for the block's end
+                reached.append("after the signal")
+        assert reached == ["after the signal"]
+
+
+@pytest.mark.parametrize("published, code, message", [
+    ([], 1, "m3c2: error: interrupted by SIGINT; no output written\n"),
+    (["out.csv"], -2, "m3c2: error: interrupted by SIGINT after writing out.csv (whole); nothing after it was "
+                      "written\n")])
+def test_a_stop_after_an_output_was_published_says_it_is_whole(published, code, message):
+    """Hostile round: a SIGINT just after `convert` published its copy ended with "no output
+    written" and exit 1, with the copy there. After a publication the run stops by the signal,
+    naming what it wrote whole."""
+    import subprocess
+    import sys
+    probe = ("import signal, sys\nfrom m3c2kit.base import interrupt\nfrom m3c2kit.cli import main as m\n"
+             f"with interrupt.handled([signal.SIGINT]):\n    interrupt.note_published({published!r})\n"
+             "    sys.exit(m._interrupted(KeyboardInterrupt()))\n")
+    done = subprocess.run([sys.executable, "-c", probe], capture_output=True, text=True)
+    assert done.returncode == code and done.stderr == message, (done.returncode, done.stderr)
