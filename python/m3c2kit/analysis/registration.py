@@ -14,6 +14,8 @@ from ..base.errors import UsageError
 from ..io.registration_file import Registration
 from ..run.checks import as_points
 
+_ENGINE = engine.default_fields("RegistrationParams")
+
 __all__ = ["RegistrationOptions", "register", "stable_in_polygons"]
 
 #: A round of --auto-stable changes the stable set by less than this share of the points: stopped.
@@ -25,9 +27,10 @@ class RegistrationOptions:
     """What m3c2kit.register does (docs/registration.md). Lengths in the clouds' unit."""
     normal_scale: float | None = None   # D of the targets' normals; None: m3c2 suggest's rule on the data
     max_distance: float | None = None   # the farthest pair; None: D
-    reject: float = 3.0                 # residuals beyond this many robust sd from their median dropped
-    max_iterations: int = 50
-    max_points: int = 1_000_000         # compared points paired, at a fixed stride
+    # the engine's defaults (include/m3c2/registration.hpp, RegistrationParams), written there only
+    reject: float = _ENGINE["reject"]   # residuals beyond this many robust sd from their median dropped
+    max_iterations: int = _ENGINE["max_iterations"]
+    max_points: int = _ENGINE["max_points"]  # compared points paired, at a fixed stride
     rounds: int = 5                     # auto_stable: the most register-compare rounds
     threads: int = 0
 
