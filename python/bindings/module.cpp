@@ -1,5 +1,6 @@
 // The thin binding: numpy arrays in (viewed, not copied, when float64 and C-contiguous),
-// the GIL released while the engine runs, numpy arrays out (the engine's vectors, not copied).
+// the GIL released while the engine runs, numpy arrays out (the engine's vectors, not copied):
+// support.hpp. PB-M3C2's functions are bound in pbm3c2.cpp.
 
 #include <m3c2/cylinder_index.hpp>
 #include <m3c2/kalman.hpp>
@@ -31,16 +32,11 @@
 namespace nb = nanobind;
 using namespace nb::literals;
 
+#include "support.hpp"
+
 namespace {
 
-using Points = nb::ndarray<const double, nb::shape<-1, 3>, nb::c_contig, nb::device::cpu>;
-
-m3c2::PointsView view(const Points& a) { return {a.data(), a.shape(0)}; }
-
-using Ids = nb::ndarray<const std::uint32_t, nb::ndim<1>, nb::c_contig, nb::device::cpu>;
-using Table = nb::ndarray<const double, nb::shape<-1, 8>, nb::c_contig, nb::device::cpu>;
-using Flat = nb::ndarray<const double, nb::c_contig, nb::device::cpu>;
-using Values = nb::ndarray<const double, nb::ndim<1>, nb::c_contig, nb::device::cpu>;
+using namespace m3c2::binding;
 
 /// One cloud's per-point uncertainty inputs: precisions (N, 3), scan-position ids (N,) and the
 /// scan-position table (K, 8): id, origin x y z, sigma_range, sigma_range_ppm, sigma_scan, sigma_yaw.
@@ -79,80 +75,6 @@ void copy_exact(const char* what, const std::optional<Flat>& a, std::size_t coun
     throw m3c2::InvalidArgument(std::string(what) + " must hold " + std::to_string(count) + " values, got " +
                                 std::to_string(a->size()));
   std::copy(a->data(), a->data() + count, out);
-}
-
-template <class T>
-nb::ndarray<nb::numpy, T> to_numpy(std::vector<T>&& values, std::size_t columns = 1) {
-  auto* owned = new std::vector<T>(std::move(values));
-  nb::capsule owner(owned, [](void* p) noexcept { delete static_cast<std::vector<T>*>(p); });
-  const std::size_t rows = owned->size() / columns;
-  if (columns == 1) return nb::ndarray<nb::numpy, T>(owned->data(), {rows}, owner);
-  return nb::ndarray<nb::numpy, T>(owned->data(), {rows, columns}, owner);
-}
-
-nb::ndarray<nb::numpy, std::uint8_t> status_array(const std::vector<m3c2::PointStatus>& s) {
-  std::vector<std::uint8_t> codes(s.size());
-  for (std::size_t i = 0; i < s.size(); ++i) codes[i] = static_cast<std::uint8_t>(s[i]);
-  return to_numpy(std::move(codes));
-}
-
-/// Bridges a Python progress callable to the engine. Python errors raised inside it, and
-/// Ctrl-C noticed by it, are kept and re-raised once the engine has stopped and the GIL is back.
-class ProgressBridge {
- public:
-  explicit ProgressBridge(nb::object callback) : callback_(std::move(callback)) {}
-  ~ProgressBridge() {
-    nb::gil_scoped_acquire gil;
-    error_.reset();
-  }
-
-  m3c2::RunOptions options(int threads) {
-    m3c2::RunOptions run;
-    run.threads = threads;
-    run.progress = [this](std::size_t done, std::size_t total) {
-      nb::gil_scoped_acquire gil;
-      if (PyErr_CheckSignals() != 0) return keep_error();
-      if (callback_.is_none()) return true;
-      try {
-        const nb::object answer = callback_(done, total);
-        return answer.is_none() || nb::cast<bool>(answer);
-      } catch (nb::python_error& e) {
-        e.restore();
-        return keep_error();
-      }
-    };
-    return run;
-  }
-
-  /// After the engine threw Cancelled: re-raise what stopped it (GIL held).
-  [[noreturn]] void raise() {
-    if (error_) {
-      error_->restore();
-      error_.reset();
-      throw nb::python_error();
-    }
-    throw m3c2::Cancelled();
-  }
-
- private:
-  bool keep_error() {
-    error_.emplace();  // takes the pending Python error
-    return false;
-  }
-  nb::object callback_;
-  std::optional<nb::python_error> error_;
-};
-
-template <class Fn>
-auto run_engine(nb::object progress, int threads, Fn&& fn) {
-  ProgressBridge bridge(std::move(progress));
-  const m3c2::RunOptions run = bridge.options(threads);
-  try {
-    nb::gil_scoped_release nogil;
-    return fn(run);
-  } catch (const m3c2::Cancelled&) {
-    bridge.raise();
-  }
 }
 
 nb::ndarray<nb::numpy, std::uint8_t> column_array(std::vector<m3c2::PointStatus>&& s, std::size_t) {
@@ -220,6 +142,10 @@ void bind_params(nb::module_& m) {
 }
 
 }  // namespace
+
+namespace m3c2::binding {
+void bind_pbm3c2(nb::module_& m);  // pbm3c2.cpp
+}  // namespace m3c2::binding
 
 NB_MODULE(_core, m) {
   m.doc() = "m3c2 engine (C++): see python/m3c2kit/__init__.py for the documented API";
@@ -983,4 +909,6 @@ NB_MODULE(_core, m) {
       },
       "pool"_a, "core"_a, "reference"_a, "targets"_a, "params"_a, "orientations"_a = nb::none(),
       "epochwise"_a = nb::none(), "threads"_a = 0);
+
+  m3c2::binding::bind_pbm3c2(m);
 }

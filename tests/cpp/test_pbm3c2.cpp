@@ -1,0 +1,220 @@
+// PB-M3C2 (include/m3c2/pbm3c2.hpp): facets segmented one to one, their planes exact at projected
+// coordinates, pairs by the geometric rule, distances within the noise of a known move and LODs
+// that cover it at their nominal rate; the same labels for any thread count; bad inputs refused.
+
+#include <m3c2/errors.hpp>
+#include <m3c2/pbm3c2.hpp>
+
+#include "test_support.hpp"
+
+#include <map>
+
+namespace m3c2::test {
+namespace {
+
+/// A rectangular facet: centre, unit normal and the half sizes along two in-plane axes.
+struct Facet {
+  Vec3 centre, normal;
+  double half_u, half_v;
+};
+
+Vec3 axis_u(const Vec3& n) { return (std::abs(n.z()) < 0.9 ? Vec3::UnitZ() : Vec3::UnitX()).cross(n).normalized(); }
+
+/// `per_facet` points uniform on each facet, noise `sigma` along its normal, each facet shifted
+/// by shifts[k] along its normal.
+Cloud facets_cloud(const std::vector<Facet>& facets, std::size_t per_facet, double sigma, std::uint64_t seed,
+                   const std::vector<double>& shifts = {}) {
+  std::mt19937_64 rng(seed);
+  std::uniform_real_distribution<double> unit(-1.0, 1.0);
+  std::normal_distribution<double> noise(0.0, sigma);
+  Cloud c;
+  for (std::size_t k = 0; k < facets.size(); ++k) {
+    const Facet& f = facets[k];
+    const Vec3 u = axis_u(f.normal), v = f.normal.cross(u);
+    const double shift = shifts.empty() ? 0.0 : shifts[k];
+    for (std::size_t i = 0; i < per_facet; ++i)
+      c.add(f.centre + unit(rng) * f.half_u * u + unit(rng) * f.half_v * v + (shift + noise(rng)) * f.normal);
+  }
+  return c;
+}
+
+/// Facets of a rock face: a row of 2 m squares, tilted alternately, 1 m apart (no two touch).
+std::vector<Facet> rock_face(const Vec3& origin = Vec3::Zero()) {
+  std::vector<Facet> out;
+  for (int k = 0; k < 6; ++k) {
+    const double tilt = (k % 2 ? 25.0 : -15.0) * 3.14159265358979323846 / 180.0;
+    out.push_back({origin + Vec3(3.0 * k, 0.0, 0.0), Vec3(std::sin(tilt), -std::cos(tilt), 0.3).normalized(), 1.0,
+                   1.0});
+  }
+  return out;
+}
+
+PlaneSegmentationParams segmentation() {
+  PlaneSegmentationParams p;
+  p.normal_diameter = 0.4;
+  p.max_plane_distance = 0.02;
+  return p;
+}
+
+TEST(PbM3c2, EachFacetIsOneSegment) {
+  const Cloud cloud = facets_cloud(rock_face(), 3000, 0.003, 1);
+  const PlaneSegmentation s = segment_planes(cloud.view(), segmentation());
+  ASSERT_EQ(s.segments, 6u);
+  for (std::size_t k = 0; k < 6; ++k) {
+    std::map<std::int64_t, int> labels;
+    for (std::size_t i = 3000 * k; i < 3000 * (k + 1); ++i) ++labels[s.labels[i]];
+    // A facet's points are one segment, apart from a few at its edges whose normals lean.
+    int largest = 0;
+    for (const auto& [label, count] : labels)
+      if (label >= 0) largest = std::max(largest, count);
+    EXPECT_GT(largest, 2900) << "facet " << k;
+  }
+}
+
+TEST(PbM3c2, TheSameLabelsForAnyThreadCount) {
+  const Cloud cloud = facets_cloud(rock_face(), 2000, 0.005, 2);
+  RunOptions one, many;
+  one.threads = 1, many.threads = 4;
+  const PlaneSegmentation a = segment_planes(cloud.view(), segmentation(), one);
+  const PlaneSegmentation b = segment_planes(cloud.view(), segmentation(), many);
+  EXPECT_EQ(a.labels, b.labels);
+  const PlaneSegments pa = plane_segments(cloud.view(), a.labels, {}, one);
+  const PlaneSegments pb = plane_segments(cloud.view(), b.labels, {}, many);
+  EXPECT_EQ(0, std::memcmp(pa.normal.data(), pb.normal.data(), pa.normal.size() * sizeof(double)));
+  EXPECT_EQ(0, std::memcmp(pa.roughness.data(), pb.roughness.data(), pa.roughness.size() * sizeof(double)));
+}
+
+TEST(PbM3c2, SmallSegmentsAndLonePointsAreUnsegmentedWithAReason) {
+  Cloud cloud = facets_cloud(rock_face(), 2000, 0.003, 3);
+  cloud.add(100.0, 100.0, 100.0);  // alone: no normal
+  PlaneSegmentationParams p = segmentation();
+  p.min_points = 2500;  // every facet too small
+  const PlaneSegmentation s = segment_planes(cloud.view(), p);
+  EXPECT_EQ(s.segments, 0u);
+  EXPECT_EQ(s.status.back(), SegmentStatus::kNoNormal);
+  EXPECT_EQ(s.status.front(), SegmentStatus::kSmallSegment);
+  for (const std::int64_t l : s.labels) EXPECT_EQ(l, -1);
+}
+
+TEST(PbM3c2, PlanesAreExactAtProjectedCoordinates) {
+  // A facet at UTM-like coordinates: the two-pass moments keep the normal and spread exact.
+  const Facet f{Vec3(512345.678, 5412345.678, 812.5), Vec3(0.3, -0.5, 0.8).normalized(), 5.0, 3.0};
+  const Cloud cloud = facets_cloud({f}, 20000, 0.004, 4);
+  const std::vector<std::int64_t> labels(cloud.size(), 7);
+  Orientation up;
+  const PlaneSegments s = plane_segments(cloud.view(), labels, up);
+  ASSERT_EQ(s.size(), 1u);
+  EXPECT_EQ(s.label[0], 7);
+  const Vec3 n(s.normal[0], s.normal[1], s.normal[2]);
+  EXPECT_GT(n.dot(f.normal), std::cos(0.001 * 3.14159265358979323846 / 180.0));  // oriented up, like f
+  EXPECT_NEAR(s.roughness[0], 0.004, 0.0001);
+  EXPECT_NEAR(s.eigenvalues[0], 25.0 / 3.0, 0.2);  // uniform on [-5, 5]: variance 100 / 12
+}
+
+TEST(PbM3c2, KnownMovesAreMeasuredAndTheirLodCoversThem) {
+  // Each facet moved along its normal by a known amount; 3000 measurements at 95 % (sd 0.4 %).
+  const std::vector<Facet> facets = rock_face(Vec3(600000.0, 5300000.0, 400.0));
+  const std::vector<double> shifts = {0.0, 0.01, -0.02, 0.05, 0.003, -0.1};
+  Params params;
+  params.registration_error = 0.0;
+  int covered = 0, measured = 0;
+  double worst = 0.0;
+  for (std::uint64_t rep = 0; rep < 500; ++rep) {
+    const Cloud ref = facets_cloud(facets, 300, 0.01, 10 + 2 * rep);
+    const Cloud cmp = facets_cloud(facets, 300, 0.01, 11 + 2 * rep, shifts);
+    std::vector<std::int64_t> labels(ref.size());
+    for (std::size_t i = 0; i < labels.size(); ++i) labels[i] = std::int64_t(i / 300);
+    const PlaneSegments a = plane_segments(ref.view(), labels, {});
+    const PlaneSegments b = plane_segments(cmp.view(), labels, {});
+    CorrespondenceParams cp;
+    cp.search_radius = 1.0;
+    const SegmentPairs pairs = nearest_segments(a, b, cp);
+    const PlaneChanges c = plane_changes(a, b, pairs.compared, params);
+    for (std::size_t k = 0; k < facets.size(); ++k) {
+      ASSERT_EQ(pairs.compared[k], std::int64_t(k));
+      // The truth along the oriented normal: the facet normals point to -y, oriented +z: same sign.
+      const double truth = shifts[k];
+      ++measured;
+      covered += std::abs(c.distance[k] - truth) <= c.lod[k];
+      worst = std::max(worst, std::abs(c.distance[k] - truth));
+    }
+  }
+  EXPECT_LT(worst, 0.004);  // sigma / sqrt(300) * sqrt(2) = 0.8 mm: 5 sd
+  const double rate = double(covered) / measured;
+  EXPECT_GT(rate, 0.935) << covered << " of " << measured;
+  EXPECT_LT(rate, 0.965) << covered << " of " << measured;
+}
+
+TEST(PbM3c2, LodWidensWithTheLeverOfATiltedComparedPlane) {
+  // The compared segment covers only half of the reference facet: its plane is met far from its
+  // centroid, where its tilt's error adds to its offset's.
+  const Facet f{Vec3::Zero(), Vec3::UnitZ(), 2.0, 2.0};
+  const Cloud ref = facets_cloud({f}, 400, 0.01, 5);
+  Cloud half;
+  const Cloud full = facets_cloud({f}, 800, 0.01, 6);
+  for (std::size_t i = 0; i < full.size(); ++i)
+    if (full[i].x() > 0.0) half.add(full[i]);
+  const PlaneSegments a = plane_segments(ref.view(), std::vector<std::int64_t>(ref.size(), 0), {});
+  const PlaneSegments b = plane_segments(half.view(), std::vector<std::int64_t>(half.size(), 0), {});
+  Params params;
+  const std::vector<std::int64_t> pair = {0};
+  const PlaneChanges c = plane_changes(a, b, pair, params);
+  const double centroid_only = 1.959963984540054 * std::sqrt(a.roughness[0] * a.roughness[0] / double(a.count[0]) +
+                                                             b.roughness[0] * b.roughness[0] / double(b.count[0]));
+  EXPECT_GT(c.lod[0], 1.2 * centroid_only);
+}
+
+TEST(PbM3c2, NearestSegmentsGatesAndMutual) {
+  // Reference: facets 0 and 1; compared: one facet near both, and one tilted 60 degrees.
+  const std::vector<Facet> ref = {{Vec3(0, 0, 0), Vec3::UnitZ(), 1, 1}, {Vec3(0.5, 0, 0.4), Vec3::UnitZ(), 1, 1}};
+  const std::vector<Facet> cmp = {{Vec3(0.4, 0, 0.35), Vec3::UnitZ(), 1, 1},
+                                  {Vec3(0, 0, 0.1), Vec3(0, std::sin(1.0472), std::cos(1.0472)), 1, 1}};
+  const Cloud a = facets_cloud(ref, 200, 0.001, 7), b = facets_cloud(cmp, 200, 0.001, 8);
+  std::vector<std::int64_t> labels(400);
+  for (std::size_t i = 0; i < 400; ++i) labels[i] = std::int64_t(i / 200);
+  const PlaneSegments sa = plane_segments(a.view(), labels, {}), sb = plane_segments(b.view(), labels, {});
+  CorrespondenceParams p;
+  p.search_radius = 2.0;
+  SegmentPairs pairs = nearest_segments(sa, sb, p);
+  EXPECT_EQ(pairs.compared, (std::vector<std::int64_t>{0, 0}));  // the tilted one is gated out
+  p.mutual = true;
+  pairs = nearest_segments(sa, sb, p);
+  EXPECT_EQ(pairs.compared, (std::vector<std::int64_t>{-1, 0}));
+  EXPECT_EQ(pairs.status[0], PairStatus::kNotMutual);
+  p.mutual = false, p.max_angle_degrees = 90.0, p.search_radius = 0.2;
+  pairs = nearest_segments(sa, sb, p);
+  EXPECT_EQ(pairs.compared, (std::vector<std::int64_t>{1, 0}));  // no gate: the tilted one is nearest 0
+  p.search_radius = 0.05;
+  pairs = nearest_segments(sa, sb, p);
+  EXPECT_EQ(pairs.status[0], PairStatus::kNoCandidate);
+  const SegmentCandidates cand = segment_candidates(sa, sb, 2.0);
+  EXPECT_EQ(cand.reference, (std::vector<std::int64_t>{0, 0, 1, 1}));
+  EXPECT_EQ(cand.compared, (std::vector<std::int64_t>{0, 1, 0, 1}));
+  EXPECT_NEAR(cand.normal_angle[1], 1.0472, 0.01);
+}
+
+TEST(PbM3c2, BadInputsAreRefused) {
+  const Cloud cloud = facets_cloud(rock_face(), 100, 0.003, 9);
+  PlaneSegmentationParams p = segmentation();
+  p.normal_diameter = 0.0;
+  EXPECT_THROW(segment_planes(cloud.view(), p), InvalidArgument);
+  p = segmentation(), p.max_angle_degrees = 95.0;
+  EXPECT_THROW(segment_planes(cloud.view(), p), InvalidArgument);
+  p = segmentation(), p.min_normal_points = 2;
+  EXPECT_THROW(segment_planes(cloud.view(), p), InvalidArgument);
+  EXPECT_THROW(plane_segments(cloud.view(), std::vector<std::int64_t>(3, 0), {}), InvalidArgument);
+  Cloud bad = cloud;
+  bad.xyz[4] = std::numeric_limits<double>::quiet_NaN();
+  EXPECT_THROW(plane_segments(bad.view(), std::vector<std::int64_t>(bad.size(), 0), {}), InvalidArgument);
+  EXPECT_THROW(segment_planes(bad.view(), segmentation()), InvalidArgument);
+  const PlaneSegments s = plane_segments(cloud.view(), std::vector<std::int64_t>(cloud.size(), 0), {});
+  CorrespondenceParams cp;
+  EXPECT_THROW(nearest_segments(s, s, cp), InvalidArgument);  // search_radius 0
+  Params params;
+  params.lod = Lod::kBootstrap;
+  EXPECT_THROW(plane_changes(s, s, std::vector<std::int64_t>{0}, params), InvalidArgument);
+  EXPECT_THROW(plane_changes(s, s, std::vector<std::int64_t>{0, 0}, Params{}), InvalidArgument);
+}
+
+}  // namespace
+}  // namespace m3c2::test
