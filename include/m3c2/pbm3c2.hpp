@@ -40,8 +40,8 @@ enum class SegmentStatus : std::uint8_t {
 };
 
 struct PlaneSegmentation {
-  std::vector<std::int64_t> labels;    ///< per point: its segment 0..segments-1, or -1
-  std::vector<SegmentStatus> status;   ///< per point
+  std::vector<std::int64_t> labels;   ///< per point: its segment 0..segments-1, or -1
+  std::vector<SegmentStatus> status;  ///< per point
   std::uint64_t segments = 0;
 };
 
@@ -74,10 +74,10 @@ PlaneSegments plane_segments(PointsView points, std::span<const std::int64_t> la
 /// Which compared segment each reference segment is paired with.
 enum class PairStatus : std::uint8_t {
   kPaired = 0,
-  kNoPlane = 1,       ///< the reference segment has no plane (too few points, degenerate)
-  kNoCandidate = 2,   ///< no compared plane within search_radius and max_angle_degrees
-  kNotMutual = 3,     ///< its nearest compared segment has a nearer reference segment (mutual)
-  kNotClassified = 4, ///< the classifier accepted no candidate (m3c2kit.pbm3c2's random forest)
+  kNoPlane = 1,        ///< the reference segment has no plane (too few points, degenerate)
+  kNoCandidate = 2,    ///< no compared plane within search_radius and max_angle_degrees
+  kNotMutual = 3,      ///< its nearest compared segment has a nearer reference segment (mutual)
+  kNotClassified = 4,  ///< the classifier accepted no candidate (m3c2kit.pbm3c2's random forest)
 };
 
 /// The geometric rule (py4dgeo's nearest neighbour, with an angle gate): the compared segment
@@ -102,13 +102,21 @@ SegmentPairs nearest_segments(const PlaneSegments& reference, const PlaneSegment
 /// defined, in row order: the candidates a classifier scores.
 struct SegmentCandidates {
   std::vector<std::int64_t> reference, compared;
-  std::vector<double> centroid_distance;  ///< |c2 - c1|
-  std::vector<double> normal_angle;       ///< radians between the planes (unoriented)
-  std::vector<double> roughness_difference;  ///< |sigma1 - sigma2|
 };
 
 SegmentCandidates segment_candidates(const PlaneSegments& reference, const PlaneSegments& compared,
                                      double search_radius);
+
+/// What a classifier sees of a pair (py4dgeo's PBM3C2 features, Zahs et al. 2022, 3.4).
+struct PairFeatures {
+  std::vector<double> centroid_distance;     ///< |c2 - c1|
+  std::vector<double> normal_angle;          ///< radians between the planes (unoriented)
+  std::vector<double> roughness_difference;  ///< |sigma1 - sigma2|
+};
+
+/// The features of the pairs (reference[k], compared[k]); InvalidArgument for a row out of range.
+PairFeatures pair_features(const PlaneSegments& reference, const PlaneSegments& compared,
+                           std::span<const std::int64_t> reference_rows, std::span<const std::int64_t> compared_rows);
 
 /// The change of one pair: the distance from the reference centroid c1 along its normal n1 to
 /// the compared plane (c2, n2), t = (c2 - c1) . n2 / (n1 . n2), and eq. (1)'s LOD with the

@@ -120,12 +120,23 @@ void bind_pbm3c2(nb::module_& m) {
         nb::dict d;
         d["reference"] = to_numpy(std::move(c.reference));
         d["compared"] = to_numpy(std::move(c.compared));
-        d["centroid_distance"] = to_numpy(std::move(c.centroid_distance));
-        d["normal_angle"] = to_numpy(std::move(c.normal_angle));
-        d["roughness_difference"] = to_numpy(std::move(c.roughness_difference));
         return d;
       },
       "reference"_a, "compared"_a, "search_radius"_a);
+  m.def(
+      "pair_features",
+      [](const nb::dict& reference, const nb::dict& compared, const Labels& reference_rows,
+         const Labels& compared_rows) {
+        PairFeatures f =
+            pair_features(segments_from(reference), segments_from(compared),
+                          {reference_rows.data(), reference_rows.size()}, {compared_rows.data(), compared_rows.size()});
+        nb::dict d;
+        d["centroid_distance"] = to_numpy(std::move(f.centroid_distance));
+        d["normal_angle"] = to_numpy(std::move(f.normal_angle));
+        d["roughness_difference"] = to_numpy(std::move(f.roughness_difference));
+        return d;
+      },
+      "reference"_a, "compared"_a, "reference_rows"_a, "compared_rows"_a);
   m.def(
       "plane_changes",
       [](const nb::dict& reference, const nb::dict& compared, const Labels& compared_of_reference,

@@ -14,11 +14,12 @@ from .base.errors import Cancelled, M3C2Error, M3C2Warning, UsageError
 #: modules were imported by every compare, through api, and `m3c2 --version` took 0.29 s).
 _LAZY = {"compare": ("api", "compare"), "normals": ("run.in_memory", "normals"),
          "subsample": ("run.in_memory", "subsample"), "register": ("analysis.registration", "register"),
+         "pbm3c2": ("analysis.pbm3c2", "pbm3c2"),
          "read": ("io", "read_cloud"), "write": ("output.writing", "write"),
          "info": ("io", "info"), "Cloud": ("io", "Cloud"), "Result": ("engine.result", "Result"),
          "COLUMNS": ("engine.result", "COLUMNS"), "STATUS_NAMES": ("engine.result", "STATUS_NAMES")}
 
-__all__ = ["compare", "normals", "subsample", "register", "read", "write", "info", "Cloud", "Result", "COLUMNS",
+__all__ = ["compare", "normals", "subsample", "register", "pbm3c2", "read", "write", "info", "Cloud", "Result", "COLUMNS",
            "STATUS_NAMES", "M3C2Error", "UsageError", "Cancelled", "M3C2Warning"]
 __version__ = "0.1.0"
 

@@ -81,9 +81,8 @@ SegmentPairs nearest_segments(const PlaneSegments& reference, const PlaneSegment
     const std::int64_t j = nearest(reference, i, compared, compared_index, params, min_cosine, scratch);
     if (j < 0) {
       out.status[i] = PairStatus::kNoCandidate;
-    } else if (params.mutual &&
-               nearest(compared, std::size_t(j), reference, reference_index, params, min_cosine, scratch) !=
-                   std::int64_t(i)) {
+    } else if (params.mutual && nearest(compared, std::size_t(j), reference, reference_index, params, min_cosine,
+                                        scratch) != std::int64_t(i)) {
       out.status[i] = PairStatus::kNotMutual;
     } else {
       out.compared[i] = j, out.status[i] = PairStatus::kPaired;
@@ -100,16 +99,27 @@ SegmentCandidates segment_candidates(const PlaneSegments& reference, const Plane
   SegmentCandidates out;
   for (std::size_t i = 0; i < reference.size(); ++i) {
     if (!has_plane(reference, i)) continue;
-    const Vec3 c = row3(reference.centroid, i), n = row3(reference.normal, i);
-    compared_index.within(c, search_radius, within);
-    for (const std::size_t j : within) {
-      out.reference.push_back(std::int64_t(i));
-      out.compared.push_back(std::int64_t(j));
-      out.centroid_distance.push_back((row3(compared.centroid, j) - c).norm());
-      // Unoriented: a plane seen from the other side is the same plane.
-      out.normal_angle.push_back(std::acos(std::min(1.0, std::abs(n.dot(row3(compared.normal, j))))));
-      out.roughness_difference.push_back(std::abs(reference.roughness[i] - compared.roughness[j]));
-    }
+    compared_index.within(row3(reference.centroid, i), search_radius, within);
+    for (const std::size_t j : within)
+      out.reference.push_back(std::int64_t(i)), out.compared.push_back(std::int64_t(j));
+  }
+  return out;
+}
+
+PairFeatures pair_features(const PlaneSegments& reference, const PlaneSegments& compared,
+                           std::span<const std::int64_t> reference_rows, std::span<const std::int64_t> compared_rows) {
+  if (reference_rows.size() != compared_rows.size())
+    throw InvalidArgument("pair_features needs as many compared rows as reference rows");
+  PairFeatures out;
+  for (std::size_t k = 0; k < reference_rows.size(); ++k) {
+    const std::int64_t i = reference_rows[k], j = compared_rows[k];
+    if (i < 0 || std::size_t(i) >= reference.size() || j < 0 || std::size_t(j) >= compared.size())
+      throw InvalidArgument("pair " + std::to_string(k) + " names a segment row out of range");
+    const Vec3 n1 = row3(reference.normal, i), n2 = row3(compared.normal, j);
+    out.centroid_distance.push_back((row3(compared.centroid, j) - row3(reference.centroid, i)).norm());
+    // Unoriented: a plane seen from the other side is the same plane.
+    out.normal_angle.push_back(std::acos(std::min(1.0, std::abs(n1.dot(n2)))));
+    out.roughness_difference.push_back(std::abs(reference.roughness[i] - compared.roughness[j]));
   }
   return out;
 }

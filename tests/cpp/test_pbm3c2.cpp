@@ -43,8 +43,8 @@ std::vector<Facet> rock_face(const Vec3& origin = Vec3::Zero()) {
   std::vector<Facet> out;
   for (int k = 0; k < 6; ++k) {
     const double tilt = (k % 2 ? 25.0 : -15.0) * 3.14159265358979323846 / 180.0;
-    out.push_back({origin + Vec3(3.0 * k, 0.0, 0.0), Vec3(std::sin(tilt), -std::cos(tilt), 0.3).normalized(), 1.0,
-                   1.0});
+    out.push_back(
+        {origin + Vec3(3.0 * k, 0.0, 0.0), Vec3(std::sin(tilt), -std::cos(tilt), 0.3).normalized(), 1.0, 1.0});
   }
   return out;
 }
@@ -190,7 +190,12 @@ TEST(PbM3c2, NearestSegmentsGatesAndMutual) {
   const SegmentCandidates cand = segment_candidates(sa, sb, 2.0);
   EXPECT_EQ(cand.reference, (std::vector<std::int64_t>{0, 0, 1, 1}));
   EXPECT_EQ(cand.compared, (std::vector<std::int64_t>{0, 1, 0, 1}));
-  EXPECT_NEAR(cand.normal_angle[1], 1.0472, 0.01);
+  const PairFeatures f = pair_features(sa, sb, cand.reference, cand.compared);
+  EXPECT_NEAR(f.normal_angle[1], 1.0472, 0.01);
+  const Vec3 c1(sa.centroid[0], sa.centroid[1], sa.centroid[2]), c2(sb.centroid[0], sb.centroid[1], sb.centroid[2]);
+  EXPECT_DOUBLE_EQ(f.centroid_distance[0], (c2 - c1).norm());
+  EXPECT_DOUBLE_EQ(f.roughness_difference[0], std::abs(sa.roughness[0] - sb.roughness[0]));
+  EXPECT_THROW(pair_features(sa, sb, std::vector<std::int64_t>{2}, std::vector<std::int64_t>{0}), InvalidArgument);
 }
 
 TEST(PbM3c2, BadInputsAreRefused) {

@@ -29,6 +29,8 @@ COMMANDS = {
                   "the variogram of the distance over stable core points: the error model of --error-model"),
     "register": ("register", "register_parser",
                  "point-to-plane ICP on stable areas: the transform, its covariance and reg of eq. (1) for compare"),
+    "pbm3c2": ("pbm3c2", "pbm3c2_parser",
+               "PB-M3C2: the change between paired planar segments, with its LOD (Zahs et al. 2022)"),
     "aggregate": ("aggregate", "aggregate_parser",
                   "per region: mean change, volume and area of significant change, with intervals that account for "
                   "spatially correlated errors"),

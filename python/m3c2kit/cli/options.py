@@ -21,6 +21,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Callable
 
+from ..base.errors import UsageError
 from ..settings import by_name, parameters_of
 from ..settings.table import Parameter
 from .integers import SEED_MAX, integer
@@ -139,6 +140,30 @@ def add_table_options(parser, command: str, groups: dict | None = None) -> None:
     compat = any(p.name == "compat" for p in params)
     for param in params:
         add_table_option((groups or {}).get(param.name, parser), param, compat=compat)
+
+
+def step_options(p, command: str, groups: dict | None = None) -> None:
+    """The parameter table's rows of the step `command` (a series step, settings/series_rows.py;
+    pbm3c2, settings/pbm3c2_rows.py) as options of `p`, in argument groups by section (`groups`).
+    A row that acts only with another option (its `needs`) is None when not given, so that the
+    step can refuse it where it would change nothing; the others carry their default."""
+    from ..settings.table import parameters_of
+    titles = {}
+    for row in parameters_of(command):
+        title = (groups or {}).get(row.section)
+        target = p if title is None else titles.setdefault(title, p.add_argument_group(title))
+        add_table_option(target, row, filled=not row.needs)
+
+
+def single_normal_scale(value, what: str) -> float | None:
+    """--normal-scale of a command that takes one D (`what`: its use, for the message), or None."""
+    if value is None:
+        return None
+    from ..settings.parsers import normal_scales
+    scales = normal_scales(value, "--normal-scale")
+    if len(scales) != 1:
+        raise UsageError(f"--normal-scale: {what} takes one D, got {value!r}")
+    return scales[0]
 
 
 def add_verbosity_options(parser) -> None:

@@ -19,10 +19,9 @@ from ..io.atomic import staged_outputs
 from ..io.collisions import check_outputs, require_suffix
 from ..io.polygons import read_regions_for
 from ..io.registration_file import registration_bytes
-from ..settings.parsers import normal_scales
 from .inputs import read_input
 from .integers import COUNT_MAX, integer, non_negative_real, positive_real
-from .options import add, add_table_option
+from .options import add, add_table_option, single_normal_scale
 
 _DEFAULTS = RegistrationOptions()
 
@@ -65,22 +64,14 @@ def register_parser(sub) -> None:
     p.set_defaults(run=run_register)
 
 
-def _scale(value) -> float | None:
-    if value is None:
-        return None
-    scales = normal_scales(value, "--normal-scale")
-    if len(scales) != 1:
-        raise UsageError(f"--normal-scale: register takes one D (the targets' normals), got {value!r}")
-    return scales[0]
-
-
 def run_register(args) -> int:
     check_outputs({"-o": args.output}, {"reference cloud": args.reference, "compared cloud": args.compared,
                                         "--stable": args.stable})
     require_suffix("-o", args.output, (".json",), "the registration")
     if args.rounds != _DEFAULTS.rounds and not args.auto_stable:
         raise UsageError("--rounds counts --auto-stable's rounds: without it it would change nothing")
-    options = RegistrationOptions(normal_scale=_scale(args.normal_scale), max_distance=args.max_distance,
+    scale = single_normal_scale(args.normal_scale, "register (the targets' normals)")
+    options = RegistrationOptions(normal_scale=scale, max_distance=args.max_distance,
                                   reject=args.reject, max_iterations=args.max_iterations,
                                   max_points=args.max_points, rounds=args.rounds, threads=args.threads)
     reference, compared = read_input(args.reference, args), read_input(args.compared, args)

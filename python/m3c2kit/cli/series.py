@@ -23,7 +23,7 @@ from .command_index import summary
 from ..base.errors import UsageError
 from ..io.collisions import require_suffix
 from .integers import integer
-from .options import add, add_table_option
+from .options import add, add_table_option, step_options
 from ..io.files import add_drop_nonfinite_option
 
 ACTIONS = ("add", "smooth", "kalman", "tam3c2", "changepoints", "objects", "report", "import", "check")
@@ -63,19 +63,6 @@ def _run_options(p) -> None:
     add_drop_nonfinite_option(p)
     add(p, "ignore_crs")
     add(p, "quiet")
-
-
-def step_options(p, command: str, groups: dict | None = None) -> None:
-    """The parameter table's rows of the series step `command` (settings/series_rows.py) as
-    options of `p`, in argument groups by section (`groups`). A row that acts only with another
-    option (its `needs`) is None when not given, so that the step can refuse it where it would
-    change nothing; the others carry their default."""
-    from ..settings.table import parameters_of
-    titles = {}
-    for row in parameters_of(command):
-        title = (groups or {}).get(row.section)
-        target = p if title is None else titles.setdefault(title, p.add_argument_group(title))
-        add_table_option(target, row, filled=not row.needs)
 
 
 def create_parser():

@@ -15,6 +15,7 @@ from __future__ import annotations
 from .. import engine
 from . import error_model, orientation, parsers
 from .row import FROM_ENGINE, SAME, EngineField, Parameter, _shown, enum, same, unset_is_zero
+from .pbm3c2_rows import PBM3C2_ROWS
 from .series_rows import SERIES_ROWS
 from .needs import (A_VARIANCE, BOOTSTRAP, EP, EP_OR_REGISTRATION, EQ1, FITTED_NORMALS, MOVED_OR_PROPAGATED, NOT_CORE_NORMALS,
     PARAMETRIC_MEDIAN, PM, SEVERAL_SCALES, TRANSFORM, TWO_PASS, WEIGHTED_CENTRES, WELCH_T, Needs)
@@ -245,6 +246,8 @@ PARAMETERS: tuple[Parameter, ...] = (
                    "CloudCompare; text and PLY files have every column)"),
     # The series steps' options (smooth, kalman, tam3c2, objects, changepoints; the store's layout)
     *SERIES_ROWS,
+    # m3c2 pbm3c2's options (the segments, their pairs)
+    *PBM3C2_ROWS,
 )
 
 
