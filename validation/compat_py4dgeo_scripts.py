@@ -93,6 +93,27 @@ SCRIPTS = {
         d, u = py4dgeo.CloudCompareM3C2(epochs=(e1, e2), corepoints=e1.cloud[::7], normalscale=[3.0],
                                         searchscale=2.0, searchdepth=3.0).run()
         out = {"distance": d}""",
+    "ICP, then M3C2": """
+        reference, epoch = py4dgeo.read_from_xyz(R1, R2)
+        reference.calculate_normals(radius=1.0)
+        epoch.calculate_normals(radius=1.0)
+        trafo = py4dgeo.point_to_plane_icp(reference, epoch)
+        epoch.transform(trafo)
+        d, u = py4dgeo.M3C2(epochs=(reference, epoch), corepoints=reference.cloud[::50], normal_radii=[1.0],
+                            cyl_radius=0.5, max_distance=1.0).run()
+        out = {"moved": epoch.cloud, "distance": d}""",
+    "M3C2-EP": """
+        # Equal angular sigmas, and sigma_range_ppm (m3c2kit's; py4dgeo reads no such key) at
+        # 1e3 sqrt(sigma_range): py4dgeo's range and angle defects then change nothing.
+        position = {"sigma_range": 0.004, "sigma_range_ppm": 1e3 * 0.004 ** 0.5, "sigma_scan": 3e-4, "sigma_yaw": 3e-4}
+        sps = {str(k + 1): {"origin": list(o), **position} for k, o in enumerate(EP["scanners"])}
+        e1, e2 = py4dgeo.read_from_xyz(E1, E2, additional_dimensions={3: "scanpos_id"})
+        e1.scanpos_info = sps
+        e2.scanpos_info = sps
+        m = py4dgeo.M3C2EP(epochs=(e1, e2), corepoints=e1.cloud[::100], normal_radii=[0.5], cyl_radius=0.25,
+                           max_distance=0.3, Cxx=EP["cxx"], tfM=np.eye(3, 4), refPointMov=np.zeros(3))
+        d, u, cov = m.run()
+        out = {"distance": d, "size": np.abs(d), "lod": u["lodetection"], "cov2": cov["cov2"]}""",
     "catching py4dgeo's error": """
         Py4DGeoError = py4dgeo.util.Py4DGeoError  # where py4dgeo defines it
         e1, e2 = py4dgeo.read_from_xyz(T1, T2)
@@ -108,7 +129,8 @@ RUNNER = """
 import json, sys, traceback
 import numpy as np
 {import_line}
-T1, T2, S1, S2, OUT = {paths!r}
+T1, T2, S1, S2, R1, R2, E1, E2, OUT = {paths!r}
+EP = np.load(E1 + ".npz")
 results = {{}}
 for name, body in {scripts!r}.items():
     try:
@@ -133,9 +155,35 @@ def _surface(folder: Path) -> tuple[str, str]:
     return paths
 
 
+def _terrain(folder: Path) -> tuple[str, str]:
+    """The registration tests' rough terrain (tests/python/registration/terrain.py), the second
+    epoch moved by a known rigid motion."""
+    sys.path.insert(0, str(REPO / "tests" / "python" / "registration"))
+    import terrain
+    paths = str(folder / "r1.xyz"), str(folder / "r2.xyz")
+    for path, cloud in zip(paths, terrain.epochs(20000, seed=1, change=0.0)):
+        np.savetxt(path, cloud)
+    return paths
+
+
+def _scans(folder: Path) -> tuple[str, str]:
+    """Two epochs of validation/uncertainty_sim.py's scanned surface: x y z scan-position id, and
+    the scanners and the simulator's alignment covariance in e1.xyz.npz."""
+    sys.path.insert(0, str(REPO / "validation"))
+    import uncertainty_sim as sim
+    sim.POINTS_PER_SCAN = 2000
+    rng = np.random.default_rng(16)
+    paths = str(folder / "e1.xyz"), str(folder / "e2.xyz")
+    for path in paths:
+        xyz, ids = sim.scan(rng)
+        np.savetxt(path, np.column_stack([xyz, ids]))
+    np.savez(paths[0] + ".npz", scanners=sim.SCANNERS, cxx=sim.alignment_covariance())
+    return paths
+
+
 def _run(python: str, import_line: str, folder: Path, tag: str, env: dict) -> dict:
     paths = (str(TUTORIAL / "plane_horizontal_t1.xyz"), str(TUTORIAL / "plane_horizontal_t2.xyz"),
-             *_surface(folder), str(folder / tag))
+             *_surface(folder), *_terrain(folder), *_scans(folder), str(folder / tag))
     scripts = {k: textwrap.dedent(v) for k, v in SCRIPTS.items()}
     code = RUNNER.format(import_line=import_line, paths=paths, scripts=scripts)
     out = subprocess.run([python, "-c", code], capture_output=True, text=True, env=env, cwd=folder)

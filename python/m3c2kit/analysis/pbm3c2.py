@@ -129,11 +129,29 @@ def pbm3c2(reference, compared, *, reference_segments=None, compared_segments=No
     changes = planes.plane_changes(ref_table, cmp_table, found["compared"],
                                    {"confidence": opts.confidence, "registration_error": opts.registration_error})
     pairs = _pairs_table(ref_table, cmp_table, found, changes, probability)
+    _warn_if_empty(ref_table, cmp_table, found, ref_status, cmp_status, reference_segments is None)
     details = {"normal_scale": scale, "search_radius": float(radius), "correspondence": opts.correspondence,
                "reference_segments": len(ref_table["label"]), "compared_segments": len(cmp_table["label"]),
                "paired": int(np.count_nonzero(found["status"] == 0)),
                "segmented_by": "given" if reference_segments is not None else "region growing"}
     return PBM3C2Result(pairs, ref_labels, cmp_labels, ref_status, cmp_status, ref_table, cmp_table, details)
+
+
+def _warn_if_empty(ref_table: dict, cmp_table: dict, found: dict, ref_status, cmp_status, grown: bool) -> None:
+    """A run that measures nothing says why (a table of NaN or no rows is no answer)."""
+    import warnings
+
+    from ..base.errors import M3C2Warning
+    for name, table, status in (("reference", ref_table, ref_status), ("compared", cmp_table, cmp_status)):
+        if len(table["label"]) == 0:
+            reasons = ", ".join(f"{int(np.count_nonzero(status == code))} {STATUS[code].split(': ')[-1]}"
+                                for code in (5, 6, 7) if np.any(status == code))
+            hint = (": raise the segment angle or distance, lower the fewest points of a segment, or change D" if grown else "")
+            warnings.warn(f"the {name} cloud has no planar segment ({reasons}){hint}", M3C2Warning, stacklevel=3)
+            return
+    if not np.any(np.asarray(found["status"]) == 0):
+        warnings.warn("no reference segment found a compared segment: raise the search radius or the angle, or "
+                      "register the clouds first (m3c2 register)", M3C2Warning, stacklevel=3)
 
 
 def _check(opts: PBM3C2Options, training, reference_segments, compared_segments) -> None:

@@ -203,13 +203,16 @@ def _newest_inputs(folder: Path) -> dict:
     return {"convert": ["convert", folder / "result.csv", "-o"],
             "variogram": ["variogram", folder / "result.csv", "--projection-scale", "1", "-o"],
             "aggregate": ["aggregate", folder / "result.csv", "--regions", folder / "regions.geojson", "-o"],
-            "register": ["register", folder / "epoch1.xyz", folder / "epoch2.xyz", "--normal-scale", "2", "-o"]}
+            "register": ["register", folder / "epoch1.xyz", folder / "epoch2.xyz", "--normal-scale", "2", "-o"],
+            "pbm3c2": ["pbm3c2", folder / "epoch1.xyz", folder / "epoch2.xyz", "--normal-scale", "2", "--segment-angle",
+                       "30", "--min-segment-points", "10", "--per-point", folder / "points.ply", "-o"]}
 
 
 @pytest.mark.slow
 @pytest.mark.parametrize("signal_name", ["SIGKILL", "SIGTERM", "SIGINT", "SIGHUP"])
 @pytest.mark.parametrize("command, output", [("convert", "out.ply"), ("variogram", "model.json"),
-                                             ("aggregate", "table.csv"), ("register", "t.json")])
+                                             ("aggregate", "table.csv"), ("register", "t.json"),
+                                             ("pbm3c2", "pairs.las")])
 def test_the_newest_commands_killed_while_writing_keep_the_older_output(tmp_path, command, output, signal_name):
     """Issue 42's harness: each newest writing command stopped at its write (the testing aid,
     M3C2_TEST_SIGNAL_AT=writing:SIGNAL) keeps the older output byte for byte (a handled signal

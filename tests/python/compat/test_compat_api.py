@@ -214,7 +214,7 @@ def test_epoch_transform_as_py4dgeos():
         e.transform(affine_transformation=np.eye(3))
 
 
-@pytest.mark.parametrize("name", ["M3C2EP", "SpatiotemporalAnalysis", "PBM3C2", "point_to_plane_icp"])
+@pytest.mark.parametrize("name", ["SpatiotemporalAnalysis", "RegionGrowingAlgorithm", "temporal_averaging", "C2C"])
 def test_a_py4dgeo_name_not_provided_says_what_to_use(name):
     with pytest.raises(AttributeError, match=f"does not provide py4dgeo's {name}; use instead"):
         getattr(p4, name)

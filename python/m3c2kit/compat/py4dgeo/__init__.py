@@ -20,6 +20,11 @@ cylinder are counted once here; core points whose normal cannot be fitted (fewer
 neighbours) are NaN here, uninitialised in py4dgeo; with ``robust_aggr`` the spread is
 IQR / 1.349 (on the standard deviation's scale), where py4dgeo reports the IQR.
 
+Registration (``iterative_closest_point``, ``point_to_plane_icp``, ``icp_with_stable_areas``,
+registration.py) runs m3c2kit's point-to-plane ICP and returns a :class:`Transformation` that
+``epoch.transform`` applies, as py4dgeo's; ``M3C2EP`` (m3c2ep.py) is m3c2kit's M3C2-EP set to
+py4dgeo's model. Their differences from py4dgeo are in their modules' docstrings.
+
 Errors are py4dgeo's: every one a :class:`Py4DGeoError` and the builtin py4dgeo's users catch
 (errors.py). Arguments py4dgeo has but this front end does not implement raise
 :class:`UnsupportedArgument` naming them; py4dgeo's names not provided here raise an
@@ -30,25 +35,23 @@ from __future__ import annotations
 from .epoch import Epoch, as_epoch, normalize_timestamp, read_from_las, read_from_xyz
 from .errors import Py4DGeoError, UnsupportedArgument
 from .m3c2 import UNCERTAINTY_DTYPE, CloudCompareM3C2, M3C2, uncertainties_of, write_m3c2_results_to_las
+from .m3c2ep import COVARIANCE_DTYPE, M3C2EP
+from .pbm3c2 import PBM3C2
+from .registration import Transformation, icp_with_stable_areas, iterative_closest_point, point_to_plane_icp
 from .util import get_num_threads, regular_corepoint_grid, set_num_threads, set_py4dgeo_logfile
 
 __all__ = ["Epoch", "M3C2", "CloudCompareM3C2", "read_from_xyz", "read_from_las", "as_epoch", "normalize_timestamp",
            "write_m3c2_results_to_las", "regular_corepoint_grid", "set_num_threads", "get_num_threads",
-           "set_py4dgeo_logfile", "Py4DGeoError", "UnsupportedArgument", "UNCERTAINTY_DTYPE", "uncertainties_of"]
+           "set_py4dgeo_logfile", "Py4DGeoError", "UnsupportedArgument", "UNCERTAINTY_DTYPE", "uncertainties_of",
+           "M3C2EP", "COVARIANCE_DTYPE", "Transformation", "iterative_closest_point", "point_to_plane_icp",
+           "icp_with_stable_areas", "PBM3C2"]
 
 #: py4dgeo 1.2.0's public names this module does not provide, and what to use instead.
 NOT_PROVIDED = {
-    "M3C2EP": "m3c2kit.compare(..., uncertainty='ep', scan_positions=..., ...) or m3c2 compare --uncertainty ep",
     "SpatiotemporalAnalysis": "the series store: m3c2 series REFERENCE EPOCH... -o STORE (m3c2 series import reads "
                               "a py4dgeo archive)",
     "RegionGrowingAlgorithm": "m3c2 series objects STORE -o OBJECTS.csv --dtw py4dgeo",
     "temporal_averaging": "m3c2 series smooth STORE --window N",
-    "PBM3C2": "nothing yet: m3c2kit has no plane-based M3C2",
-    "iterative_closest_point": "m3c2kit.register(reference, compared) (point-to-plane ICP; m3c2 register)",
-    "point_to_plane_icp": "m3c2kit.register(reference, compared, normal_scale=2 * radius) (its own normals at D; "
-                          "m3c2 register), then Epoch.transform(affine_transformation=r.matrix)",
-    "icp_with_stable_areas": "m3c2kit.register(reference, compared, stable=polygons or auto_stable=True) "
-                             "(m3c2 register --stable | --auto-stable)",
     "C2C": "m3c2 c2c REFERENCE COMPARED -o OUT",
     "SearchTree": "nothing: m3c2kit's engine builds its index in every run",
     "save_epoch": "m3c2kit.write(path, ...) to a point-cloud file",

@@ -12,6 +12,7 @@ import numpy as np
 from ...base.errors import CloudReadError, UsageError
 from ...io.files import read_cloud
 from .errors import refuse, translated
+from .transformation import Transformation
 
 __all__ = ["Epoch", "as_epoch", "read_from_xyz", "read_from_las", "normalize_timestamp"]
 
@@ -46,10 +47,12 @@ def normalize_timestamp(timestamp: Any) -> datetime.datetime | None:
 class Epoch:
     """One point cloud of a time series (py4dgeo's ``Epoch``): ``cloud`` is (N, 3) float64.
 
-    ``normals`` (N, 3), ``additional_dimensions`` (a numpy structured array of N rows) and
-    ``scanpos_info`` are kept as given; ``timestamp`` is normalised as py4dgeo's
-    (:func:`normalize_timestamp`). The spatial index is built by each run, so
-    :meth:`build_kdtree` and :meth:`build_octree` have nothing to do.
+    ``normals`` (N, 3) and ``additional_dimensions`` (a numpy structured array of N rows) are
+    kept as given; ``timestamp`` is normalised as py4dgeo's (:func:`normalize_timestamp`), and
+    ``scanpos_info`` (M3C2-EP's scan positions) as py4dgeo's: a list of one dict per scan
+    position, ``scanpos_id`` (one id per point, counted from 1) in ``additional_dimensions``. The
+    spatial index is built by each run, so :meth:`build_kdtree` and :meth:`build_octree` have
+    nothing to do.
     """
 
     @translated
@@ -72,6 +75,26 @@ class Epoch:
         self._transformations: list = []
 
     @property
+    def normals(self) -> np.ndarray | None:
+        """The (N, 3) normals, or None."""
+        return self._normals
+
+    @normals.setter
+    def normals(self, value: np.ndarray | None) -> None:
+        self._normals = value
+        self._normals_radius = None  # normals from elsewhere: their neighbourhood is not known
+
+    @property
+    def normals_radius(self) -> float | None:
+        """m3c2kit's addition: the radius :meth:`calculate_normals` fitted :attr:`normals` at, None
+        for normals given otherwise (the registration functions fit their planes at 2 x radius)."""
+        return self._normals_radius
+
+    def _with_normals_of(self, other: "Epoch") -> "Epoch":
+        self._normals_radius = other._normals_radius  # a subset or copy keeps each point's normal
+        return self
+
+    @property
     def cloud(self) -> np.ndarray:
         """The (N, 3) float64 coordinates."""
         return self._cloud
@@ -83,6 +106,57 @@ class Epoch:
     @timestamp.setter
     def timestamp(self, value: Any) -> None:
         self._timestamp = normalize_timestamp(value)
+
+    @property
+    def scanpos_info(self) -> list | None:
+        """M3C2-EP's scan positions: one dict per scan position (``origin`` [x, y, z],
+        ``sigma_range``, ``sigma_scan``, ``sigma_yaw``), scan position k at index k - 1."""
+        return self._scanpos_info
+
+    @scanpos_info.setter
+    @translated
+    def scanpos_info(self, value: list | dict | None) -> None:
+        # py4dgeo's rule: a list as it is, a dict {"1": {...}, "2": {...}} as the list of its ids
+        # 1..K in order (py4dgeo drops any other value to None; refused here).
+        if value is None or isinstance(value, list):
+            self._scanpos_info = value
+        elif isinstance(value, dict):
+            keyed = {str(k): v for k, v in value.items()}
+            ids = [str(k) for k in range(1, len(keyed) + 1)]
+            if sorted(keyed) != sorted(ids):
+                raise UsageError(f"Epoch: scanpos_info's keys must be the scan position ids 1..{len(keyed)}, got "
+                                 f"{', '.join(sorted(keyed))}")
+            self._scanpos_info = [keyed[k] for k in ids]
+        else:
+            raise UsageError(f"Epoch: scanpos_info must be a list or a dict of scan positions, got "
+                             f"{type(value).__name__}")
+
+    @property
+    @translated
+    def scanpos_id(self) -> np.ndarray:
+        """Each point's scan position id (int32, counted from 1): ``additional_dimensions["scanpos_id"]``."""
+        dims = self.additional_dimensions
+        if dims is None or dims.dtype.names is None or "scanpos_id" not in dims.dtype.names:
+            raise UsageError("Epoch: no scanpos_id: set epoch.scanpos_id, or read it, e.g. read_from_las(..., "
+                             "additional_dimensions={'point_source_id': 'scanpos_id'})")
+        return np.asarray(dims["scanpos_id"]).reshape(len(self._cloud)).astype(np.int32)
+
+    @scanpos_id.setter
+    @translated
+    def scanpos_id(self, value) -> None:
+        ids = np.asarray(value).reshape(-1)
+        if len(ids) != len(self._cloud):
+            raise UsageError(f"Epoch: scanpos_id must hold one id per point ({len(self._cloud)}), got {len(ids)}")
+        ids = ids.astype(np.int32)
+        dims = self.additional_dimensions
+        if dims is not None and dims.dtype.names is None:
+            raise UsageError("Epoch: scanpos_id joins additional_dimensions, which must then be a structured array")
+        kept = [] if dims is None else [n for n in dims.dtype.names if n != "scanpos_id"]
+        out = np.empty(len(ids), dtype=[(n, dims.dtype[n]) for n in kept] + [("scanpos_id", "<i4")])
+        for name in kept:
+            out[name] = np.asarray(dims[name]).reshape(len(ids))
+        out["scanpos_id"] = ids
+        self.additional_dimensions = out
 
     @property
     def metadata(self) -> dict:
@@ -97,23 +171,25 @@ class Epoch:
         """A copy of the selected points (e.g. ``epoch[::10]`` to subsample), with the metadata."""
         pick = lambda a: None if a is None else a[index]  # noqa: E731
         return Epoch(self._cloud[index], normals=pick(self.normals), additional_dimensions=pick(
-            self.additional_dimensions), **self.metadata)
+            self.additional_dimensions), **self.metadata)._with_normals_of(self)
 
     def copy(self) -> "Epoch":
         copied = lambda a: None if a is None else a.copy()  # noqa: E731
         return Epoch(self._cloud.copy(), normals=copied(self.normals),
                      additional_dimensions=copied(self.additional_dimensions), timestamp=self.timestamp,
-                     scanpos_info=copied(self.scanpos_info))
+                     scanpos_info=copied(self.scanpos_info))._with_normals_of(self)
 
     @translated
     def transform(self, transformation=None, affine_transformation=None, rotation=None, translation=None,
                   reduction_point=None) -> None:
         """py4dgeo's ``Epoch.transform``, in place: x' = A (x - r) + t + r with the affine A | t (a
-        4x4 or 3x4 matrix, or rotation and translation; or a `transformation` with
-        ``affine_transformation`` and ``reduction_point``, as py4dgeo's registration returns),
-        r the reduction point (0 by default); normals are rotated. Recorded in
-        :attr:`transformation`."""
+        4x4 or 3x4 matrix, or rotation and translation; or a :class:`Transformation`, as the
+        registration functions return, whose reduction point is then r), r the reduction point
+        (0 by default); normals are rotated. Recorded in :attr:`transformation`."""
         if transformation is not None:
+            if not (hasattr(transformation, "affine_transformation") and hasattr(transformation, "reduction_point")):
+                raise UsageError(f"Epoch.transform: transformation must be a Transformation (affine_transformation "
+                                 f"and reduction_point), got {type(transformation).__name__}")
             affine_transformation = transformation.affine_transformation
             reduction_point = transformation.reduction_point
         if affine_transformation is None:
@@ -134,13 +210,14 @@ class Epoch:
             raise UsageError(f"Epoch.transform: the reduction point must be 3 finite numbers, got {reduction_point!r}")
         linear, shift = trafo[:3, :3], trafo[:3, 3]
         self._cloud = np.ascontiguousarray((self._cloud - r) @ linear.T + (shift + r))
-        if self.normals is not None:
-            self.normals = np.ascontiguousarray(self.normals @ linear.T)
-        self._transformations.append((trafo, r))
+        if self._normals is not None:  # the same normals turned: their radius still holds
+            self._normals = np.ascontiguousarray(self._normals @ linear.T)
+        self._transformations.append(Transformation(affine_transformation=trafo, reduction_point=r))
 
     @property
     def transformation(self) -> list:
-        """The transformations applied by :meth:`transform`: (4x4 matrix, reduction point) each."""
+        """The transformations applied by :meth:`transform`, as py4dgeo's: one
+        :class:`Transformation` (4x4 matrix, reduction point) each."""
         return list(self._transformations)
 
     @translated
@@ -153,6 +230,7 @@ class Epoch:
             raise UsageError(f"Epoch.calculate_normals: radius must be a positive number, got {radius!r}")
         self.normals, _ = oriented_normals(self._cloud, self._cloud, [radius],
                                            direction(orientation_vector, "Epoch.calculate_normals"))
+        self._normals_radius = float(radius)
         return self.normals
 
     def build_kdtree(self, leaf_size: int = 10, force_rebuild: bool = False) -> None:

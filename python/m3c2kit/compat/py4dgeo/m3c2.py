@@ -151,6 +151,14 @@ class M3C2:
                     f"calls (its own cylinder search and statistics: m3c2kit.compare(median=..., ...)); run it "
                     f"with py4dgeo itself")
 
+    def _core_normals(self, core: np.ndarray) -> np.ndarray:
+        """One normal per core point from ``self.directions()`` (a subclass's own, as in py4dgeo)."""
+        normals = np.asarray(self.directions(), dtype=np.float64)
+        if normals.ndim != 2 or normals.shape[1] != 3 or normals.shape[0] not in (1, len(core)):
+            raise UsageError(f"{type(self).__name__}.directions() must return (1, 3) or ({len(core)}, 3) normals, "
+                             f"got shape {normals.shape}")
+        return np.ascontiguousarray(np.broadcast_to(normals, core.shape))
+
     @translated
     def run(self) -> tuple[np.ndarray, np.ndarray]:
         """(distances, uncertainties) at the core points, in their order."""
@@ -159,11 +167,7 @@ class M3C2:
         core = self._core()
         radius = self._radius()
         depth = max(float(self.max_distance), radius)  # py4dgeo: the cylinder reaches at least r
-        normals = np.asarray(self.directions(), dtype=np.float64)  # a subclass's own, as in py4dgeo
-        if normals.ndim != 2 or normals.shape[1] != 3 or normals.shape[0] not in (1, len(core)):
-            raise UsageError(f"{type(self).__name__}.directions() must return (1, 3) or ({len(core)}, 3) normals, "
-                             f"got shape {normals.shape}")
-        normals = np.ascontiguousarray(np.broadcast_to(normals, core.shape))
+        normals = self._core_normals(core)
         result = compare(reference, compared, core, projection_scale=2.0 * radius, max_depth=depth,
                          registration_error=float(self.registration_error), median=bool(self.robust_aggr),
                          min_points=1, lod="z", threads=util.get_num_threads(), normal_source="core",
