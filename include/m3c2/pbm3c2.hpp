@@ -99,7 +99,8 @@ SegmentPairs nearest_segments(const PlaneSegments& reference, const PlaneSegment
                               const CorrespondenceParams& params);
 
 /// Every (reference row, compared row) whose centroids are within search_radius, both planes
-/// defined, in row order: the candidates a classifier scores.
+/// defined, in row order: the candidates a classifier scores. InvalidArgument beyond 2e7 pairs
+/// (a radius that pairs every segment with every other).
 struct SegmentCandidates {
   std::vector<std::int64_t> reference, compared;
 };

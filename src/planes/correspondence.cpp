@@ -17,6 +17,10 @@ namespace {
 
 Vec3 row3(const std::vector<double>& v, std::size_t i) { return {v[3 * i], v[3 * i + 1], v[3 * i + 2]}; }
 
+/// The most candidate pairs segment_candidates() lists (16 B each, 40 B with their features): a
+/// search radius wide enough to pair every segment with every other is refused before it fills memory.
+constexpr std::size_t kMaxCandidates = 20'000'000;
+
 bool has_plane(const PlaneSegments& s, std::size_t i) { return std::isfinite(s.normal[3 * i]); }
 
 void check_radius(double radius) {
@@ -48,19 +52,24 @@ struct CentroidIndex {
   mutable std::vector<std::uint32_t> found;
 };
 
-/// The row of `to` nearest segment `i` of `from` within the gates, or -1.
+/// The row of `to` nearest segment `i` of `from` within the gates, or -1. Balls growing by 4 from
+/// search_radius / 64: the nearest row passing the angle gate within a ball is the nearest of all
+/// (every row outside is farther than the ball's radius), so a wide search radius costs no more
+/// than the distance to the pair.
 std::int64_t nearest(const PlaneSegments& from, std::size_t i, const PlaneSegments& to, const CentroidIndex& index,
                      const CorrespondenceParams& params, double min_cosine, std::vector<std::size_t>& scratch) {
   const Vec3 c = row3(from.centroid, i), n = row3(from.normal, i);
-  index.within(c, params.search_radius, scratch);
-  std::int64_t best = -1;
-  double best2 = std::numeric_limits<double>::infinity();
-  for (const std::size_t j : scratch) {  // ascending: a tie keeps the lower row
-    if (std::abs(n.dot(row3(to.normal, j))) < min_cosine) continue;
-    const double d2 = (row3(to.centroid, j) - c).squaredNorm();
-    if (d2 < best2) best2 = d2, best = std::int64_t(j);
+  for (double radius = params.search_radius / 64.0;; radius = std::min(4.0 * radius, params.search_radius)) {
+    index.within(c, radius, scratch);
+    std::int64_t best = -1;
+    double best2 = std::numeric_limits<double>::infinity();
+    for (const std::size_t j : scratch) {  // ascending: a tie keeps the lower row
+      if (std::abs(n.dot(row3(to.normal, j))) < min_cosine) continue;
+      const double d2 = (row3(to.centroid, j) - c).squaredNorm();
+      if (d2 < best2) best2 = d2, best = std::int64_t(j);
+    }
+    if (best >= 0 || radius >= params.search_radius) return best;
   }
-  return best;
 }
 
 }  // namespace

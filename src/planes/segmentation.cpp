@@ -67,6 +67,7 @@ class GrowingPlane {
 PlaneSegmentation segment_planes(PointsView points, const PlaneSegmentationParams& params, const RunOptions& run) {
   check(params);
   const std::size_t n = points.size();
+  if (n > UINT32_MAX) throw InvalidArgument("segment_planes indexes at most 2^32 - 1 points, got " + std::to_string(n));
   Params normal_params;
   normal_params.normal_diameters = {params.normal_diameter};
   normal_params.min_points_normal = params.min_normal_points;

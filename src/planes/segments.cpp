@@ -60,6 +60,8 @@ PlaneSegments plane_segments(PointsView points, std::span<const std::int64_t> la
   if (labels.size() != points.size())
     throw InvalidArgument("labels must have one value per point: " + std::to_string(labels.size()) + " for " +
                           std::to_string(points.size()) + " points");
+  if (points.size() > UINT32_MAX)
+    throw InvalidArgument("plane_segments indexes at most 2^32 - 1 points, got " + std::to_string(points.size()));
   for (std::size_t i = 0; i < points.size(); ++i)
     for (int a = 0; a < 3; ++a)
       if (!std::isfinite(points.coord(i, a)))

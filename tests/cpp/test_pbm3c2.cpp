@@ -198,6 +198,49 @@ TEST(PbM3c2, NearestSegmentsGatesAndMutual) {
   EXPECT_THROW(pair_features(sa, sb, std::vector<std::int64_t>{2}, std::vector<std::int64_t>{0}), InvalidArgument);
 }
 
+/// A segment table of `n` random planes (centroids in a 10 m cube, random normals).
+PlaneSegments random_planes(std::size_t n, std::uint64_t seed) {
+  std::mt19937_64 rng(seed);
+  std::uniform_real_distribution<double> u(0.0, 10.0);
+  std::normal_distribution<double> g(0.0, 1.0);
+  PlaneSegments s;
+  for (std::size_t i = 0; i < n; ++i) {
+    const Vec3 normal = Vec3(g(rng), g(rng), g(rng)).normalized();
+    s.label.push_back(std::int64_t(i));
+    s.count.push_back(100);
+    for (int a = 0; a < 3; ++a) s.centroid.push_back(u(rng)), s.normal.push_back(normal(a));
+    for (int a = 0; a < 3; ++a) s.eigenvalues.push_back(1.0), s.major_axis.push_back(0.0);
+    s.roughness.push_back(0.01);
+  }
+  return s;
+}
+
+TEST(PbM3c2, NearestSegmentsIsTheBruteForceNearest) {
+  // The growing balls against every pair scanned: the same pair, ties to the lower row.
+  for (std::uint64_t seed = 0; seed < 20; ++seed) {
+    const PlaneSegments a = random_planes(300, 2 * seed), b = random_planes(300, 2 * seed + 1);
+    CorrespondenceParams p;
+    p.search_radius = 0.3 + 0.5 * double(seed % 5);
+    p.max_angle_degrees = 20.0 + 3.0 * double(seed);
+    const double min_cosine = std::cos(p.max_angle_degrees * 3.14159265358979323846 / 180.0);
+    const SegmentPairs pairs = nearest_segments(a, b, p);
+    for (std::size_t i = 0; i < a.size(); ++i) {
+      std::int64_t best = -1;
+      double best2 = p.search_radius * p.search_radius;
+      for (std::size_t j = 0; j < b.size(); ++j) {
+        const Vec3 d(b.centroid[3 * j] - a.centroid[3 * i], b.centroid[3 * j + 1] - a.centroid[3 * i + 1],
+                     b.centroid[3 * j + 2] - a.centroid[3 * i + 2]);
+        double cosine = 0.0;
+        for (int k = 0; k < 3; ++k) cosine += a.normal[3 * i + k] * b.normal[3 * j + k];
+        if (std::abs(cosine) < min_cosine || d.squaredNorm() > best2 || (best >= 0 && d.squaredNorm() == best2))
+          continue;
+        best2 = d.squaredNorm(), best = std::int64_t(j);
+      }
+      ASSERT_EQ(pairs.compared[i], best) << "seed " << seed << " row " << i;
+    }
+  }
+}
+
 TEST(PbM3c2, BadInputsAreRefused) {
   const Cloud cloud = facets_cloud(rock_face(), 100, 0.003, 9);
   PlaneSegmentationParams p = segmentation();
