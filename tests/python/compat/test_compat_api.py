@@ -214,7 +214,7 @@ def test_epoch_transform_as_py4dgeos():
         e.transform(affine_transformation=np.eye(3))
 
 
-@pytest.mark.parametrize("name", ["SpatiotemporalAnalysis", "RegionGrowingAlgorithm", "temporal_averaging", "C2C"])
+@pytest.mark.parametrize("name", ["C2C", "SearchTree", "Vapc", "MemoryPolicy"])
 def test_a_py4dgeo_name_not_provided_says_what_to_use(name):
     with pytest.raises(AttributeError, match=f"does not provide py4dgeo's {name}; use instead"):
         getattr(p4, name)
@@ -230,3 +230,22 @@ def test_calculate_normals_as_py4dgeos():
                                atol=0)
     with pytest.raises(ValueError, match="radius must be a positive number"):
         e1.calculate_normals(radius=0)
+
+
+def test_py4dgeos_own_suite_bugs_are_fixed(tmp_path):
+    """validation/py4dgeo_test_suite.py found these against py4dgeo 1.2.0's own tests: the cloud and the
+    search trees cannot be assigned (Py4DGeoError), the log file is created by its first record, and a
+    single epoch is refused at construction."""
+    e = p4.Epoch(np.zeros((3, 3)))
+    with pytest.raises(p4.Py4DGeoError, match="cannot be changed"):
+        e.cloud = 42
+    with pytest.raises(p4.Py4DGeoError, match="KDTree"):
+        e.kdtree = None
+    log = tmp_path / "log.txt"
+    p4.set_py4dgeo_logfile(str(log))
+    assert not log.exists()
+    with pytest.raises(p4.Py4DGeoError, match="Exactly two epochs"):
+        p4.M3C2(epochs=(e,), corepoints=np.zeros((1, 3)), cyl_radius=1.0)
+    assert log.exists()  # the error was logged, as py4dgeo's
+    with pytest.raises(AttributeError, match="enable_trace; use instead"):
+        p4.enable_trace

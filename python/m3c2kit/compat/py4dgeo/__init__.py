@@ -25,6 +25,11 @@ registration.py) runs m3c2kit's point-to-plane ICP and returns a :class:`Transfo
 ``epoch.transform`` applies, as py4dgeo's; ``M3C2EP`` (m3c2ep.py) is m3c2kit's M3C2-EP set to
 py4dgeo's model. Their differences from py4dgeo are in their modules' docstrings.
 
+Time series (``SpatiotemporalAnalysis``, ``RegionGrowingAlgorithm``, ``temporal_averaging``,
+segmentation.py) run on m3c2kit's series store: ``NAME.zip`` is the analysis folder
+``NAME.m3c2/`` holding the store (analysis_files.py), the epochs are compared, smoothed and
+segmented by ``m3c2 series``'s steps, 4D-OBC in its ``py4dgeo`` mode.
+
 Errors are py4dgeo's: every one a :class:`Py4DGeoError` and the builtin py4dgeo's users catch
 (errors.py). Arguments py4dgeo has but this front end does not implement raise
 :class:`UnsupportedArgument` naming them; py4dgeo's names not provided here raise an
@@ -38,20 +43,17 @@ from .m3c2 import UNCERTAINTY_DTYPE, CloudCompareM3C2, M3C2, uncertainties_of, w
 from .m3c2ep import COVARIANCE_DTYPE, M3C2EP
 from .pbm3c2 import PBM3C2
 from .registration import Transformation, icp_with_stable_areas, iterative_closest_point, point_to_plane_icp
+from .segmentation import RegionGrowingAlgorithm, SpatiotemporalAnalysis, temporal_averaging
 from .util import get_num_threads, regular_corepoint_grid, set_num_threads, set_py4dgeo_logfile
 
 __all__ = ["Epoch", "M3C2", "CloudCompareM3C2", "read_from_xyz", "read_from_las", "as_epoch", "normalize_timestamp",
            "write_m3c2_results_to_las", "regular_corepoint_grid", "set_num_threads", "get_num_threads",
            "set_py4dgeo_logfile", "Py4DGeoError", "UnsupportedArgument", "UNCERTAINTY_DTYPE", "uncertainties_of",
            "M3C2EP", "COVARIANCE_DTYPE", "Transformation", "iterative_closest_point", "point_to_plane_icp",
-           "icp_with_stable_areas", "PBM3C2"]
+           "icp_with_stable_areas", "PBM3C2", "SpatiotemporalAnalysis", "RegionGrowingAlgorithm", "temporal_averaging"]
 
 #: py4dgeo 1.2.0's public names this module does not provide, and what to use instead.
 NOT_PROVIDED = {
-    "SpatiotemporalAnalysis": "the series store: m3c2 series REFERENCE EPOCH... -o STORE (m3c2 series import reads "
-                              "a py4dgeo archive)",
-    "RegionGrowingAlgorithm": "m3c2 series objects STORE -o OBJECTS.csv --dtw py4dgeo",
-    "temporal_averaging": "m3c2 series smooth STORE --window N",
     "C2C": "m3c2 c2c REFERENCE COMPARED -o OUT",
     "SearchTree": "nothing: m3c2kit's engine builds its index in every run",
     "save_epoch": "m3c2kit.write(path, ...) to a point-cloud file",
@@ -60,6 +62,9 @@ NOT_PROVIDED = {
     "MemoryPolicy": "nothing: m3c2kit bounds its memory before each run",
     "set_memory_policy": "nothing: m3c2kit bounds its memory before each run",
     "Vapc": "nothing",
+    "enable_trace": "nothing: m3c2kit has no tracing switch (m3c2 COMMAND --verbose prints its phases)",
+    "enable_timeit": "nothing: bench/ times m3c2kit's steps",
+    "initialize_openmp_defaults": "nothing: m3c2kit sets its threads per run (set_num_threads, --threads)",
     "statistical_outlier_removal": "m3c2 simplify (outlier removal, section 6.3)",
 }
 

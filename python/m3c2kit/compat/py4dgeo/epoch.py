@@ -11,7 +11,7 @@ import numpy as np
 
 from ...base.errors import CloudReadError, UsageError
 from ...io.files import read_cloud
-from .errors import refuse, translated
+from .errors import Py4DGeoError, refuse, translated
 from .transformation import Transformation
 
 __all__ = ["Epoch", "as_epoch", "read_from_xyz", "read_from_las", "normalize_timestamp"]
@@ -98,6 +98,31 @@ class Epoch:
     def cloud(self) -> np.ndarray:
         """The (N, 3) float64 coordinates."""
         return self._cloud
+
+    @cloud.setter
+    def cloud(self, value: Any) -> None:
+        raise Py4DGeoError("The Epoch point cloud cannot be changed after initialization. Please construct a new "
+                           "Epoch, e.g. by slicing an existing one.")
+
+    # py4dgeo's search trees: m3c2kit's engine builds its own index in each run; py4dgeo refuses their
+    # assignment too.
+    @property
+    def kdtree(self):
+        raise AttributeError("m3c2kit.compat.py4dgeo's Epoch has no kdtree: m3c2kit's engine builds its index in "
+                             "every run")
+
+    @kdtree.setter
+    def kdtree(self, value: Any) -> None:
+        raise Py4DGeoError("The KDTree of an Epoch cannot be changed.")
+
+    @property
+    def octree(self):
+        raise AttributeError("m3c2kit.compat.py4dgeo's Epoch has no octree: m3c2kit's engine builds its index in "
+                             "every run")
+
+    @octree.setter
+    def octree(self, value: Any) -> None:
+        raise Py4DGeoError("The Octree of an Epoch cannot be changed.")
 
     @property
     def timestamp(self) -> datetime.datetime | None:

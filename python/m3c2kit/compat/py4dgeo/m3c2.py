@@ -21,7 +21,7 @@ from ...run.in_memory import compare
 from . import util
 from .epoch import Epoch, as_epoch
 from .normals import direction, oriented_normals
-from .errors import UnsupportedArgument, refuse, translated
+from .errors import Py4DGeoError, UnsupportedArgument, refuse, translated
 
 __all__ = ["M3C2", "CloudCompareM3C2", "write_m3c2_results_to_las", "uncertainties_of", "UNCERTAINTY_DTYPE"]
 
@@ -64,6 +64,8 @@ class M3C2:
                  corepoint_normals: np.ndarray | None = None,
                  cloud_for_normals: Epoch | np.ndarray | None = None, **unsupported: Any) -> None:
         refuse("M3C2", unsupported, _M3C2_ARGUMENTS)
+        if epochs is not None and len(epochs) != 2:  # py4dgeo checks at construction
+            raise Py4DGeoError("Exactly two epochs need to be given!")
         self.epochs = epochs
         self.corepoints = corepoints
         self.normal_radii = normal_radii
@@ -165,15 +167,22 @@ class M3C2:
         self._refuse_overridden_callbacks()
         reference, compared = self._epochs()
         core = self._core()
-        radius = self._radius()
-        depth = max(float(self.max_distance), radius)  # py4dgeo: the cylinder reaches at least r
         normals = self._core_normals(core)
-        result = compare(reference, compared, core, projection_scale=2.0 * radius, max_depth=depth,
-                         registration_error=float(self.registration_error), median=bool(self.robust_aggr),
-                         min_points=1, lod="z", threads=util.get_num_threads(), normal_source="core",
-                         core_normals=normals)  # py4dgeo's z, its normals as they are
+        result = compare(reference, compared, core, **self.compare_settings(), threads=util.get_num_threads(),
+                         normal_source="core", core_normals=normals)  # its normals as they are
         self.result = result
         return result.distance, uncertainties_of(result)
+
+    @translated
+    def compare_settings(self) -> dict:
+        """m3c2kit's compare keywords of this M3C2 but its normals (the time series' store records
+        them: segmentation.py): the cylinder of radius r is projection_scale 2r, at least r long
+        (as py4dgeo's), py4dgeo's z LOD, and no minimum point count (py4dgeo has none)."""
+        radius = self._radius()
+        depth = max(float(self.max_distance), radius)  # py4dgeo: the cylinder reaches at least r
+        return {"projection_scale": 2.0 * radius, "max_depth": depth,
+                "registration_error": float(self.registration_error), "median": bool(self.robust_aggr),
+                "min_points": 1, "lod": "z"}
 
 
 #: CloudCompare's qM3C2 parameter names (lower case) and py4dgeo's (py4dgeo's cloudcompare.py).

@@ -37,7 +37,7 @@ def set_py4dgeo_logfile(filename) -> None:
     for handler in [h for h in logger.handlers if getattr(h, "_m3c2kit_logfile", False)]:
         logger.removeHandler(handler)
         handler.close()
-    handler = logging.FileHandler(filename)
+    handler = logging.FileHandler(filename, mode="a", delay=True)  # created by the first record, as py4dgeo's
     handler._m3c2kit_logfile = True
     handler.setFormatter(logging.Formatter("[%(asctime)s][%(levelname)s] %(message)s"))
     logger.addHandler(handler)
