@@ -24,7 +24,8 @@ struct PlaneSegmentationParams {
   double growth_diameter = 0.0;
   /// A point joins when its normal is within this angle of the segment plane's (unoriented).
   double max_angle_degrees = 10.0;
-  /// ... and it lies within this distance of the segment's plane; 0: normal_diameter / 4.
+  /// ... and it lies within this distance of the segment's plane; 0: three times the points' median
+  /// roughness sigma(D) (at least D / 10^4).
   double max_plane_distance = 0.0;
   /// Segments of fewer points are dropped: their points stay unsegmented (kSmallSegment).
   std::uint32_t min_points = 50;
@@ -76,7 +77,7 @@ enum class PairStatus : std::uint8_t {
   kPaired = 0,
   kNoPlane = 1,        ///< the reference segment has no plane (too few points, degenerate)
   kNoCandidate = 2,    ///< no compared plane within search_radius and max_angle_degrees
-  kNotMutual = 3,      ///< its nearest compared segment has a nearer reference segment (mutual)
+  kNotMutual = 3,      ///< its compared segment's own choice is another reference segment (mutual)
   kNotClassified = 4,  ///< the classifier accepted no candidate (m3c2kit.pbm3c2's random forest)
 };
 
@@ -97,6 +98,20 @@ struct SegmentPairs {
 
 SegmentPairs nearest_segments(const PlaneSegments& reference, const PlaneSegments& compared,
                               const CorrespondenceParams& params);
+
+/// The overlap rule: each reference point of a segment votes for the segment of its nearest
+/// compared point within search_radius, when that point is in a segment (an unsegmented nearest
+/// point votes for nothing: the surface is there, unsegmented) whose plane is within
+/// max_angle_degrees of its own; a reference segment's pair is the compared segment with the most
+/// votes (ties to the lower row). A surface moved by less than its distance to other surfaces
+/// overlaps its old self whatever the extents the two segmentations gave it, where centroids of
+/// partly covered surfaces drift apart. `mutual`: the compared segment's own vote (its points for
+/// reference segments) must name the reference segment back. Labels as plane_segments() reads
+/// them (< 0: no segment); the planes are plane_segments()'s of the same labels.
+SegmentPairs overlapping_segments(PointsView reference, std::span<const std::int64_t> reference_labels,
+                                  const PlaneSegments& reference_planes, PointsView compared,
+                                  std::span<const std::int64_t> compared_labels, const PlaneSegments& compared_planes,
+                                  const CorrespondenceParams& params, const RunOptions& run = {});
 
 /// Every (reference row, compared row) whose centroids are within search_radius, both planes
 /// defined, in row order: the candidates a classifier scores. InvalidArgument beyond 2e7 pairs

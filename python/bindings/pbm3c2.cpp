@@ -114,6 +114,24 @@ void bind_pbm3c2(nb::module_& m) {
       },
       "reference"_a, "compared"_a, "params"_a);
   m.def(
+      "overlapping_segments",
+      [](const Points& reference, const Labels& reference_labels, const nb::dict& reference_planes,
+         const Points& compared, const Labels& compared_labels, const nb::dict& compared_planes,
+         const CorrespondenceParams& params, int threads, nb::object progress) {
+        const PlaneSegments ref = segments_from(reference_planes), cmp = segments_from(compared_planes);
+        const SegmentPairs p = run_engine(std::move(progress), threads, [&](const RunOptions& run) {
+          return overlapping_segments(view(reference), {reference_labels.data(), reference_labels.size()}, ref,
+                                      view(compared), {compared_labels.data(), compared_labels.size()}, cmp, params,
+                                      run);
+        });
+        nb::dict d;
+        d["compared"] = to_numpy(std::vector<std::int64_t>(p.compared));
+        d["status"] = codes(p.status);
+        return d;
+      },
+      "reference"_a, "reference_labels"_a, "reference_planes"_a, "compared"_a, "compared_labels"_a, "compared_planes"_a,
+      "params"_a, "threads"_a = 0, "progress"_a = nb::none());
+  m.def(
       "segment_candidates",
       [](const nb::dict& reference, const nb::dict& compared, double search_radius) {
         SegmentCandidates c = segment_candidates(segments_from(reference), segments_from(compared), search_radius);

@@ -85,4 +85,27 @@ void KdTree::ball(const Vec3& centre, double radius, std::vector<std::uint32_t>&
         });
 }
 
+std::uint32_t KdTree::nearest(const Vec3& q, double max_distance) const {
+  // Balls growing by 4 from max_distance / 64: the nearest point within a ball is the nearest of
+  // all, and a small first ball spares most of the tree when the point is close (ICP's pairs
+  // after its first steps, a segment's own surface). In each ball the traversal prunes every box
+  // farther than the best point so far; select() appends each improvement, so the last is the nearest.
+  thread_local std::vector<std::uint32_t> found;
+  for (double radius = max_distance / 64.0;; radius = std::min(4.0 * radius, max_distance)) {
+    double best2 = radius * radius;
+    bool any = false;
+    found.clear();
+    select([&](const auto& lo, const auto& hi) { return box_distance2(lo, hi, q) > best2 * (1.0 + kRelativeMargin); },
+           [&](const double* p) {
+             const double d2 = squared_distance(p, q);
+             if (d2 > best2 || (any && d2 == best2)) return false;
+             best2 = d2, any = true;
+             return true;
+           },
+           found);
+    if (!found.empty()) return found.back();
+    if (radius >= max_distance) return kNone;
+  }
+}
+
 }  // namespace m3c2::detail

@@ -8,6 +8,7 @@
 
 #include <array>
 #include <cstdint>
+#include <limits>
 #include <vector>
 
 namespace m3c2::detail {
@@ -25,6 +26,11 @@ class KdTree {
 
   /// Appends the original indices of the points with squared_distance <= radius^2 (tree order).
   void ball(const Vec3& centre, double radius, std::vector<std::uint32_t>& out) const;
+
+  static constexpr std::uint32_t kNone = std::numeric_limits<std::uint32_t>::max();
+  /// The original index of the point nearest `q` within `max_distance` (squared_distance <=
+  /// max_distance^2; the first in tree order on a tie), or kNone. Thread-safe.
+  std::uint32_t nearest(const Vec3& q, double max_distance) const;
 
   /// Appends the original indices of the points `keep(p)` accepts (p: the point's 3 coordinates,
   /// the input's float64 values), visiting only the nodes whose box `prune(lo, hi)` does not

@@ -15,19 +15,6 @@ namespace {
 // Fixed blocks of sources: the partial sums of a block do not depend on which thread ran it.
 constexpr std::size_t kBlock = 4096;
 
-// Boxes are pruned with a margin so that rounding in the box test never hides a closer point;
-// the per-point distance alone decides.
-constexpr double kPruneMargin = 1.0 + 1e-9;
-
-double box_distance2(const std::array<double, 3>& lo, const std::array<double, 3>& hi, const Vec3& c) {
-  double d2 = 0.0;
-  for (int a = 0; a < 3; ++a) {
-    const double gap = std::max({lo[a] - c(a), c(a) - hi[a], 0.0});
-    d2 += gap * gap;
-  }
-  return d2;
-}
-
 }  // namespace
 
 Targets::Targets(PointsView reference, double normal_diameter, const RunOptions& run) {
@@ -43,28 +30,7 @@ Targets::Targets(PointsView reference, double normal_diameter, const RunOptions&
   tree_ = std::make_unique<KdTree>(PointsView(xyz_.data(), size()));
 }
 
-std::uint32_t Targets::nearest(const Vec3& q, double max_distance) const {
-  // Balls growing by 4 from max_distance / 64: the nearest point within a ball is the nearest of
-  // all, and a small first ball spares most of the tree when the pairs are close (after the
-  // first steps). In each ball the traversal prunes every box farther than the best point so
-  // far; select() appends each improvement, so the last is the nearest.
-  thread_local std::vector<std::uint32_t> found;
-  for (double radius = max_distance / 64.0;; radius = std::min(4.0 * radius, max_distance)) {
-    double best2 = radius * radius;
-    bool any = false;
-    found.clear();
-    tree_->select([&](const auto& lo, const auto& hi) { return box_distance2(lo, hi, q) > best2 * kPruneMargin; },
-                  [&](const double* p) {
-                    const double d2 = squared_distance(p, q);
-                    if (d2 > best2 || (any && d2 == best2)) return false;
-                    best2 = d2, any = true;
-                    return true;
-                  },
-                  found);
-    if (!found.empty()) return found.back();
-    if (radius >= max_distance) return kNone;
-  }
-}
+std::uint32_t Targets::nearest(const Vec3& q, double max_distance) const { return tree_->nearest(q, max_distance); }
 
 void pair_sources(const Targets& targets, const Sources& sources, const Pose& pose, double max_distance, Pairing& out,
                   const RunOptions& run) {

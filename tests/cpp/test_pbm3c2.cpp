@@ -241,6 +241,40 @@ TEST(PbM3c2, NearestSegmentsIsTheBruteForceNearest) {
   }
 }
 
+TEST(PbM3c2, OverlapPairsAPartlyCoveredSurfaceWhereCentroidsDrift) {
+  // Reference: a 4 m facet. Compared: its right half only (its centroid 1 m away), moved 2 cm along
+  // the normal, and a small parallel ledge 0.3 m above, 0.4 m left of the centre: the nearest
+  // centroid is the ledge's, the overlap is the facet's.
+  const Cloud ref = facets_cloud({{Vec3::Zero(), Vec3::UnitZ(), 2.0, 2.0}}, 4000, 0.002, 21);
+  Cloud cmp;
+  const Cloud full = facets_cloud({{Vec3(0, 0, 0.02), Vec3::UnitZ(), 2.0, 2.0}}, 4000, 0.002, 22);
+  for (std::size_t i = 0; i < full.size(); ++i)
+    if (full[i].x() > 0.0) cmp.add(full[i]);
+  const std::size_t half = cmp.size();
+  cmp.append(facets_cloud({{Vec3(-0.4, 0, 0.3), Vec3::UnitZ(), 0.25, 0.25}}, 200, 0.002, 23));
+  std::vector<std::int64_t> ref_labels(ref.size(), 0), cmp_labels(cmp.size(), 5);
+  for (std::size_t i = half; i < cmp.size(); ++i) cmp_labels[i] = 9;
+  const PlaneSegments a = plane_segments(ref.view(), ref_labels, {});
+  const PlaneSegments b = plane_segments(cmp.view(), cmp_labels, {});
+  CorrespondenceParams p;
+  p.search_radius = 1.0;
+  EXPECT_EQ(nearest_segments(a, b, p).compared, (std::vector<std::int64_t>{1}));  // the ledge
+  const SegmentPairs overlap = overlapping_segments(ref.view(), ref_labels, a, cmp.view(), cmp_labels, b, p);
+  EXPECT_EQ(overlap.compared, (std::vector<std::int64_t>{0}));  // the facet
+  p.mutual = true;
+  EXPECT_EQ(overlapping_segments(ref.view(), ref_labels, a, cmp.view(), cmp_labels, b, p).compared,
+            (std::vector<std::int64_t>{0}));
+  const PlaneChanges c = plane_changes(a, b, overlap.compared, Params{});
+  EXPECT_NEAR(c.distance[0], 0.02, 0.001);
+  // Nothing within reach: no candidate; a label without a row in its planes: refused.
+  p.mutual = false, p.search_radius = 0.001;
+  const SegmentPairs none = overlapping_segments(ref.view(), ref_labels, a, cmp.view(), cmp_labels, b, p);
+  EXPECT_EQ(none.status[0], PairStatus::kNoCandidate);
+  std::vector<std::int64_t> stray = cmp_labels;
+  stray[0] = 77;
+  EXPECT_THROW(overlapping_segments(ref.view(), ref_labels, a, cmp.view(), stray, b, p), InvalidArgument);
+}
+
 TEST(PbM3c2, BadInputsAreRefused) {
   const Cloud cloud = facets_cloud(rock_face(), 100, 0.003, 9);
   PlaneSegmentationParams p = segmentation();

@@ -1,7 +1,7 @@
 """The provider through qgis_process (issue 33, "Done when"): enabled, listed, every algorithm's
 help, `run m3c2kit:compare` gives `m3c2 compare`'s bytes, pdal_compare with radii is compare with
 diameters, a missing input fails with m3c2's message and writes nothing, a missing m3c2 is named,
-2D mode's rasters, the committed model runs. Run by Debian's python3 (scripts/check-qgis.sh)."""
+2D mode's rasters, pbm3c2 gives `m3c2 pbm3c2`'s bytes, the committed model runs. Run by Debian's python3 (scripts/check-qgis.sh)."""
 import json
 import os
 import shutil
@@ -11,7 +11,7 @@ sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 from common import (COMPARED, REFERENCE, ROOT, SMALL, Folder, environment, m3c2, qgis_process, read,  # noqa: E402
                     run_tests)
 
-ALGORITHMS = ("compare", "pdal_compare", "suggest", "c2c", "classify_apply", "series_objects")
+ALGORITHMS = ("compare", "pdal_compare", "suggest", "c2c", "classify_apply", "series_objects", "pbm3c2")
 SMALL_QGIS = ["--CORE_SPACING=20", "--NORMAL_SCALE=16", "--PROJECTION_SCALE=10", "--MAX_DEPTH=30"]
 
 
@@ -142,6 +142,18 @@ def test_grid_writes_the_rasters():
         direct = os.path.join(d, "direct.csv")
         assert m3c2("compare", REFERENCE, COMPARED, "-o", direct, "--grid", "25", "--max-depth", "30").returncode == 0
         assert read(direct) == read(out)
+
+
+def test_pbm3c2_gives_the_command_lines_bytes():
+    with Folder() as d:
+        out, points = os.path.join(d, "pairs.csv"), os.path.join(d, "points.csv")
+        ran = run("pbm3c2", f"--REFERENCE={REFERENCE}", f"--COMPARED={COMPARED}", "--NORMAL_SCALE=16",
+                  "--SEGMENT_ANGLE=20", "--MUTUAL=true", f"--OUTPUT={out}", f"--PER_POINT={points}")
+        assert ran.returncode == 0, ran.stdout[-3000:] + ran.stderr[-3000:]
+        direct, direct_points = os.path.join(d, "direct.csv"), os.path.join(d, "direct_points.csv")
+        assert m3c2("pbm3c2", REFERENCE, COMPARED, "-o", direct, "--normal-scale", "16", "--segment-angle", "20",
+                    "--mutual", "--per-point", direct_points).returncode == 0
+        assert read(direct) == read(out) and read(direct_points) == read(points)
 
 
 def test_the_model_runs():

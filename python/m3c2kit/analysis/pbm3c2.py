@@ -29,7 +29,7 @@ def _default(row: str):
 #: Why a row (a reference segment) or a point has no distance: the engine's PairStatus (0-4), then
 #: the segmentation's reasons for a point in no segment.
 STATUS = {0: "paired", 1: "no plane (fewer than 3 points, or a line)", 2: "no candidate within the search radius "
-          "and angle", 3: "not mutual (its nearest compared segment has a nearer reference segment)",
+          "and angle", 3: "not mutual (its compared segment's own choice is another reference segment)",
           4: "the classifier accepted no candidate", 5: "in no segment: too few neighbours for a normal",
           6: "in no segment: its segment was smaller than the minimum", 7: "in no segment: a negative segment id"}
 _POINT_STATUS = {1: 5, 2: 6}  # the engine's SegmentStatus -> STATUS
@@ -44,7 +44,7 @@ class PBM3C2Options:
     normal_scale: float | None = None  # D of the segmentation's normals; None: m3c2 suggest's D
     growth_scale: float = _default("growth_scale")  # 0: D
     segment_angle: float = _default("segment_angle")
-    segment_distance: float = _default("segment_distance")  # 0: D / 4
+    segment_distance: float = _default("segment_distance")  # 0: 3 x the median sigma(D)
     min_segment_points: int = _default("min_segment_points")
     correspondence: str = _default("correspondence")
     search_radius: float | None = _default("search_radius")  # None: the segments' median radius, >= D
@@ -118,14 +118,16 @@ def pbm3c2(reference, compared, *, reference_segments=None, compared_segments=No
     cmp_table = planes.plane_segments(cmp_, cmp_labels, **orient)
     radius = opts.search_radius if opts.search_radius is not None else _median_radius(ref_table, scale)
     probability = None
+    rule = {"search_radius": radius, "max_angle_degrees": opts.max_angle, "mutual": opts.mutual}
     if opts.correspondence == "forest":
         from .pbm3c2_forest import forest_pairs
         found = forest_pairs(ref_table, cmp_table, training, radius, opts.forest_seed)
         probability = found["probability"]
+    elif opts.correspondence == "overlap":
+        found = planes.overlapping_segments(ref, ref_labels, ref_table, cmp_, cmp_labels, cmp_table, rule,
+                                            threads=opts.threads, progress=progress)
     else:
-        found = planes.nearest_segments(ref_table, cmp_table, {"search_radius": radius,
-                                                               "max_angle_degrees": opts.max_angle,
-                                                               "mutual": opts.mutual})
+        found = planes.nearest_segments(ref_table, cmp_table, rule)
     changes = planes.plane_changes(ref_table, cmp_table, found["compared"],
                                    {"confidence": opts.confidence, "registration_error": opts.registration_error})
     pairs = _pairs_table(ref_table, cmp_table, found, changes, probability)

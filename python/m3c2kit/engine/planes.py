@@ -47,6 +47,18 @@ def nearest_segments(reference: dict, compared: dict, params: dict) -> dict:
         return _core.nearest_segments(_table(reference), _table(compared), bound)
 
 
+def overlapping_segments(reference, reference_labels, reference_planes: dict, compared, compared_labels,
+                         compared_planes: dict, params: dict, *, threads: int = 0, progress=None) -> dict:
+    """The overlap rule's pairs: each reference point votes for the segment of its nearest segmented
+    compared point; compared (int64 row or -1) and status (uint8, PairStatus) per reference row."""
+    bound = _bound_struct(_core.CorrespondenceParams, params)
+    with translated():
+        return _core.overlapping_segments(
+            _points(reference), np.ascontiguousarray(reference_labels, dtype=np.int64), _table(reference_planes),
+            _points(compared), np.ascontiguousarray(compared_labels, dtype=np.int64), _table(compared_planes), bound,
+            threads=_threads(threads), progress=_progress(progress))
+
+
 def segment_candidates(reference: dict, compared: dict, search_radius: float) -> dict:
     """Every (reference row, compared row) whose centroids are within search_radius."""
     with translated():

@@ -15,11 +15,12 @@ __all__ = ["PBM3C2", "PBM3C2_ROWS", "CORRESPONDENCES"]
 PBM3C2 = "pbm3c2"
 SEGMENTATION = "PlaneSegmentationParams"
 CORRESPONDENCE = "CorrespondenceParams"
-#: How a reference segment finds its compared segment: the geometric rule or the random forest.
-CORRESPONDENCES = ("nearest", "forest")
+#: How a reference segment finds its compared segment: two geometric rules or the random forest.
+CORRESPONDENCES = ("overlap", "nearest", "forest")
 SECTION = "Zahs et al. 2022"
 
-NEAREST = Needs(lambda v: v.get("correspondence") in (None, "nearest"), "with --correspondence nearest")
+GEOMETRIC = Needs(lambda v: v.get("correspondence") in (None, "overlap", "nearest"),
+                  "with --correspondence overlap or nearest")
 FOREST = Needs(lambda v: v.get("correspondence") == "forest", "with --correspondence forest")
 GROWN = Needs(lambda v: v.get("segments") is None, "without --segments (when m3c2 segments the clouds)")
 ANGLE = Real(0.0, below=90.0)
@@ -46,23 +47,26 @@ PBM3C2_ROWS: tuple[Parameter, ...] = (
          "degrees of the segment's plane", struct=SEGMENTATION, field="max_angle_degrees", cli_type=float,
          metavar="DEG", needs=(GROWN,)),
     _row("segment_distance", "--segment-distance", Real(closed=True), "a point joins a segment only within this "
-         "distance of its plane; 0: D / 4", struct=SEGMENTATION, field="max_plane_distance", cli_type=float, metavar="DIST",
+         "distance of its plane; 0: three times the points' median roughness sigma(D)", struct=SEGMENTATION, field="max_plane_distance", cli_type=float, metavar="DIST",
          needs=(GROWN,)),
     _row("min_segment_points", "--min-segment-points", Integer(1, UINT32_MAX, "an integer >= 1"), "fewest points "
          "of a segment (smaller ones leave their points in none)", struct=SEGMENTATION, field="min_points",
          cli_type=int, metavar="N", needs=(GROWN,)),
     # The pairs (Zahs et al. 2022, 3.4)
-    _row("correspondence", "--correspondence", Choice(*CORRESPONDENCES), "nearest: the compared segment whose "
-         "centroid is nearest, within the search radius and --max-angle; forest: a random forest trained on "
-         "--training's labelled pairs (scikit-learn)", default="nearest"),
-    _row("search_radius", "--search-radius", Real(), "compared segments whose centroid is farther than this from "
-         "the reference segment's are not candidates", cli_type=float, metavar="R",
+    _row("correspondence", "--correspondence", Choice(*CORRESPONDENCES), "overlap: the compared segment most of "
+         "the reference segment's points have as their nearest within the search radius (robust where the two "
+         "segmentations cut a surface differently); nearest: the compared segment whose centroid is nearest "
+         "(py4dgeo's); both behind --max-angle; forest: a random forest trained on --training's labelled pairs "
+         "(scikit-learn)", default="overlap"),
+    _row("search_radius", "--search-radius", Real(), "overlap: the farthest nearest point that votes; nearest "
+         "and forest: compared segments whose centroid is farther than this from the reference segment's are not "
+         "candidates", cli_type=float, metavar="R",
          unset="the reference segments' median radius sqrt(lambda1 + lambda2), at least D"),
-    _row("max_angle", "--max-angle", ANGLE, "nearest: a candidate's plane within this many degrees of the reference "
-         "segment's", struct=CORRESPONDENCE, field="max_angle_degrees", cli_type=float, metavar="DEG",
-         needs=(NEAREST,)),
-    _row("mutual", "--mutual", Flag(), "nearest: keep a pair only when each segment is the other's nearest",
-         struct=CORRESPONDENCE, field="mutual", cli_type=None, needs=(NEAREST,)),
+    _row("max_angle", "--max-angle", ANGLE, "overlap and nearest: a candidate's plane within this many degrees of "
+         "the reference segment's", struct=CORRESPONDENCE, field="max_angle_degrees", cli_type=float, metavar="DEG",
+         needs=(GEOMETRIC,)),
+    _row("mutual", "--mutual", Flag(), "overlap and nearest: keep a pair only when each segment is the other's "
+         "choice", struct=CORRESPONDENCE, field="mutual", cli_type=None, needs=(GEOMETRIC,)),
     _row("training", "--training", Text("a CSV file"), "forest: labelled pairs, one per line: reference segment id, "
          "compared segment id, 1 (the same surface) or 0 (py4dgeo's correspondences file)", metavar="CSV",
          needs=(FOREST,), unset="none"),

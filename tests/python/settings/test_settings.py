@@ -223,4 +223,5 @@ def test_only_the_facade_imports_the_binding():
             module = getattr(node, "module", None) or ""
             if any(n.split(".")[-1] == "_core" for n in names) or module.split(".")[-1] == "_core":
                 offenders.append(str(f.relative_to(ROOT)))
-    assert offenders == ["python/m3c2kit/engine/__init__.py"]
+    # The facade is the engine package: __init__.py, and its modules by concept (planes.py: PB-M3C2).
+    assert offenders and all(o.startswith("python/m3c2kit/engine/") for o in offenders), offenders

@@ -104,25 +104,12 @@ class Epoch:
         raise Py4DGeoError("The Epoch point cloud cannot be changed after initialization. Please construct a new "
                            "Epoch, e.g. by slicing an existing one.")
 
-    # py4dgeo's search trees: m3c2kit's engine builds its own index in each run; py4dgeo refuses their
-    # assignment too.
-    @property
-    def kdtree(self):
-        raise AttributeError("m3c2kit.compat.py4dgeo's Epoch has no kdtree: m3c2kit's engine builds its index in "
-                             "every run")
-
-    @kdtree.setter
-    def kdtree(self, value: Any) -> None:
-        raise Py4DGeoError("The KDTree of an Epoch cannot be changed.")
-
-    @property
-    def octree(self):
-        raise AttributeError("m3c2kit.compat.py4dgeo's Epoch has no octree: m3c2kit's engine builds its index in "
-                             "every run")
-
-    @octree.setter
-    def octree(self, value: Any) -> None:
-        raise Py4DGeoError("The Octree of an Epoch cannot be changed.")
+    def __setattr__(self, name: str, value: Any) -> None:
+        # py4dgeo's search trees are not provided (m3c2kit's engine builds its index in each run), and
+        # py4dgeo refuses their assignment: so does this Epoch, rather than keep an unused attribute.
+        if name in ("kdtree", "octree"):
+            raise Py4DGeoError(f"The {'KDTree' if name == 'kdtree' else 'Octree'} of an Epoch cannot be changed.")
+        super().__setattr__(name, value)
 
     @property
     def timestamp(self) -> datetime.datetime | None:
