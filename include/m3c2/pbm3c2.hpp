@@ -113,6 +113,23 @@ SegmentPairs overlapping_segments(PointsView reference, std::span<const std::int
                                   std::span<const std::int64_t> compared_labels, const PlaneSegments& compared_planes,
                                   const CorrespondenceParams& params, const RunOptions& run = {});
 
+/// How well each paired compared plane represents its surface where the reference segment is: the
+/// mean signed distance to it of the compared points nearest the feet of the reference segment's
+/// points on it (within search_radius, in the paired segment; a point nearest several counts for
+/// each), and how many. A plane grown over a curved or stepped surface is off there by more than its points'
+/// noise, and the distance by as much, which no LOD accounts for (docs/pbm3c2.md). NaN and 0 where
+/// compared_of_reference[i] < 0 or no such point.
+struct PlaneMisfit {
+  std::vector<double> mean_residual;
+  std::vector<std::uint64_t> points;
+};
+
+PlaneMisfit compared_plane_misfit(PointsView reference, std::span<const std::int64_t> reference_labels,
+                                  const PlaneSegments& reference_planes, PointsView compared,
+                                  std::span<const std::int64_t> compared_labels, const PlaneSegments& compared_planes,
+                                  std::span<const std::int64_t> compared_of_reference, double search_radius,
+                                  const RunOptions& run = {});
+
 /// Every (reference row, compared row) whose centroids are within search_radius, both planes
 /// defined, in row order: the candidates a classifier scores. InvalidArgument beyond 2e7 pairs
 /// (a radius that pairs every segment with every other).

@@ -1,5 +1,5 @@
-// The overlap rule of PB-M3C2's correspondences (include/m3c2/pbm3c2.hpp, docs/pbm3c2.md): votes
-// of the reference points for the segment of their nearest compared point.
+// What the reference points' nearest compared points say (include/m3c2/pbm3c2.hpp, docs/pbm3c2.md):
+// the overlap rule's votes for their segments, and how far the paired compared plane lies from them.
 
 #include <m3c2/errors.hpp>
 #include <m3c2/pbm3c2.hpp>
@@ -9,6 +9,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <numbers>
 #include <string>
 
@@ -19,8 +20,8 @@ namespace {
 std::vector<std::int64_t> rows_of(std::span<const std::int64_t> labels, const PlaneSegments& planes, std::size_t n,
                                   const char* what) {
   if (labels.size() != n)
-    throw InvalidArgument(std::string(what) + " labels must have one value per point: " + std::to_string(labels.size()) +
-                          " for " + std::to_string(n) + " points");
+    throw InvalidArgument(std::string(what) + " labels must have one value per point: " +
+                          std::to_string(labels.size()) + " for " + std::to_string(n) + " points");
   std::vector<std::int64_t> rows(n, -1);
   for (std::size_t i = 0; i < n; ++i) {
     if (labels[i] < 0) continue;
@@ -98,8 +99,8 @@ SegmentPairs overlapping_segments(PointsView reference, std::span<const std::int
       votes(reference, ref_rows, reference_planes, SegmentedPoints(compared, cmp_rows), compared_planes, params, run);
   std::vector<std::int64_t> backward;
   if (params.mutual)
-    backward = votes(compared, cmp_rows, compared_planes, SegmentedPoints(reference, ref_rows), reference_planes,
-                     params, run);
+    backward =
+        votes(compared, cmp_rows, compared_planes, SegmentedPoints(reference, ref_rows), reference_planes, params, run);
   SegmentPairs out;
   out.compared.assign(reference_planes.size(), -1);
   out.status.assign(reference_planes.size(), PairStatus::kNoPlane);
@@ -113,6 +114,47 @@ SegmentPairs overlapping_segments(PointsView reference, std::span<const std::int
     else
       out.compared[i] = j, out.status[i] = PairStatus::kPaired;
   }
+  return out;
+}
+
+PlaneMisfit compared_plane_misfit(PointsView reference, std::span<const std::int64_t> reference_labels,
+                                  const PlaneSegments& reference_planes, PointsView compared,
+                                  std::span<const std::int64_t> compared_labels, const PlaneSegments& compared_planes,
+                                  std::span<const std::int64_t> compared_of_reference, double search_radius,
+                                  const RunOptions& run) {
+  if (!(std::isfinite(search_radius) && search_radius > 0.0))
+    throw InvalidArgument("search_radius must be a positive number, got " + std::to_string(search_radius));
+  if (compared_of_reference.size() != reference_planes.size())
+    throw InvalidArgument("compared_of_reference must have one row per reference segment");
+  const std::vector<std::int64_t> ref_rows = rows_of(reference_labels, reference_planes, reference.size(), "reference");
+  const std::vector<std::int64_t> cmp_rows = rows_of(compared_labels, compared_planes, compared.size(), "compared");
+  const SegmentedPoints to(compared, cmp_rows);
+  // Each reference point's residual on its segment's paired plane (NaN: none), then summed in
+  // point order: the same bits for any thread count.
+  std::vector<double> residual(reference.size(), std::numeric_limits<double>::quiet_NaN());
+  detail::parallel_blocks<int>(reference.size(), run, [&](std::size_t begin, std::size_t end, int&) {
+    for (std::size_t i = begin; i < end; ++i) {
+      if (ref_rows[i] < 0) continue;
+      const std::int64_t j = compared_of_reference[std::size_t(ref_rows[i])];
+      if (j < 0) continue;
+      // The compared point nearest the reference point's foot on the compared plane: chosen by the
+      // distance to the plane's own surface, whose noise is symmetric about it, so the residuals'
+      // mean is unbiased (the point nearest the reference point itself leans towards it).
+      const Vec3 c2(&compared_planes.centroid[3 * std::size_t(j)]), n2(&compared_planes.normal[3 * std::size_t(j)]);
+      const Vec3 foot = reference[i] - (reference[i] - c2).dot(n2) * n2;
+      const std::uint32_t k = to.tree.nearest(foot, search_radius);
+      if (k == detail::KdTree::kNone || to.row[k] != j) continue;
+      residual[i] = (compared[k] - c2).dot(n2);
+    }
+  });
+  PlaneMisfit out;
+  std::vector<double> sum(reference_planes.size(), 0.0);
+  out.points.assign(reference_planes.size(), 0);
+  for (std::size_t i = 0; i < residual.size(); ++i)
+    if (!std::isnan(residual[i])) sum[std::size_t(ref_rows[i])] += residual[i], ++out.points[std::size_t(ref_rows[i])];
+  out.mean_residual.assign(reference_planes.size(), std::numeric_limits<double>::quiet_NaN());
+  for (std::size_t r = 0; r < sum.size(); ++r)
+    if (out.points[r] > 0) out.mean_residual[r] = sum[r] / double(out.points[r]);
   return out;
 }
 

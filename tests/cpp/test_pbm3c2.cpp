@@ -275,6 +275,37 @@ TEST(PbM3c2, OverlapPairsAPartlyCoveredSurfaceWhereCentroidsDrift) {
   EXPECT_THROW(overlapping_segments(ref.view(), ref_labels, a, cmp.view(), stray, b, p), InvalidArgument);
 }
 
+TEST(PbM3c2, AComparedPlaneOverAStepMisfitsItsPoints) {
+  // Reference: a 2 m facet at x < 0. Compared: the same facet moved 1 cm, labelled together with a
+  // second level 0.5 m higher at x > 0 (a step grown into one segment): its plane is tilted and off
+  // the facet's points by decimetres; the facet alone is off them by its noise only.
+  const Cloud ref = facets_cloud({{Vec3(-1, 0, 0), Vec3::UnitZ(), 1.0, 1.0}}, 2000, 0.003, 31);
+  Cloud cmp = facets_cloud({{Vec3(-1, 0, 0.01), Vec3::UnitZ(), 1.0, 1.0}}, 2000, 0.003, 32);
+  const std::size_t lower = cmp.size();
+  cmp.append(facets_cloud({{Vec3(1, 0, 0.5), Vec3::UnitZ(), 1.0, 1.0}}, 2000, 0.003, 33));
+  const std::vector<std::int64_t> ref_labels(ref.size(), 0);
+  std::vector<std::int64_t> merged(cmp.size(), 0), apart(cmp.size(), 0);
+  for (std::size_t i = lower; i < cmp.size(); ++i) apart[i] = 1;
+  const PlaneSegments a = plane_segments(ref.view(), ref_labels, {});
+  const std::vector<std::int64_t> pair = {0};
+  const PlaneSegments step = plane_segments(cmp.view(), merged, {});
+  const PlaneMisfit off = compared_plane_misfit(ref.view(), ref_labels, a, cmp.view(), merged, step, pair, 1.0);
+  EXPECT_GT(std::abs(off.mean_residual[0]), 0.05);
+  EXPECT_GT(off.points[0], 1000u);
+  const PlaneSegments facets = plane_segments(cmp.view(), apart, {});
+  const PlaneMisfit fits = compared_plane_misfit(ref.view(), ref_labels, a, cmp.view(), apart, facets, pair, 1.0);
+  // The mean of ~2000 residuals of sd 3 mm: 0.07 mm; 5 sd.
+  EXPECT_LT(std::abs(fits.mean_residual[0]), 0.0004);
+  RunOptions one, many;
+  one.threads = 1, many.threads = 4;
+  EXPECT_EQ(compared_plane_misfit(ref.view(), ref_labels, a, cmp.view(), apart, facets, pair, 1.0, one).mean_residual,
+            compared_plane_misfit(ref.view(), ref_labels, a, cmp.view(), apart, facets, pair, 1.0, many).mean_residual);
+  const PlaneMisfit none =
+      compared_plane_misfit(ref.view(), ref_labels, a, cmp.view(), apart, facets, std::vector<std::int64_t>{-1}, 1.0);
+  EXPECT_TRUE(std::isnan(none.mean_residual[0]));
+  EXPECT_EQ(none.points[0], 0u);
+}
+
 TEST(PbM3c2, BadInputsAreRefused) {
   const Cloud cloud = facets_cloud(rock_face(), 100, 0.003, 9);
   PlaneSegmentationParams p = segmentation();

@@ -30,10 +30,16 @@ def _default(row: str):
 #: the segmentation's reasons for a point in no segment.
 STATUS = {0: "paired", 1: "no plane (fewer than 3 points, or a line)", 2: "no candidate within the search radius "
           "and angle", 3: "not mutual (its compared segment's own choice is another reference segment)",
-          4: "the classifier accepted no candidate", 5: "in no segment: too few neighbours for a normal",
-          6: "in no segment: its segment was smaller than the minimum", 7: "in no segment: a negative segment id"}
-_POINT_STATUS = {1: 5, 2: 6}  # the engine's SegmentStatus -> STATUS
-_NO_SEGMENT_GIVEN = 7
+          4: "the classifier accepted no candidate", 5: "the compared plane is off its own points under the "
+          "reference segment by more than the LOD (not a plane there)", 6: "in no segment: too few neighbours for a "
+          "normal", 7: "in no segment: its segment was smaller than the minimum", 8: "in no segment: a negative "
+          "segment id"}
+_MISFIT = 5
+#: A compared plane whose mean residual under the reference segment exceeds the LOD by more than this
+#: many of its own standard errors is no model of the surface there (docs/pbm3c2.md, "Plane misfit").
+MISFIT_SIGMAS = 3.0
+_POINT_STATUS = {1: 6, 2: 7}  # the engine's SegmentStatus -> STATUS
+_NO_SEGMENT_GIVEN = 8
 
 
 @dataclass(frozen=True)
@@ -61,7 +67,7 @@ class PBM3C2Options:
 class PBM3C2Result:
     """One row per reference segment in `pairs` (x, y, z its centroid; nx, ny, nz its oriented
     normal; distance, lod, significant, n1, n2, then reference_segment, compared_segment,
-    roughness1, roughness2, normal_angle, status and, with the forest, probability); the
+    roughness1, roughness2, normal_angle, status, plane_misfit and, with the forest, probability); the
     segmentation of each cloud (labels per point, -1 none) and its reason per point."""
     pairs: dict
     reference_labels: np.ndarray
@@ -130,13 +136,37 @@ def pbm3c2(reference, compared, *, reference_segments=None, compared_segments=No
         found = planes.nearest_segments(ref_table, cmp_table, rule)
     changes = planes.plane_changes(ref_table, cmp_table, found["compared"],
                                    {"confidence": opts.confidence, "registration_error": opts.registration_error})
+    misfit = planes.compared_plane_misfit(ref, ref_labels, ref_table, cmp_, cmp_labels, cmp_table, found["compared"],
+                                          radius, threads=opts.threads)
+    found, changes = _refuse_misfits(found, changes, misfit, cmp_table)
     pairs = _pairs_table(ref_table, cmp_table, found, changes, probability)
+    pairs["plane_misfit"] = np.asarray(misfit["mean_residual"])
     _warn_if_empty(ref_table, cmp_table, found, ref_status, cmp_status, reference_segments is None)
     details = {"normal_scale": scale, "search_radius": float(radius), "correspondence": opts.correspondence,
                "reference_segments": len(ref_table["label"]), "compared_segments": len(cmp_table["label"]),
                "paired": int(np.count_nonzero(found["status"] == 0)),
                "segmented_by": "given" if reference_segments is not None else "region growing"}
     return PBM3C2Result(pairs, ref_labels, cmp_labels, ref_status, cmp_status, ref_table, cmp_table, details)
+
+
+def _refuse_misfits(found: dict, changes: dict, misfit: dict, cmp_table: dict) -> tuple[dict, dict]:
+    """A pair whose compared plane lies farther from its own points under the reference segment than
+    the LOD plus MISFIT_SIGMAS of that mean's standard error (sigma2 / sqrt(points)) has no distance:
+    the plane misrepresents its surface there, by more than the precision the LOD claims."""
+    compared = np.asarray(found["compared"])
+    at = np.where(compared >= 0, compared, 0)
+    sigma2 = np.asarray(cmp_table["roughness"])[at] if len(cmp_table["roughness"]) else np.zeros(len(compared))
+    points = np.asarray(misfit["points"]).astype(float)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        excess = np.abs(np.asarray(misfit["mean_residual"])) - MISFIT_SIGMAS * sigma2 / np.sqrt(points)
+    off = (compared >= 0) & np.isfinite(excess) & (excess > np.asarray(changes["lod"]))
+    if not off.any():
+        return found, changes
+    found = {**found, "status": np.where(off, _MISFIT, found["status"]).astype(np.uint8)}
+    changes = {**changes, "distance": np.where(off, np.nan, changes["distance"]),
+               "lod": np.where(off, np.nan, changes["lod"]),
+               "significant": np.where(off, 0, changes["significant"]).astype(np.uint8)}
+    return found, changes
 
 
 def _warn_if_empty(ref_table: dict, cmp_table: dict, found: dict, ref_status, cmp_status, grown: bool) -> None:
@@ -147,7 +177,7 @@ def _warn_if_empty(ref_table: dict, cmp_table: dict, found: dict, ref_status, cm
     for name, table, status in (("reference", ref_table, ref_status), ("compared", cmp_table, cmp_status)):
         if len(table["label"]) == 0:
             reasons = ", ".join(f"{int(np.count_nonzero(status == code))} {STATUS[code].split(': ')[-1]}"
-                                for code in (5, 6, 7) if np.any(status == code))
+                                for code in (6, 7, 8) if np.any(status == code))
             hint = (": raise the segment angle or distance, lower the fewest points of a segment, or change D" if grown else "")
             warnings.warn(f"the {name} cloud has no planar segment ({reasons}){hint}", M3C2Warning, stacklevel=3)
             return
