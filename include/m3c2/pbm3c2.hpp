@@ -24,8 +24,7 @@ struct PlaneSegmentationParams {
   double growth_diameter = 0.0;
   /// A point joins when its normal is within this angle of the segment plane's (unoriented).
   double max_angle_degrees = 10.0;
-  /// ... and it lies within this distance of the segment's plane; 0: three times the points' median
-  /// roughness sigma(D) (at least D / 10^4).
+  /// ... and it lies within this distance of the segment's plane; 0: normal_diameter / 4.
   double max_plane_distance = 0.0;
   /// Segments of fewer points are dropped: their points stay unsegmented (kSmallSegment).
   std::uint32_t min_points = 50;

@@ -50,7 +50,7 @@ class PBM3C2Options:
     normal_scale: float | None = None  # D of the segmentation's normals; None: m3c2 suggest's D
     growth_scale: float = _default("growth_scale")  # 0: D
     segment_angle: float = _default("segment_angle")
-    segment_distance: float = _default("segment_distance")  # 0: 3 x the median sigma(D)
+    segment_distance: float = _default("segment_distance")  # 0: D / 4
     min_segment_points: int = _default("min_segment_points")
     correspondence: str = _default("correspondence")
     search_radius: float | None = _default("search_radius")  # None: the segments' median radius, >= D
@@ -116,7 +116,8 @@ def pbm3c2(reference, compared, *, reference_segments=None, compared_segments=No
     for name, cloud in (("reference", ref), ("compared", cmp_)):
         if len(cloud) == 0:
             raise UsageError(f"the {name} cloud is empty")
-    scale = _normal_scale(ref, cmp_, opts)
+    # D only where m3c2 grows the segments (suggest's costs seconds on a large pair).
+    scale = _normal_scale(ref, cmp_, opts) if reference_segments is None else None
     ref_labels, ref_status = _segmentation(ref, reference_segments, "reference_segments", opts, scale, progress)
     cmp_labels, cmp_status = _segmentation(cmp_, compared_segments, "compared_segments", opts, scale, progress)
     orient = {"direction": opts.orientation, "threads": opts.threads}
@@ -134,8 +135,11 @@ def pbm3c2(reference, compared, *, reference_segments=None, compared_segments=No
                                             threads=opts.threads, progress=progress)
     else:
         found = planes.nearest_segments(ref_table, cmp_table, rule)
+    # The paper's rule for the critical value (3.3): Student's t with eq. (2)'s degrees of freedom
+    # when a segment has under 30 points (z there covered 90 % at 8-15 points, docs/validation.md).
     changes = planes.plane_changes(ref_table, cmp_table, found["compared"],
-                                   {"confidence": opts.confidence, "registration_error": opts.registration_error})
+                                   {"confidence": opts.confidence, "registration_error": opts.registration_error,
+                                    "lod": "auto"})
     misfit = planes.compared_plane_misfit(ref, ref_labels, ref_table, cmp_, cmp_labels, cmp_table, found["compared"],
                                           radius, threads=opts.threads)
     found, changes = _refuse_misfits(found, changes, misfit, cmp_table)
@@ -254,14 +258,19 @@ def _given_labels(given, n: int, name: str) -> np.ndarray:
     return values.astype(np.int64)
 
 
-def _median_radius(table: dict, scale: float) -> float:
+def _median_radius(table: dict, scale: float | None) -> float:
     """The search radius a move of up to a segment's size is found within: the median over the
     reference segments of sqrt(lambda1 + lambda2), the RMS in-plane distance of a segment's points
-    from its centroid (half the side of a square facet times 0.82), and at least D."""
+    from its centroid (half the side of a square facet times 0.82), and at least D when m3c2 grew
+    the segments."""
     ev = np.asarray(table["eigenvalues"])
     radii = np.sqrt(ev[:, 0] + ev[:, 1]) if len(ev) else np.array([])
-    radii = radii[np.isfinite(radii)]
-    return max(float(np.median(radii)) if len(radii) else 0.0, scale)
+    radii = radii[np.isfinite(radii) & (radii > 0)]
+    median = float(np.median(radii)) if len(radii) else 0.0
+    radius = max(median, scale or 0.0)
+    if radius <= 0.0:
+        raise UsageError("no reference segment has an extent to take the search radius from: give search_radius")
+    return radius
 
 
 def _pairs_table(ref: dict, cmp_: dict, found: dict, changes: dict, probability) -> dict:

@@ -47,7 +47,7 @@ PBM3C2_ROWS: tuple[Parameter, ...] = (
          "degrees of the segment's plane", struct=SEGMENTATION, field="max_angle_degrees", cli_type=float,
          metavar="DEG", needs=(GROWN,)),
     _row("segment_distance", "--segment-distance", Real(closed=True), "a point joins a segment only within this "
-         "distance of its plane; 0: three times the points' median roughness sigma(D)", struct=SEGMENTATION, field="max_plane_distance", cli_type=float, metavar="DIST",
+         "distance of its plane; 0: D / 4", struct=SEGMENTATION, field="max_plane_distance", cli_type=float, metavar="DIST",
          needs=(GROWN,)),
     _row("min_segment_points", "--min-segment-points", Integer(1, UINT32_MAX, "an integer >= 1"), "fewest points "
          "of a segment (smaller ones leave their points in none)", struct=SEGMENTATION, field="min_points",
