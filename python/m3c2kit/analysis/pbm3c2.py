@@ -143,8 +143,7 @@ def pbm3c2(reference, compared, *, reference_segments=None, compared_segments=No
     misfit = planes.compared_plane_misfit(ref, ref_labels, ref_table, cmp_, cmp_labels, cmp_table, found["compared"],
                                           radius, threads=opts.threads)
     found, changes = _refuse_misfits(found, changes, misfit, cmp_table)
-    pairs = _pairs_table(ref_table, cmp_table, found, changes, probability)
-    pairs["plane_misfit"] = np.asarray(misfit["mean_residual"])
+    pairs = _pairs_table(ref_table, cmp_table, found, changes, misfit, probability)
     _warn_if_empty(ref_table, cmp_table, found, ref_status, cmp_status, reference_segments is None)
     details = {"normal_scale": scale, "search_radius": float(radius), "correspondence": opts.correspondence,
                "reference_segments": len(ref_table["label"]), "compared_segments": len(cmp_table["label"]),
@@ -273,7 +272,7 @@ def _median_radius(table: dict, scale: float | None) -> float:
     return radius
 
 
-def _pairs_table(ref: dict, cmp_: dict, found: dict, changes: dict, probability) -> dict:
+def _pairs_table(ref: dict, cmp_: dict, found: dict, changes: dict, misfit: dict, probability) -> dict:
     compared = np.asarray(found["compared"])
     paired = compared >= 0
     at = np.where(paired, compared, 0)
@@ -291,7 +290,8 @@ def _pairs_table(ref: dict, cmp_: dict, found: dict, changes: dict, probability)
              "reference_segment": np.asarray(ref["label"]),
              "compared_segment": from_compared("label", -1).astype(np.int64),
              "roughness1": np.asarray(ref["roughness"]), "roughness2": from_compared("roughness", math.nan),
-             "normal_angle": np.asarray(changes["normal_angle"]), "status": np.asarray(found["status"])}
+             "normal_angle": np.asarray(changes["normal_angle"]), "status": np.asarray(found["status"]),
+             "plane_misfit": np.asarray(misfit["mean_residual"])}
     if probability is not None:
         table["probability"] = np.asarray(probability)
     return table
