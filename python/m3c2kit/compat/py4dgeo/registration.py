@@ -36,6 +36,7 @@ from ... import engine
 from ...analysis.registration import register
 from ...base.errors import M3C2Warning, UsageError
 from ...io.registration_file import Registration
+from ...settings.parsers import positive
 from . import util
 from .epoch import Epoch, as_epoch
 from .errors import UnsupportedArgument, translated
@@ -121,16 +122,6 @@ def point_to_plane_icp(reference_epoch, epoch, max_iterations=50, tolerance=0.00
                        max_iterations=_iterations(where, max_iterations))
 
 
-def _positive(where: str, name: str, value) -> float:
-    try:
-        v = float(value)
-    except (TypeError, ValueError):
-        raise UsageError(f"{where}: {name} must be a positive number, got {value!r}") from None
-    if not (np.isfinite(v) and v > 0):
-        raise UsageError(f"{where}: {name} must be a positive number, got {value!r}")
-    return v
-
-
 @translated
 def icp_with_stable_areas(reference_epoch, epoch, initial_distance_threshold, level_of_detection,
                           reference_supervoxel_resolution, supervoxel_resolution, min_svp_num=10,
@@ -146,10 +137,10 @@ def icp_with_stable_areas(reference_epoch, epoch, initial_distance_threshold, le
     where = "icp_with_stable_areas"
     _require_normals(reference_epoch, "Reference Epoch")
     _require_normals(epoch, "Epoch")
-    lod = _positive(where, "level_of_detection", level_of_detection)
-    reach = max(_positive(where, "initial_distance_threshold", initial_distance_threshold), lod)
-    _positive(where, "reference_supervoxel_resolution", reference_supervoxel_resolution)
-    _positive(where, "supervoxel_resolution", supervoxel_resolution)
+    lod = positive(f"{where}: level_of_detection", level_of_detection)
+    reach = max(positive(f"{where}: initial_distance_threshold", initial_distance_threshold), lod)
+    positive(f"{where}: reference_supervoxel_resolution", reference_supervoxel_resolution)
+    positive(f"{where}: supervoxel_resolution", supervoxel_resolution)
     if isinstance(min_svp_num, bool) or not isinstance(min_svp_num, (int, np.integer)) or min_svp_num < 1:
         raise UsageError(f"{where}: min_svp_num must be a positive integer, got {min_svp_num!r}")
     warnings.warn(f"{where}: m3c2kit finds the stable areas with M3C2 (m3c2kit.register(auto_stable=True)), not "
