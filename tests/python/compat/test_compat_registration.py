@@ -130,7 +130,7 @@ def test_errors_are_py4dgeos(still):
     with pytest.raises(p4.Py4DGeoError, match="Normals for this Epoch have not been calculated"):
         p4.icp_with_stable_areas(ref, epoch, 0.5, 0.01, 1.5, 1.5)
     epoch.calculate_normals(radius=1.0)
-    with pytest.raises(ValueError, match="level_of_detection must be a positive number"):
+    with pytest.raises(ValueError, match="level_of_detection must be finite and > 0"):
         p4.icp_with_stable_areas(ref, epoch, 0.5, -0.01, 1.5, 1.5)
     with pytest.raises(ValueError, match="min_svp_num must be a positive integer"):
         p4.icp_with_stable_areas(ref, epoch, 0.5, 0.01, 1.5, 1.5, min_svp_num=0)
