@@ -114,10 +114,9 @@ SegmentPairs overlapping_segments(PointsView reference, std::span<const std::int
 
 /// How well each paired compared plane represents its surface where the reference segment is: the
 /// mean signed distance to it of the compared points nearest the feet of the reference segment's
-/// points on it (within search_radius, in the paired segment; a point nearest several counts for
-/// each), and how many. A plane grown over a curved or stepped surface is off there by more than its points'
-/// noise, and the distance by as much, which no LOD accounts for (docs/pbm3c2.md). NaN and 0 where
-/// compared_of_reference[i] < 0 or no such point.
+/// points on it (within search_radius, in the paired segment; each point once), and how many. A plane grown over a
+/// curved or stepped surface is off there by more than its points' noise, and the distance by as much, which no LOD
+/// accounts for (docs/pbm3c2.md). NaN and 0 where compared_of_reference[i] < 0 or no such point.
 struct PlaneMisfit {
   std::vector<double> mean_residual;
   std::vector<std::uint64_t> points;

@@ -129,9 +129,12 @@ PlaneMisfit compared_plane_misfit(PointsView reference, std::span<const std::int
   const std::vector<std::int64_t> ref_rows = rows_of(reference_labels, reference_planes, reference.size(), "reference");
   const std::vector<std::int64_t> cmp_rows = rows_of(compared_labels, compared_planes, compared.size(), "compared");
   const SegmentedPoints to(compared, cmp_rows);
-  // Each reference point's residual on its segment's paired plane (NaN: none), then summed in
-  // point order: the same bits for any thread count.
-  std::vector<double> residual(reference.size(), std::numeric_limits<double>::quiet_NaN());
+  // Each reference point's compared point (kNone: none), then each compared point once per segment:
+  // where the compared epoch covers less than the reference segment, the feet beyond its edge all
+  // find the same edge points, and counting them once per foot made the mean's error look far
+  // smaller than it is (true planes were refused). Summed in (row, point) order: the same bits for
+  // any thread count.
+  std::vector<std::uint32_t> nearest(reference.size(), detail::KdTree::kNone);
   detail::parallel_blocks<int>(reference.size(), run, [&](std::size_t begin, std::size_t end, int&) {
     for (std::size_t i = begin; i < end; ++i) {
       if (ref_rows[i] < 0) continue;
@@ -143,15 +146,23 @@ PlaneMisfit compared_plane_misfit(PointsView reference, std::span<const std::int
       const Vec3 c2(&compared_planes.centroid[3 * std::size_t(j)]), n2(&compared_planes.normal[3 * std::size_t(j)]);
       const Vec3 foot = reference[i] - (reference[i] - c2).dot(n2) * n2;
       const std::uint32_t k = to.tree.nearest(foot, search_radius);
-      if (k == detail::KdTree::kNone || to.row[k] != j) continue;
-      residual[i] = (compared[k] - c2).dot(n2);
+      if (k != detail::KdTree::kNone && to.row[k] == j) nearest[i] = k;
     }
   });
+  std::vector<std::pair<std::int64_t, std::uint32_t>> used;
+  for (std::size_t i = 0; i < nearest.size(); ++i)
+    if (nearest[i] != detail::KdTree::kNone) used.emplace_back(ref_rows[i], nearest[i]);
+  std::sort(used.begin(), used.end());
+  used.erase(std::unique(used.begin(), used.end()), used.end());
   PlaneMisfit out;
   std::vector<double> sum(reference_planes.size(), 0.0);
   out.points.assign(reference_planes.size(), 0);
-  for (std::size_t i = 0; i < residual.size(); ++i)
-    if (!std::isnan(residual[i])) sum[std::size_t(ref_rows[i])] += residual[i], ++out.points[std::size_t(ref_rows[i])];
+  for (const auto& [row, k] : used) {
+    const std::size_t j = std::size_t(compared_of_reference[std::size_t(row)]);
+    const Vec3 c2(&compared_planes.centroid[3 * j]), n2(&compared_planes.normal[3 * j]);
+    sum[std::size_t(row)] += (compared[k] - c2).dot(n2);
+    ++out.points[std::size_t(row)];
+  }
   out.mean_residual.assign(reference_planes.size(), std::numeric_limits<double>::quiet_NaN());
   for (std::size_t r = 0; r < sum.size(); ++r)
     if (out.points[r] > 0) out.mean_residual[r] = sum[r] / double(out.points[r]);

@@ -266,6 +266,19 @@ TEST(PbM3c2, OverlapPairsAPartlyCoveredSurfaceWhereCentroidsDrift) {
             (std::vector<std::int64_t>{0}));
   const PlaneChanges c = plane_changes(a, b, overlap.compared, Params{});
   EXPECT_NEAR(c.distance[0], 0.02, 0.001);
+  // The half the compared epoch does not cover sends every foot to the same edge points: each counts
+  // once, so the misfit of this true plane stays within its noise (it was 5-10 of its errors).
+  for (std::uint64_t seed = 0; seed < 10; ++seed) {
+    Cloud part;
+    const Cloud all = facets_cloud({{Vec3(0, 0, 0.02), Vec3::UnitZ(), 2.0, 2.0}}, 4000, 0.002, 100 + seed);
+    for (std::size_t i = 0; i < all.size(); ++i)
+      if (all[i].x() > 0.0) part.add(all[i]);
+    const std::vector<std::int64_t> part_labels(part.size(), 5);
+    const PlaneSegments pb = plane_segments(part.view(), part_labels, {});
+    const PlaneMisfit m = compared_plane_misfit(ref.view(), ref_labels, a, part.view(), part_labels, pb,
+                                                std::vector<std::int64_t>{0}, 1.0);
+    EXPECT_LT(std::abs(m.mean_residual[0]), 4.0 * pb.roughness[0] / std::sqrt(double(m.points[0]))) << seed;
+  }
   // Nothing within reach: no candidate; a label without a row in its planes: refused.
   p.mutual = false, p.search_radius = 0.001;
   const SegmentPairs none = overlapping_segments(ref.view(), ref_labels, a, cmp.view(), cmp_labels, b, p);
@@ -290,7 +303,7 @@ TEST(PbM3c2, AComparedPlaneOverAStepMisfitsItsPoints) {
   const std::vector<std::int64_t> pair = {0};
   const PlaneSegments step = plane_segments(cmp.view(), merged, {});
   const PlaneMisfit off = compared_plane_misfit(ref.view(), ref_labels, a, cmp.view(), merged, step, pair, 1.0);
-  EXPECT_GT(std::abs(off.mean_residual[0]), 0.05);
+  EXPECT_GT(std::abs(off.mean_residual[0]), 0.03);
   EXPECT_GT(off.points[0], 1000u);
   const PlaneSegments facets = plane_segments(cmp.view(), apart, {});
   const PlaneMisfit fits = compared_plane_misfit(ref.view(), ref_labels, a, cmp.view(), apart, facets, pair, 1.0);

@@ -7,6 +7,7 @@ two planes along the reference normal with eq. (1)'s LOD from the planes' fits. 
 from __future__ import annotations
 
 import math
+import os
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -104,11 +105,15 @@ def pbm3c2(reference, compared, *, reference_segments=None, compared_segments=No
     reference_segments / compared_segments: each point's segment id (integers; negative: none),
     both or neither; without them both clouds are segmented (region growing on normals).
     training: with correspondence="forest", labelled pairs (K, 3): reference segment id, compared
-    segment id, 1 (the same surface) or 0. The keywords are PBM3C2Options'."""
+    segment id, 1 (the same surface) or 0; or the path of such a CSV file (py4dgeo's
+    correspondences file). The keywords are PBM3C2Options'."""
     try:
         opts = PBM3C2Options(**options)
     except TypeError as e:
         raise UsageError(f"pbm3c2: {e}") from None
+    if isinstance(training, (str, os.PathLike)):
+        from .pbm3c2_forest import read_training
+        training = read_training(training)
     _check(opts, training, reference_segments, compared_segments)
     given = {**options, "training": training, "segments": None if reference_segments is None else "given"}
     check_effective(parameters_of(PBM3C2), {**vars(opts), **given}, given)

@@ -6,6 +6,8 @@ pair of different surfaces is then measured as change). Features are py4dgeo's, 
 (include/m3c2/pbm3c2.hpp, pair_features)."""
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 
 from ..base.errors import UsageError
@@ -35,6 +37,51 @@ def _matrix(features: dict) -> np.ndarray:
     return np.column_stack([np.asarray(features[name]) for name in _FEATURES])
 
 
+class TrainingPairs(np.ndarray):
+    """Labelled pairs read from a file: the rows, with where each came from (`where[k]`: "PATH, line
+    N"), so that a pair refused later names its line."""
+    where: list
+
+
+def read_training(path) -> TrainingPairs:
+    """py4dgeo's correspondences file: `reference id, compared id, 1 or 0` per line (',' or ';'), '#'
+    comments and blank lines skipped, a header allowed before the first pair."""
+    path = Path(path)
+    try:
+        lines = path.read_text(encoding="utf-8").splitlines()
+    except OSError as e:
+        raise UsageError(f"{path}: cannot read the training pairs: {e.strerror or e}") from None
+    except UnicodeDecodeError:
+        raise UsageError(f"{path}: the training pairs are not text (UTF-8)") from None
+    rows, where = [], []
+    for number, line in enumerate(lines, 1):
+        if not line.strip() or line.lstrip().startswith("#"):
+            continue
+        cells = [c.strip() for c in line.replace(";", ",").split(",")]
+        try:
+            values = [float(c) for c in cells[:3]]
+        except ValueError:
+            if not rows:
+                continue  # a header
+            raise UsageError(f"{path}, line {number}: expected 'reference id, compared id, 1 or 0', got "
+                             f"{line.strip()[:80]!r}") from None
+        if len(values) < 3:
+            raise UsageError(f"{path}, line {number}: expected 3 columns (reference id, compared id, 1 or 0), got "
+                             f"{len(cells)}")
+        rows.append(values)
+        where.append(f"{path}, line {number}")
+    if not rows:
+        raise UsageError(f"{path}: no training pairs")
+    out = np.array(rows).view(TrainingPairs)
+    out.where = where
+    return out
+
+
+def _row_name(training, k: int) -> str:
+    where = getattr(training, "where", None)
+    return where[k] if where else f"training row {k + 1}"
+
+
 def training_rows(training, reference: dict, compared: dict) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """The labelled pairs as rows of the two segment tables and their labels (bool). A pair naming
     a segment absent from its cloud is refused, naming it (py4dgeo drops it with a print)."""
@@ -55,13 +102,13 @@ def training_rows(training, reference: dict, compared: dict) -> tuple[np.ndarray
             np.zeros(len(values), bool)
         if not found.all():
             k = int(np.argmin(found))
-            raise UsageError(f"training row {k + 1}: the {name} cloud has no segment {int(values[k, column])}")
+            raise UsageError(f"{_row_name(training, k)}: the {name} cloud has no segment {int(values[k, column])}")
         rows.append(at.astype(np.int64))
     usable = np.isfinite(np.asarray(reference["roughness"])[rows[0]]) & \
         np.isfinite(np.asarray(compared["roughness"])[rows[1]])
     if not usable.all():
         k = int(np.argmin(usable))
-        raise UsageError(f"training row {k + 1}: segment {int(values[k, 0])} or {int(values[k, 1])} has no plane "
+        raise UsageError(f"{_row_name(training, k)}: segment {int(values[k, 0])} or {int(values[k, 1])} has no plane "
                          f"(fewer than 4 points, or a line)")
     return rows[0], rows[1], labels.astype(bool)
 

@@ -11,6 +11,7 @@ import numpy as np
 
 from .command_index import summary
 from ..analysis.pbm3c2 import STATUS, pbm3c2
+from ..analysis.pbm3c2_forest import read_training
 from ..base.errors import UsageError
 from ..io import crs as crs_mod
 from ..io import write_cloud_table
@@ -49,35 +50,6 @@ def pbm3c2_parser(sub) -> None:
     p.set_defaults(run=run_pbm3c2)
 
 
-def _training(path: Path) -> np.ndarray:
-    """py4dgeo's correspondences file: reference id, compared id, label per line; a header allowed."""
-    try:
-        lines = path.read_text(encoding="utf-8").splitlines()
-    except OSError as e:
-        raise UsageError(f"{path}: cannot read the training pairs: {e.strerror or e}") from None
-    except UnicodeDecodeError:
-        raise UsageError(f"{path}: the training pairs are not text (UTF-8)") from None
-    rows = []
-    for number, line in enumerate(lines, 1):
-        cells = [c.strip() for c in line.replace(";", ",").split(",")]
-        if not line.strip() or line.lstrip().startswith("#"):
-            continue
-        try:
-            values = [float(c) for c in cells[:3]]
-        except ValueError:
-            if not rows and number == 1:
-                continue  # a header
-            raise UsageError(f"{path}, line {number}: expected 'reference id, compared id, 1 or 0', got "
-                             f"{line.strip()[:80]!r}") from None
-        if len(values) < 3:
-            raise UsageError(f"{path}, line {number}: expected 3 columns (reference id, compared id, 1 or 0), got "
-                             f"{len(cells)}")
-        rows.append(values)
-    if not rows:
-        raise UsageError(f"{path}: no training pairs")
-    return np.array(rows)
-
-
 def _segment_ids(cloud, field: str) -> np.ndarray:
     fields = getattr(cloud, "fields", None) or {}
     if field not in fields:
@@ -103,7 +75,7 @@ def run_pbm3c2(args) -> int:
         raise UsageError("--normal-scale would change nothing in this run: it applies only without --segments "
                          "(the segmentation's D)")
     scale = single_normal_scale(args.normal_scale, "pbm3c2 (the segmentation's normals)")
-    training = _training(args.training) if args.training is not None else None
+    training = read_training(args.training) if args.training is not None else None
     registration_error = by_name()["registration_error"].kind("--registration-error", args.registration_error)
     reference, compared = read_input(args.reference, args), read_input(args.compared, args)
     crs_mod.check_crs(reference, compared, ignore=args.ignore_crs)

@@ -265,3 +265,16 @@ def test_integral_float_ids_are_accepted(scene, given):
     ref, cmp_, ref_ids, cmp_ids, _ = scene
     r = m3c2kit.pbm3c2(ref, cmp_, reference_segments=ref_ids.astype(float), compared_segments=cmp_ids.astype(float))
     np.testing.assert_array_equal(r.pairs["distance"], given.pairs["distance"])
+
+
+def test_a_training_file_names_its_lines(tmp_path):
+    """py4dgeo's correspondences file: comments, a header after them, and a refused pair named by its
+    file and line (helper's finding: 'training row 2' of a file with a header was its line 3)."""
+    from m3c2kit.analysis.pbm3c2_forest import read_training
+    path = tmp_path / "pairs.csv"
+    path.write_text("# labelled by hand\nref,cmp,label\n0,0,1\n\n0;1;0\n")
+    rows = read_training(path)
+    assert rows.tolist() == [[0, 0, 1], [0, 1, 0]] and rows.where == [f"{path}, line 3", f"{path}, line 5"]
+    path.write_text("0,0,1\nref,cmp,label\n")
+    with pytest.raises(UsageError, match=r"pairs.csv, line 2: expected 'reference id, compared id, 1 or 0'"):
+        read_training(path)
