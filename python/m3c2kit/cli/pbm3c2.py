@@ -67,6 +67,7 @@ def run_pbm3c2(args) -> int:
     # Given options only: m3c2kit.pbm3c2 refuses one that would change nothing (the rows' needs).
     options = {row.name: getattr(args, row.name) for row in parameters_of(COMMAND)
                if row.name not in _FILES and getattr(args, row.name) is not None}
+    # m3c2kit.pbm3c2 checks these too; here they fail before two clouds are read.
     if args.correspondence == "forest" and args.training is None:
         raise UsageError("--correspondence forest learns from labelled pairs: give --training CSV")
     if args.training is not None and args.correspondence != "forest":
