@@ -36,7 +36,10 @@ def rows(command="compare"):
     if data.get("format") != FORMAT:
         raise QgsProcessingException(f"{PATH}: format {data.get('format')!r}, this plugin reads {FORMAT}: "
                                      "regenerate it with python -m m3c2kit.settings.export")
-    return [r for r in data["parameters"] if command in r["commands"] and r["name"] not in LEFT_OUT]
+    chosen = [r for r in data["parameters"] if command in r["commands"] and r["name"] not in LEFT_OUT]
+    # By group (CloudCompare's tabs, in the file's order; QGIS has no tabs), the table's order within one.
+    order = {group: rank for rank, group in enumerate(data.get("groups") or ())}
+    return sorted(chosen, key=lambda r: order.get(r.get("group"), len(order)))
 
 
 def qgis_name(row) -> str:
@@ -44,8 +47,10 @@ def qgis_name(row) -> str:
 
 
 def title(row) -> str:
-    """The row's label (the parameter table's, in words; its flag is in the help)."""
-    return row.get("label") or row["name"].replace("_", " ").capitalize()
+    """The row's label (the parameter table's, in words; its flag is in the help), after its group's
+    name where it has one ("Scales: Normal scale D (diameter)")."""
+    label = row.get("label") or row["name"].replace("_", " ").capitalize()
+    return f"{row['group']}: {label}" if row.get("group") else label
 
 
 def help_text(row) -> str:

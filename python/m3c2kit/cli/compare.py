@@ -24,7 +24,7 @@ from ..settings.cloudcompare_params import read_cloudcompare_params
 from ..settings.resolve import without_inapplicable
 from .auto_scales import check_all_but_scales, choose_scales, missing_scales
 from .inputs import input_files, orient_spec, print_notes, read_input
-from .options import add, add_progress_option, add_table_options, add_verbosity_options
+from .options import add, add_progress_option, add_table_options, add_verbosity_options, argument_sections
 from .parser import phases_for
 def compare_parser(sub) -> None:
     p = sub.add_parser("compare", help=summary("compare"),
@@ -33,19 +33,20 @@ def compare_parser(sub) -> None:
     p.add_argument("reference", type=Path, help="reference cloud (first epoch)")
     p.add_argument("compared", type=Path, help="compared cloud (second epoch)")
     p.add_argument("-o", "--output", type=Path, required=True, help="output file: .las .laz .ply .csv .txt")
-    core = p.add_mutually_exclusive_group()
+    sections = argument_sections(p)  # CloudCompare's tabs (m3c2kit.settings.groups)
+    core = sections["Scales"].add_mutually_exclusive_group()
     add(core, "core", default_text="every reference point")
     core.add_argument("--grid", type=float, metavar="CELL",
                       help="2D mode (section 6.1.2): core points on a CELL grid over the reference, vertical normals, "
                            "d = 1.1 CELL unless --projection-scale; also writes GeoTIFF rasters <stem>_distance.tif, "
                            "_lod, _significant, _n1, _n2, _status beside -o (docs/report.md)")
-    add_table_options(p, "compare", groups={"core_spacing": core})
-    add(p, "core_normals")
+    add_table_options(p, "compare", groups={"core_spacing": core}, sections=sections)
+    add(sections["Normals"], "core_normals")
     p.add_argument("--params", type=Path, help="CloudCompare qM3C2 parameter file; command-line options win")
-    p.add_argument("--auto-scales", action="store_true",
+    sections["Scales"].add_argument("--auto-scales", action="store_true",
                    help="choose D, d and the max depth from the data by m3c2 suggest's rules (also done for any of "
                         "them not given); the run prints what it chose and why")
-    p.add_argument("--projected", action="store_true", help="also write the projected positions x1..z2")
+    sections["Output"].add_argument("--projected", action="store_true", help="also write the projected positions x1..z2")
     add_drop_nonfinite_option(p)
     add(p, "ignore_crs")
     p.add_argument("--allow-angular", action="store_true",
@@ -54,17 +55,17 @@ def compare_parser(sub) -> None:
     p.add_argument("--crs", metavar="CRS",
                    help="CRS of inputs that have none (ASCII, PLY, .npy, LAS without one): EPSG:CODE, a WKT or a "
                         ".prj file; written to LAS outputs and GeoTIFFs (default: none)")
-    p.add_argument("--report", type=Path, metavar="HTML", help="also write a self-contained HTML report (docs/report.md)")
-    p.add_argument("--report-png", type=Path, metavar="PREFIX", help="also write the report's figures as PREFIX_<figure>.png")
-    p.add_argument("--tile-size", type=float, metavar="S",
+    sections["Output"].add_argument("--report", type=Path, metavar="HTML", help="also write a self-contained HTML report (docs/report.md)")
+    sections["Output"].add_argument("--report-png", type=Path, metavar="PREFIX", help="also write the report's figures as PREFIX_<figure>.png")
+    sections["Run"].add_argument("--tile-size", type=float, metavar="S",
                    help="out-of-core: process the core points in square XY tiles of side S, each with only the "
                         "points within the halo; same result bit for bit (docs/scaling.md)")
-    p.add_argument("--memory-limit", metavar="SIZE",
+    sections["Run"].add_argument("--memory-limit", metavar="SIZE",
                    help="out-of-core: pick the tile size so a tile's estimated resident memory stays under SIZE "
                         "(e.g. 2GB; docs/scaling.md)")
-    add(p, "dask_scheduler")
-    add_verbosity_options(p)
-    add_progress_option(p)
+    add(sections["Run"], "dask_scheduler")
+    add_verbosity_options(sections["Run"])
+    add_progress_option(sections["Run"])
     p.set_defaults(run=run_compare)
 
 

@@ -23,10 +23,11 @@ from typing import Callable
 
 from ..base.errors import UsageError
 from ..settings import by_name, parameters_of
+from ..settings.groups import GROUPS, group_of, group_rank
 from ..settings.table import Parameter
 from .integers import SEED_MAX, integer
 
-__all__ = ["Option", "OPTIONS", "add", "add_table_option", "add_table_options", "add_verbosity_options",
+__all__ = ["Option", "OPTIONS", "add", "add_table_option", "add_table_options", "argument_sections", "add_verbosity_options",
            "add_progress_option", "table_type", "table_help"]
 
 
@@ -132,14 +133,24 @@ def add_table_option(parser, name: str | Parameter, *, filled: bool = False, com
                                metavar=param.metavar, default=default, required=required, help=text)
 
 
-def add_table_options(parser, command: str, groups: dict | None = None) -> None:
-    """One option per parameter of `command` in the parameter table (m3c2kit.settings.table).
-    Every default is None (not given): the table fills it in, so --params values and
-    --compat defaults can tell what the user said."""
+def add_table_options(parser, command: str, groups: dict | None = None, sections: dict | None = None) -> None:
+    """One option per parameter of `command` in the parameter table (m3c2kit.settings.table), in
+    `groups[name]` (an argument group of its own), else in `sections[group_of(name)]`
+    (argument_sections), else in `parser`. Every default is None (not given): the table fills it
+    in, so --params values and --compat defaults can tell what the user said."""
     params = parameters_of(command)
     compat = any(p.name == "compat" for p in params)
+    if sections:
+        params = sorted(params, key=lambda p: group_rank(p.name))
     for param in params:
-        add_table_option((groups or {}).get(param.name, parser), param, compat=compat)
+        target = (groups or {}).get(param.name) or (sections or {}).get(group_of(param.name)) or parser
+        add_table_option(target, param, compat=compat)
+
+
+def argument_sections(parser) -> dict:
+    """The parameter groups of m3c2kit.settings.groups as argument groups of `parser`, in their
+    order: {title: group}."""
+    return {title: parser.add_argument_group(title) for title, _ in GROUPS}
 
 
 def step_options(p, command: str, groups: dict | None = None) -> None:

@@ -11,6 +11,7 @@ import json
 import sys
 from pathlib import Path
 
+from .groups import GROUPS, group_of
 from .parsers import Choice, Flag, Integer, Real
 from .table import PARAMETERS, Parameter, _shown
 
@@ -41,11 +42,13 @@ def _default(p: Parameter):
 
 
 def exported() -> dict:
-    """Every row of the table, in the table's order."""
+    """Every row of the table, in the table's order, with its dialog group (m3c2kit.settings.groups;
+    None for a row compare does not take), and the groups in the order dialogs show them."""
     rows = [dict(name=p.name, flag=p.flag, label=p.title(), help=p.help, range=p.kind.describe(), default=_default(p),
                  default_text=p.default_text(), commands=list(p.commands), section=p.section, scope=p.scope,
-                 metavar=p.metavar, **_kind(p)) for p in PARAMETERS]
-    return {"format": FORMAT, "generated_by": "python -m m3c2kit.settings.export", "parameters": rows}
+                 metavar=p.metavar, group=group_of(p.name), **_kind(p)) for p in PARAMETERS]
+    return {"format": FORMAT, "generated_by": "python -m m3c2kit.settings.export",
+            "groups": [title for title, _ in GROUPS], "parameters": rows}
 
 
 def to_json() -> str:
