@@ -11,7 +11,7 @@ import sys
 import tempfile
 
 from qgis.core import QgsApplication, QgsProject
-from qgis.PyQt.QtCore import QTimer
+from qgis.PyQt.QtCore import Qt, QTimer
 from qgis.PyQt.QtGui import QImage
 from qgis.PyQt.QtWidgets import QApplication, QDockWidget
 from qgis.utils import iface
@@ -71,6 +71,8 @@ def main():
         layer = QgsProject.instance().mapLayersByName(os.path.basename(PARAMETERS["OUTPUT"]))[0]
         for dock in iface.mainWindow().findChildren(QDockWidget):  # the layers panel only, its legend open
             dock.setVisible(dock.objectName() == "Layers")
+            if dock.objectName() == "Layers":  # wide enough for the neutral class's whole label
+                iface.mainWindow().resizeDocks([dock], [540], Qt.Orientation.Horizontal)
         QgsProject.instance().layerTreeRoot().findLayer(layer.id()).setExpanded(True)
         canvas = iface.mapCanvas()
         canvas.setExtent(layer.extent())

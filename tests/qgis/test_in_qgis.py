@@ -257,6 +257,30 @@ def test_a_vector_layer_is_not_an_input():
         QgsProject.instance().removeMapLayer(layer.id())
 
 
+def test_the_compare_dialog_shows_cloudcompares_groups_in_order():
+    """Each table parameter's label starts with its group (parameters.json's, m3c2kit.settings.groups),
+    the groups in the file's order, the table's order within a group; the main part holds the scales."""
+    from m3c2kit_processing import table
+    with open(table.PATH, encoding="utf-8") as f:
+        data = json.load(f)
+    alg = QgsApplication.processingRegistry().createAlgorithmById("m3c2kit:compare")
+    rows = {table.qgis_name(row): row for row in table.rows("compare")}
+    shown = [p for p in alg.parameterDefinitions() if p.name() in rows]
+    assert len(shown) == len(rows)
+    groups = [rows[p.name()]["group"] for p in shown]
+    assert groups == sorted(groups, key=data["groups"].index) and set(groups) == set(data["groups"])
+    for p in shown:
+        assert p.description() == f"{rows[p.name()]['group']}: {rows[p.name()]['label']}", p.description()
+    by_name = {p.name(): p for p in shown}
+    assert by_name["NORMAL_SCALE"].description().startswith("Scales: ")
+    assert not is_advanced(by_name["PROJECTION_SCALE"]) and is_advanced(by_name["FLOAT64"])
+
+
+def is_advanced(param) -> bool:
+    from m3c2kit_processing.compat import ADVANCED
+    return bool(param.flags() & ADVANCED)
+
+
 def test_the_point_cloud_path_is_taken_only_with_pdal():
     from qgis.core import QgsProviderRegistry
     from m3c2kit_processing import results
