@@ -13,8 +13,9 @@ from .. import engine
 from ..base.errors import UsageError
 from ..io.registration_file import Registration
 from ..run.checks import as_points
-
-_ENGINE = engine.default_fields("RegistrationParams")
+from ..settings.needs import check_effective
+from ..settings.registration_rows import REGISTER
+from ..settings.table import by_name, parameters_of
 
 __all__ = ["RegistrationOptions", "register", "stable_in_polygons"]
 
@@ -22,17 +23,23 @@ __all__ = ["RegistrationOptions", "register", "stable_in_polygons"]
 SETTLED_SHARE = 1e-3
 
 
+def _default(row: str):
+    """The default of the parameter table's row (settings/registration_rows.py): the engine's or the row's."""
+    return by_name()[row].default_for()
+
+
 @dataclass(frozen=True)
 class RegistrationOptions:
-    """What m3c2kit.register does (docs/registration.md). Lengths in the clouds' unit."""
+    """What m3c2kit.register does (docs/registration.md). Lengths in the clouds' unit. The defaults
+    are the parameter table's rows' (settings/registration_rows.py; the engine's where its
+    RegistrationParams holds them, include/m3c2/registration.hpp)."""
     normal_scale: float | None = None   # D of the targets' normals; None: m3c2 suggest's rule on the data
-    max_distance: float | None = None   # the farthest pair; None: D
-    # the engine's defaults (include/m3c2/registration.hpp, RegistrationParams), written there only
-    reject: float = _ENGINE["reject"]   # residuals beyond this many robust sd from their median dropped
-    max_iterations: int = _ENGINE["max_iterations"]
-    max_points: int = _ENGINE["max_points"]  # compared points paired, at a fixed stride
-    rounds: int = 5                     # auto_stable: the most register-compare rounds
-    threads: int = 0
+    max_distance: float | None = _default("max_distance")  # the farthest pair; None: D
+    reject: float = _default("reject")  # residuals beyond this many robust sd from their median dropped
+    max_iterations: int = _default("max_iterations")
+    max_points: int = _default("max_points")  # compared points paired, at a fixed stride
+    rounds: int = _default("rounds")    # auto_stable: the most register-compare rounds
+    threads: int = _default("threads")
 
 
 def stable_in_polygons(points: np.ndarray, polygons) -> np.ndarray:
@@ -82,6 +89,8 @@ def register(reference, compared, *, stable=None, auto_stable: bool = False, **o
         raise UsageError(f"register: {e}") from None
     if stable is not None and auto_stable:
         raise UsageError("give stable areas or auto_stable, not both")
+    # A given option that would change nothing (rounds without auto_stable) is refused (the rows' needs).
+    check_effective(parameters_of(REGISTER), {**vars(opts), "auto_stable": auto_stable}, options)
     ref, cmp_ = as_points("reference", reference), as_points("compared", compared)
     if stable is None:
         ref_mask, cmp_mask = np.ones(len(ref), bool), np.ones(len(cmp_), bool)

@@ -12,22 +12,22 @@ from pathlib import Path
 import numpy as np
 
 from .command_index import summary
-from ..analysis.registration import RegistrationOptions, register
+from ..analysis.registration import register
 from ..base.errors import M3C2Warning, UsageError
 from ..io import crs as crs_mod
 from ..io.atomic import staged_outputs
 from ..io.collisions import check_outputs, require_suffix
 from ..io.polygons import read_regions_for
 from ..io.registration_file import registration_bytes
+from ..settings.needs import check_effective
+from ..settings.registration_rows import REGISTER
+from ..settings.table import parameters_of
 from .inputs import read_input
-from .integers import COUNT_MAX, integer, non_negative_real, positive_real
-from .options import add, add_table_option, single_normal_scale
-
-_DEFAULTS = RegistrationOptions()
+from .options import add, add_table_option, single_normal_scale, step_options
 
 
 def register_parser(sub) -> None:
-    p = sub.add_parser("register", help=summary("register"),
+    p = sub.add_parser(REGISTER, help=summary(REGISTER),
                        description="Point-to-plane ICP (Chen & Medioni 1992) of COMPARED onto REFERENCE on stable "
                                    "areas: given as polygons (plan view), or found by excluding what M3C2 finds "
                                    "significant, round after round (--auto-stable). Writes TRANSFORM.json: matrix "
@@ -45,19 +45,9 @@ def register_parser(sub) -> None:
                              "scales, drop the points within d of a significant core point, register again, until "
                              "the stable set settles or --rounds")
     add(p, "derived_normal_scale", default_text="m3c2 suggest's D, from the data")
-    p.add_argument("--max-distance", type=positive_real("--max-distance"), metavar="DIST",
-                   help="the farthest pair of points ICP pairs (default: D); the clouds must be aligned to within "
-                        "it to start with")
-    p.add_argument("--reject", type=non_negative_real("--reject"), default=_DEFAULTS.reject, metavar="K",
-                   help=f"drop the pairs whose residual is more than K robust standard deviations (1.4826 MAD) from "
-                        f"the residuals' median, 0 for none (default {_DEFAULTS.reject:g})")
-    p.add_argument("--max-iterations", type=integer(1, 1000), default=_DEFAULTS.max_iterations,
-                   help=f"the most ICP steps (default {_DEFAULTS.max_iterations})")
-    p.add_argument("--max-points", type=integer(100, COUNT_MAX), default=_DEFAULTS.max_points,
-                   help=f"at most this many compared points are paired, at a fixed stride (default "
-                        f"{_DEFAULTS.max_points})")
-    p.add_argument("--rounds", type=integer(1, 20), default=_DEFAULTS.rounds,
-                   help=f"--auto-stable: the most register-compare rounds (default {_DEFAULTS.rounds})")
+    # --max-distance, --reject, --max-iterations, --max-points, --rounds: the parameter table's rows
+    # (settings/registration_rows.py)
+    step_options(p, REGISTER)
     add(p, "ignore_crs")
     add_table_option(p, "threads", filled=True)
     add(p, "quiet")
@@ -68,12 +58,13 @@ def run_register(args) -> int:
     check_outputs({"-o": args.output}, {"reference cloud": args.reference, "compared cloud": args.compared,
                                         "--stable": args.stable})
     require_suffix("-o", args.output, (".json",), "the registration")
-    if args.rounds != _DEFAULTS.rounds and not args.auto_stable:
-        raise UsageError("--rounds counts --auto-stable's rounds: without it it would change nothing")
+    # The rows' values; a row that acts only with another option (--rounds) is None when not given, and
+    # m3c2kit.register refuses it given where it would change nothing (the rows' needs), as this check
+    # does before two clouds are read.
+    options = {row.name: getattr(args, row.name) for row in parameters_of(REGISTER)
+               if getattr(args, row.name) is not None}
+    check_effective(parameters_of(REGISTER), {**options, "auto_stable": args.auto_stable}, options)
     scale = single_normal_scale(args.normal_scale, "register (the targets' normals)")
-    options = RegistrationOptions(normal_scale=scale, max_distance=args.max_distance,
-                                  reject=args.reject, max_iterations=args.max_iterations,
-                                  max_points=args.max_points, rounds=args.rounds, threads=args.threads)
     reference, compared = read_input(args.reference, args), read_input(args.compared, args)
     crs_mod.check_crs(reference, compared, ignore=args.ignore_crs)
     polygons = read_regions_for(args.stable, reference, "--stable") if args.stable is not None else None
@@ -81,8 +72,8 @@ def run_register(args) -> int:
         if len(cloud.xyz) == 0:
             raise UsageError(f"{cloud.path}: the {name} cloud is empty")
     try:
-        found = register(reference, compared, stable=polygons, auto_stable=args.auto_stable,
-                         **vars(options))
+        found = register(reference, compared, stable=polygons, auto_stable=args.auto_stable, normal_scale=scale,
+                         threads=args.threads, **options)
     except UsageError as e:
         raise UsageError(f"{args.compared} onto {args.reference}: {e}") from None
     found.details.update(reference=str(args.reference), compared=str(args.compared))

@@ -1,7 +1,8 @@
 """THE parameter table: every parameter of `m3c2 compare` (and the ones `m3c2 normals` shares)
 once, with its flag, type and range, default, CloudCompare-compatible default, engine field(s),
 help text, paper section, CloudCompare params-file key(s) and py4dgeo name; then the series steps'
-options (:mod:`.series_rows`, their defaults from the steps' engine structs).
+options (:mod:`.series_rows`, their defaults from the steps' engine structs), m3c2 pbm3c2's
+(:mod:`.pbm3c2_rows`) and m3c2 register's (:mod:`.registration_rows`).
 
 Derived from it: the command line's options (m3c2kit.cli.main), the API's keyword check and defaults
 (:mod:`m3c2kit.settings.resolve`), the building of the engine's Params, the params-file mapping
@@ -16,6 +17,7 @@ from .. import engine
 from . import error_model, orientation, parsers
 from .row import FROM_ENGINE, SAME, EngineField, Parameter, _shown, enum, same, unset_is_zero
 from .pbm3c2_rows import PBM3C2_ROWS
+from .registration_rows import REGISTRATION_ROWS
 from .series_rows import SERIES_ROWS
 from .needs import (A_VARIANCE, BOOTSTRAP, EP, EP_OR_REGISTRATION, EQ1, FITTED_NORMALS, MOVED_OR_PROPAGATED, NOT_CORE_NORMALS,
     PARAMETRIC_MEDIAN, PM, SEVERAL_SCALES, TRANSFORM, TWO_PASS, WEIGHTED_CENTRES, WELCH_T, Needs)
@@ -248,6 +250,8 @@ PARAMETERS: tuple[Parameter, ...] = (
     *SERIES_ROWS,
     # m3c2 pbm3c2's options (the segments, their pairs)
     *PBM3C2_ROWS,
+    # m3c2 register's options (the ICP's pairs and steps, --auto-stable's rounds)
+    *REGISTRATION_ROWS,
 )
 
 
