@@ -6,7 +6,14 @@ so both register on every point). py4dgeo runs in its own environment (--python)
 normals computed first (Epoch.calculate_normals, both epochs: its last fit reads both), timed
 with it.
 
-    .venv/bin/python bench/registration.py --python /tmp/p4d/bin/python [--points 1000000] [--threads 2]
+    .venv/bin/python bench/registration.py --python /tmp/p4d/bin/python [--points 1000000] [--threads 2] \\
+        [--cloudcompare CloudCompare]
+
+--cloudcompare runs CloudCompare's ICP (its command line, -SILENT; Debian 12's cloudcompare 2.11.3,
+under QT_QPA_PLATFORM=offscreen) on the same pair written as ASCII: point-to-point ICP (Besl &
+McKay 1992) on a random sample of the compared cloud (-RANDOM_SAMPLING_LIMIT, CloudCompare's
+default 20000 and 50000), stopping when the error changes by less than 1e-9. Its time is the
+whole command's less a run that only loads the two files.
 """
 from __future__ import annotations
 
@@ -40,9 +47,14 @@ def rotation(degrees) -> np.ndarray:
 
 
 def errors(matrix: np.ndarray, truth: np.ndarray, centre: np.ndarray) -> tuple[float, float]:
-    """(rotation error in degrees, translation error at `centre`) of `matrix` against `truth`."""
-    delta = matrix[:3, :3] @ truth[:3, :3].T
-    angle = float(np.degrees(np.arccos(np.clip((np.trace(delta) - 1) / 2, -1, 1))))
+    """(rotation error in degrees, translation error at `centre`) of `matrix` against `truth`. The
+    angle is that of the nearest rotation (SVD; CloudCompare's float32 matrices are not orthonormal:
+    singular values 1 + 1e-6, so a trace above 3 would read as no error at all), by atan2 of the
+    skew part's norm and the cosine: exact near 0, where arccos of the cosine loses half the digits."""
+    u, _, vt = np.linalg.svd(matrix[:3, :3])
+    delta = (u @ vt) @ truth[:3, :3].T
+    skew = np.array([delta[2, 1] - delta[1, 2], delta[0, 2] - delta[2, 0], delta[1, 0] - delta[0, 1]]) / 2
+    angle = float(np.degrees(np.arctan2(np.linalg.norm(skew), (np.trace(delta) - 1) / 2)))
     moved = matrix[:3, :3] @ centre + matrix[:3, 3] - (truth[:3, :3] @ centre + truth[:3, 3])
     return angle, float(np.linalg.norm(moved))
 
@@ -64,11 +76,32 @@ print(json.dumps({{"seconds": seconds, "matrix": np.asarray(trafo.affine_transfo
 """
 
 
+def cloudcompare(executable: str, ref: np.ndarray, cmp_: np.ndarray, sampling: int) -> tuple[np.ndarray, float]:
+    """(the 4x4 matrix moving `cmp_` onto `ref`, seconds) of CloudCompare's ICP on the pair."""
+    env = dict(os.environ, QT_QPA_PLATFORM="offscreen")
+    with tempfile.TemporaryDirectory() as tmp:
+        ref_path, cmp_path = os.path.join(tmp, "ref.xyz"), os.path.join(tmp, "cmp.xyz")
+        np.savetxt(ref_path, ref, fmt="%.6f")
+        np.savetxt(cmp_path, cmp_, fmt="%.6f")
+        common = [executable, "-SILENT", "-NO_TIMESTAMP", "-AUTO_SAVE", "OFF", "-O", cmp_path, "-O", ref_path]
+        t0 = time.perf_counter()
+        subprocess.run(common, env=env, capture_output=True, check=True)
+        loading = time.perf_counter() - t0
+        t0 = time.perf_counter()
+        # The first cloud opened is registered onto the second (CloudCompare's -ICP: data, then model).
+        subprocess.run(common + ["-ICP", "-MIN_ERROR_DIFF", "1e-9", "-RANDOM_SAMPLING_LIMIT", str(sampling)],
+                       env=env, capture_output=True, check=True)
+        seconds = time.perf_counter() - t0 - loading
+        matrix = np.loadtxt(os.path.join(tmp, "cmp_REGISTRATION_MATRIX.txt"))
+    return matrix, seconds
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--python", help="a Python with py4dgeo 1.2.0 (omit to time m3c2kit alone)")
     ap.add_argument("--points", type=int, default=1_000_000)
     ap.add_argument("--threads", type=int, default=2)
+    ap.add_argument("--cloudcompare", metavar="EXECUTABLE", help="also CloudCompare's ICP (its command line)")
     args = ap.parse_args(argv)
     import m3c2kit
     rng = np.random.default_rng(SEED)
@@ -85,6 +118,13 @@ def main(argv=None) -> int:
     angle, shift = errors(ours.matrix, truth, centre)
     print(f"m3c2kit.register   {seconds:8.2f} s   rotation error {angle:.2e} deg   translation error {shift * 1e3:.3f} mm"
           f"   ({ours.details.get('iterations')} iterations, reg {ours.registration_error * 1e3:.2f} mm)")
+    if args.cloudcompare:
+        for sampling in (20_000, 50_000):
+            matrix, cc_seconds = cloudcompare(args.cloudcompare, ref, cmp_, sampling)
+            angle, shift = errors(matrix, truth, centre)
+            print(f"CloudCompare ICP   {cc_seconds:8.2f} s   rotation error {angle:.2e} deg   translation error "
+                  f"{shift * 1e3:.3f} mm   (point-to-point, {sampling:,} sampled points; "
+                  f"CloudCompare / m3c2kit {cc_seconds / seconds:.1f}x)")
     if not args.python:
         return 0
     with tempfile.TemporaryDirectory() as tmp:
