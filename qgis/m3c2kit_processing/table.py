@@ -24,7 +24,8 @@ NAMES = {"orient": "ORIENTATION"}
 # In the dialog's main part; the others are "Advanced parameters".
 MAIN = ("normal_scale", "projection_scale", "max_depth", "registration_error", "orient", "normal_source", "median",
         "confidence", "lod", "core_spacing", "classifier", "keep", "threads",
-        "use", "neighbourhood_radius", "min_period", "height_threshold", "min_segments")  # series objects'
+        "use", "neighbourhood_radius", "min_period", "height_threshold", "min_segments",  # series objects'
+        "max_distance")  # register's
 
 # Rows the compare algorithm leaves out, and why: an alias of another row.
 LEFT_OUT = {"t_statistic": "the same as LOD = auto"}

@@ -1,7 +1,7 @@
 """The provider through qgis_process (issue 33, "Done when"): enabled, listed, every algorithm's
 help, `run m3c2kit:compare` gives `m3c2 compare`'s bytes, pdal_compare with radii is compare with
 diameters, a missing input fails with m3c2's message and writes nothing, a missing m3c2 is named,
-2D mode's rasters, pbm3c2 gives `m3c2 pbm3c2`'s bytes, the committed model runs. Run by Debian's python3 (scripts/check-qgis.sh)."""
+2D mode's rasters, pbm3c2 gives `m3c2 pbm3c2`'s bytes, register `m3c2 register`'s, the committed model runs. Run by Debian's python3 (scripts/check-qgis.sh)."""
 import json
 import os
 import shutil
@@ -11,7 +11,8 @@ sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 from common import (COMPARED, REFERENCE, ROOT, SMALL, Folder, environment, m3c2, qgis_process, read,  # noqa: E402
                     run_tests)
 
-ALGORITHMS = ("compare", "pdal_compare", "suggest", "c2c", "classify_apply", "series_objects", "pbm3c2")
+ALGORITHMS = ("compare", "pdal_compare", "suggest", "c2c", "classify_apply", "series_objects", "pbm3c2",
+              "register")
 SMALL_QGIS = ["--CORE_SPACING=20", "--NORMAL_SCALE=16", "--PROJECTION_SCALE=10", "--MAX_DEPTH=30"]
 
 
@@ -154,6 +155,26 @@ def test_pbm3c2_gives_the_command_lines_bytes():
         assert m3c2("pbm3c2", REFERENCE, COMPARED, "-o", direct, "--normal-scale", "16", "--segment-angle", "20",
                     "--mutual", "--per-point", direct_points).returncode == 0
         assert read(direct) == read(out) and read(direct_points) == read(points)
+
+
+def test_register_gives_the_command_lines_bytes():
+    with Folder() as d:
+        out, direct = os.path.join(d, "t.json"), os.path.join(d, "direct.json")
+        ran = run("register", f"--REFERENCE={REFERENCE}", f"--COMPARED={COMPARED}", "--NORMAL_SCALE=16",
+                  "--REJECT=2.5", "--MAX_ITERATIONS=30", "--MAX_POINTS=20000", f"--OUTPUT={out}")
+        assert ran.returncode == 0, ran.stdout[-3000:] + ran.stderr[-3000:]
+        assert m3c2("register", REFERENCE, COMPARED, "-o", direct, "--normal-scale", "16", "--reject", "2.5",
+                    "--max-iterations", "30", "--max-points", "20000").returncode == 0
+        assert read(direct) == read(out)
+        # the registration error is an output a model passes on (M3C2 compare's REGISTRATION_ERROR)
+        given = [line.split(":", 1)[1] for line in ran.stdout.splitlines() if line.startswith("REGISTRATION_ERROR:")]
+        expected = json.loads(read(out))["registration_error"]
+        assert given and abs(float(given[0]) - expected) <= 1e-9 * expected, (given, expected, ran.stdout[-2000:])
+        # the rows' needs reach the dialog: rounds without auto stable is m3c2's usage error
+        refused = run("register", f"--REFERENCE={REFERENCE}", f"--COMPARED={COMPARED}", "--ROUNDS=3",
+                      f"--OUTPUT={os.path.join(d, 'no.json')}")
+        assert refused.returncode != 0 and "--rounds would change nothing" in refused.stdout + refused.stderr
+        assert not os.path.exists(os.path.join(d, "no.json"))
 
 
 def test_the_model_runs():

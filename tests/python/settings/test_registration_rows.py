@@ -114,3 +114,5 @@ def test_qgis_register_is_built_from_the_same_rows():
         assert by_flag[row.flag]["default_text"] == row.default_text() and by_flag[row.flag]["help"] == row.help
         if by_flag[row.flag]["type"] == "integer":
             assert (by_flag[row.flag]["minimum"], by_flag[row.flag]["maximum"]) == (row.kind.lo, row.kind.hi)
+    source = (ROOT / "qgis" / "m3c2kit_processing" / "algorithms" / "register.py").read_text(encoding="utf-8")
+    assert 'COMMAND = "register"' in source and "table.rows(self.COMMAND)" in source
