@@ -113,10 +113,16 @@ SegmentPairs overlapping_segments(PointsView reference, std::span<const std::int
                                   const CorrespondenceParams& params, const RunOptions& run = {});
 
 /// How well each paired compared plane represents its surface where the reference segment is: the
-/// mean signed distance to it of the compared points nearest the feet of the reference segment's
-/// points on it (within search_radius, in the paired segment; each point once), and how many. A plane grown over a
-/// curved or stepped surface is off there by more than its points' noise, and the distance by as much, which no LOD
-/// accounts for (docs/pbm3c2.md). NaN and 0 where compared_of_reference[i] < 0 or no such point.
+/// mean signed distance to it of the paired segment's points over the reference segment's footprint,
+/// and how many. A compared point is over it when its foot on the reference plane lies within two
+/// spacings of one of the segment's points, measured in that plane (the spacing sqrt(A / n), A =
+/// 12 sqrt(lambda1 lambda2) the segment's area, exact for a rectangle). Each point counts once per
+/// reference segment, whatever the segment's other pairs, and is chosen by its position in the plane,
+/// not by its residual: for a true plane the mean is 0 +- sigma2 / sqrt(points) at most. A plane grown
+/// over a curved or stepped surface is off there by more than its points' noise, and the distance by as
+/// much, which no LOD accounts for (docs/pbm3c2.md). NaN and 0 where compared_of_reference[i] < 0, a
+/// plane is missing or no compared point is over the footprint. Each pair is summed alone, in point
+/// order: the same bits for any thread count. InvalidArgument for a compared row out of range.
 struct PlaneMisfit {
   std::vector<double> mean_residual;
   std::vector<std::uint64_t> points;
@@ -125,8 +131,7 @@ struct PlaneMisfit {
 PlaneMisfit compared_plane_misfit(PointsView reference, std::span<const std::int64_t> reference_labels,
                                   const PlaneSegments& reference_planes, PointsView compared,
                                   std::span<const std::int64_t> compared_labels, const PlaneSegments& compared_planes,
-                                  std::span<const std::int64_t> compared_of_reference, double search_radius,
-                                  const RunOptions& run = {});
+                                  std::span<const std::int64_t> compared_of_reference, const RunOptions& run = {});
 
 /// Every (reference row, compared row) whose centroids are within search_radius, both planes
 /// defined, in row order: the candidates a classifier scores. InvalidArgument beyond 2e7 pairs

@@ -135,13 +135,12 @@ void bind_pbm3c2(nb::module_& m) {
       "compared_plane_misfit",
       [](const Points& reference, const Labels& reference_labels, const nb::dict& reference_planes,
          const Points& compared, const Labels& compared_labels, const nb::dict& compared_planes,
-         const Labels& compared_of_reference, double search_radius, int threads) {
+         const Labels& compared_of_reference, int threads) {
         const PlaneSegments ref = segments_from(reference_planes), cmp = segments_from(compared_planes);
         PlaneMisfit m = run_engine(nb::none(), threads, [&](const RunOptions& run) {
           return compared_plane_misfit(view(reference), {reference_labels.data(), reference_labels.size()}, ref,
                                        view(compared), {compared_labels.data(), compared_labels.size()}, cmp,
-                                       {compared_of_reference.data(), compared_of_reference.size()}, search_radius,
-                                       run);
+                                       {compared_of_reference.data(), compared_of_reference.size()}, run);
         });
         nb::dict d;
         d["mean_residual"] = to_numpy(std::move(m.mean_residual));
@@ -149,7 +148,7 @@ void bind_pbm3c2(nb::module_& m) {
         return d;
       },
       "reference"_a, "reference_labels"_a, "reference_planes"_a, "compared"_a, "compared_labels"_a, "compared_planes"_a,
-      "compared_of_reference"_a, "search_radius"_a, "threads"_a = 0);
+      "compared_of_reference"_a, "threads"_a = 0);
   m.def(
       "segment_candidates",
       [](const nb::dict& reference, const nb::dict& compared, double search_radius) {

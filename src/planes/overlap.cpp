@@ -1,5 +1,6 @@
-// What the reference points' nearest compared points say (include/m3c2/pbm3c2.hpp, docs/pbm3c2.md):
-// the overlap rule's votes for their segments, and how far the paired compared plane lies from them.
+// Where the two epochs' segments overlap (include/m3c2/pbm3c2.hpp, docs/pbm3c2.md): the overlap rule's
+// votes (each point's nearest point of the other epoch), and how the paired compared plane fits its own
+// points over the reference segment's footprint.
 
 #include <m3c2/errors.hpp>
 #include <m3c2/pbm3c2.hpp>
@@ -7,11 +8,16 @@
 #include "index/kdtree.hpp"
 #include "support/parallel_for.hpp"
 
+#include <Eigen/Geometry>
+
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <limits>
 #include <numbers>
+#include <optional>
 #include <string>
+#include <utility>
 
 namespace m3c2 {
 namespace {
@@ -117,55 +123,188 @@ SegmentPairs overlapping_segments(PointsView reference, std::span<const std::int
   return out;
 }
 
+namespace {
+
+/// Spacings a compared point's foot may lie from the nearest reference point of a segment and still be
+/// over it: for points spread uniformly at density 1/s^2, a position inside the segment is farther than
+/// 2 s from every point with probability exp(-4 pi), 3.5e-6.
+constexpr double kReachSpacings = 2.0;
+
+/// Each segment row's points, ascending (points in no row: none).
+struct Members {
+  Members(const std::vector<std::int64_t>& rows, std::size_t row_count) : first(row_count + 1, 0) {
+    for (const std::int64_t r : rows)
+      if (r >= 0) ++first[std::size_t(r) + 1];
+    for (std::size_t r = 0; r < row_count; ++r) first[r + 1] += first[r];
+    point.resize(first.back());
+    std::vector<std::size_t> at(first.begin(), first.end() - 1);
+    for (std::size_t i = 0; i < rows.size(); ++i)
+      if (rows[i] >= 0) point[at[std::size_t(rows[i])]++] = std::uint32_t(i);
+  }
+  std::span<const std::uint32_t> of(std::size_t row) const {
+    return {point.data() + first[row], first[row + 1] - first[row]};
+  }
+  std::vector<std::size_t> first;
+  std::vector<std::uint32_t> point;
+};
+
+/// A reference segment's footprint on its own plane: the positions within `reach` of one of its points,
+/// measured in the plane. Its points' in-plane coordinates are bucketed in square cells of side `reach`,
+/// sorted by cell, so a position is tested against the points of 3 x 3 cells.
+class Footprint {
+ public:
+  void build(PointsView points, std::span<const std::uint32_t> members, const Vec3& centroid, const Vec3& normal,
+             double reach) {
+    origin_ = centroid;
+    u_ = (std::abs(normal.z()) < 0.9 ? Vec3::UnitZ() : Vec3::UnitX()).cross(normal).normalized();
+    v_ = normal.cross(u_);
+    cells_.clear();
+    lo_u_ = lo_v_ = std::numeric_limits<double>::infinity();
+    hi_u_ = hi_v_ = -std::numeric_limits<double>::infinity();
+    for (const std::uint32_t k : members) {
+      const Vec3 d = points[k] - origin_;
+      cells_.push_back({0, 0, d.dot(u_), d.dot(v_)});
+      lo_u_ = std::min(lo_u_, cells_.back().u), hi_u_ = std::max(hi_u_, cells_.back().u);
+      lo_v_ = std::min(lo_v_, cells_.back().v), hi_v_ = std::max(hi_v_, cells_.back().v);
+    }
+    // At least a billionth of the extent: the cell numbers fit any integer type.
+    reach_ = std::max(reach, 1e-9 * std::max(hi_u_ - lo_u_, hi_v_ - lo_v_));
+    if (!(std::isfinite(reach_) && reach_ > 0.0)) cells_.clear();
+    for (Cell& c : cells_) c.x = cell(c.u, lo_u_), c.y = cell(c.v, lo_v_);
+    std::sort(cells_.begin(), cells_.end(), [](const Cell& a, const Cell& b) { return key(a) < key(b); });
+  }
+
+  bool contains(const Vec3& p) const {
+    const Vec3 d = p - origin_;
+    const double a = d.dot(u_), b = d.dot(v_);
+    if (cells_.empty() || !(a >= lo_u_ - reach_ && a <= hi_u_ + reach_ && b >= lo_v_ - reach_ && b <= hi_v_ + reach_))
+      return false;
+    const std::int64_t x = cell(a, lo_u_), y = cell(b, lo_v_);
+    for (std::int64_t column = x - 1; column <= x + 1; ++column) {
+      auto at =
+          std::lower_bound(cells_.begin(), cells_.end(), std::pair(column, y - 1),
+                           [](const Cell& c, const std::pair<std::int64_t, std::int64_t>& k) { return key(c) < k; });
+      for (; at != cells_.end() && at->x == column && at->y <= y + 1; ++at)
+        if ((at->u - a) * (at->u - a) + (at->v - b) * (at->v - b) <= reach_ * reach_) return true;
+    }
+    return false;
+  }
+
+  /// Whether a box may hold a point over the footprint: its shadow on the plane meets the footprint's
+  /// rectangle (widened by one more reach, so that rounding never rejects a box contains() would keep).
+  bool may_hold(const std::array<double, 3>& lo, const std::array<double, 3>& hi) const {
+    const Vec3 centre = 0.5 * (Vec3(lo.data()) + Vec3(hi.data())) - origin_;
+    const Vec3 half = 0.5 * (Vec3(hi.data()) - Vec3(lo.data()));
+    const double a = centre.dot(u_), b = centre.dot(v_);
+    const double ra = half.dot(u_.cwiseAbs()) + 2.0 * reach_, rb = half.dot(v_.cwiseAbs()) + 2.0 * reach_;
+    return !cells_.empty() && a + ra >= lo_u_ && a - ra <= hi_u_ && b + rb >= lo_v_ && b - rb <= hi_v_;
+  }
+
+ private:
+  struct Cell {
+    std::int64_t x, y;
+    double u, v;
+  };
+  static std::pair<std::int64_t, std::int64_t> key(const Cell& c) { return {c.x, c.y}; }
+  std::int64_t cell(double coordinate, double lo) const { return std::int64_t(std::floor((coordinate - lo) / reach_)); }
+
+  Vec3 origin_, u_, v_;
+  double reach_ = 0.0, lo_u_ = 0.0, hi_u_ = 0.0, lo_v_ = 0.0, hi_v_ = 0.0;
+  std::vector<Cell> cells_;
+};
+
+/// A compared segment's own points, indexed, for a segment paired with several reference segments: each
+/// selects the points over its footprint without reading all of them.
+struct SegmentIndex {
+  std::vector<double> xyz;  // the segment's points, in point order
+  std::optional<detail::KdTree> tree;
+};
+
+struct MisfitScratch {
+  Footprint footprint;
+  std::vector<std::uint32_t> found;
+};
+
+}  // namespace
+
 PlaneMisfit compared_plane_misfit(PointsView reference, std::span<const std::int64_t> reference_labels,
                                   const PlaneSegments& reference_planes, PointsView compared,
                                   std::span<const std::int64_t> compared_labels, const PlaneSegments& compared_planes,
-                                  std::span<const std::int64_t> compared_of_reference, double search_radius,
-                                  const RunOptions& run) {
-  if (!(std::isfinite(search_radius) && search_radius > 0.0))
-    throw InvalidArgument("search_radius must be a positive number, got " + std::to_string(search_radius));
+                                  std::span<const std::int64_t> compared_of_reference, const RunOptions& run) {
   if (compared_of_reference.size() != reference_planes.size())
     throw InvalidArgument("compared_of_reference must have one row per reference segment");
-  const std::vector<std::int64_t> ref_rows = rows_of(reference_labels, reference_planes, reference.size(), "reference");
-  const std::vector<std::int64_t> cmp_rows = rows_of(compared_labels, compared_planes, compared.size(), "compared");
-  const SegmentedPoints to(compared, cmp_rows);
-  // Each reference point's compared point (kNone: none), then each compared point once per segment:
-  // where the compared epoch covers less than the reference segment, the feet beyond its edge all
-  // find the same edge points, and counting them once per foot made the mean's error look far
-  // smaller than it is (true planes were refused). Summed in (row, point) order: the same bits for
-  // any thread count.
-  std::vector<std::uint32_t> nearest(reference.size(), detail::KdTree::kNone);
-  detail::parallel_blocks<int>(reference.size(), run, [&](std::size_t begin, std::size_t end, int&) {
-    for (std::size_t i = begin; i < end; ++i) {
-      if (ref_rows[i] < 0) continue;
-      const std::int64_t j = compared_of_reference[std::size_t(ref_rows[i])];
-      if (j < 0) continue;
-      // The compared point nearest the reference point's foot on the compared plane: chosen by the
-      // distance to the plane's own surface, whose noise is symmetric about it, so the residuals'
-      // mean is unbiased (the point nearest the reference point itself leans towards it).
-      const Vec3 c2(&compared_planes.centroid[3 * std::size_t(j)]), n2(&compared_planes.normal[3 * std::size_t(j)]);
-      const Vec3 foot = reference[i] - (reference[i] - c2).dot(n2) * n2;
-      const std::uint32_t k = to.tree.nearest(foot, search_radius);
-      if (k != detail::KdTree::kNone && to.row[k] == j) nearest[i] = k;
-    }
-  });
-  std::vector<std::pair<std::int64_t, std::uint32_t>> used;
-  for (std::size_t i = 0; i < nearest.size(); ++i)
-    if (nearest[i] != detail::KdTree::kNone) used.emplace_back(ref_rows[i], nearest[i]);
-  std::sort(used.begin(), used.end());
-  used.erase(std::unique(used.begin(), used.end()), used.end());
-  PlaneMisfit out;
-  std::vector<double> sum(reference_planes.size(), 0.0);
-  out.points.assign(reference_planes.size(), 0);
-  for (const auto& [row, k] : used) {
-    const std::size_t j = std::size_t(compared_of_reference[std::size_t(row)]);
-    const Vec3 c2(&compared_planes.centroid[3 * j]), n2(&compared_planes.normal[3 * j]);
-    sum[std::size_t(row)] += (compared[k] - c2).dot(n2);
-    ++out.points[std::size_t(row)];
+  for (const std::int64_t j : compared_of_reference)
+    if (j >= std::int64_t(compared_planes.size()))
+      throw InvalidArgument("compared_of_reference names compared row " + std::to_string(j) + " of " +
+                            std::to_string(compared_planes.size()));
+  for (const PointsView cloud : {reference, compared})
+    if (cloud.size() > UINT32_MAX)
+      throw InvalidArgument("compared_plane_misfit indexes at most 2^32 - 1 points, got " +
+                            std::to_string(cloud.size()));
+  const Members ref_members(rows_of(reference_labels, reference_planes, reference.size(), "reference"),
+                            reference_planes.size());
+  const Members cmp_members(rows_of(compared_labels, compared_planes, compared.size(), "compared"),
+                            compared_planes.size());
+  // The pairs to measure (both planes defined), and how many reference segments each compared one has.
+  std::vector<std::int64_t> pair(reference_planes.size(), -1);
+  std::vector<std::size_t> partners(compared_planes.size(), 0);
+  for (std::size_t i = 0; i < pair.size(); ++i) {
+    const std::int64_t j = compared_of_reference[i];
+    if (j < 0 || !std::isfinite(reference_planes.normal[3 * i]) || !std::isfinite(compared_planes.normal[3 * j]))
+      continue;
+    pair[i] = j, ++partners[std::size_t(j)];
   }
+  std::vector<std::size_t> shared;
+  for (std::size_t j = 0; j < partners.size(); ++j)
+    if (partners[j] > 1) shared.push_back(j);
+  std::vector<SegmentIndex> index(compared_planes.size());
+  detail::parallel_blocks<int>(
+      shared.size(), run,
+      [&](std::size_t begin, std::size_t end, int&) {
+        for (std::size_t s = begin; s < end; ++s) {
+          SegmentIndex& at = index[shared[s]];
+          for (const std::uint32_t k : cmp_members.of(shared[s]))
+            for (int a = 0; a < 3; ++a) at.xyz.push_back(compared.coord(k, a));
+          at.tree.emplace(PointsView(at.xyz.data(), at.xyz.size() / 3));
+        }
+      },
+      1);
+  PlaneMisfit out;
   out.mean_residual.assign(reference_planes.size(), std::numeric_limits<double>::quiet_NaN());
-  for (std::size_t r = 0; r < sum.size(); ++r)
-    if (out.points[r] > 0) out.mean_residual[r] = sum[r] / double(out.points[r]);
+  out.points.assign(reference_planes.size(), 0);
+  // Each pair alone, its residuals summed in point order: the same bits for any thread count.
+  detail::parallel_blocks<MisfitScratch>(
+      pair.size(), run,
+      [&](std::size_t begin, std::size_t end, MisfitScratch& scratch) {
+        for (std::size_t i = begin; i < end; ++i) {
+          if (pair[i] < 0) continue;
+          const std::size_t j = std::size_t(pair[i]);
+          const double area = 12.0 * std::sqrt(reference_planes.eigenvalues[3 * i] *
+                                               reference_planes.eigenvalues[3 * i + 1]);  // a rectangle's, exactly
+          const double spacing = std::sqrt(area / double(reference_planes.count[i]));
+          Footprint& footprint = scratch.footprint;
+          footprint.build(reference, ref_members.of(i), Vec3(&reference_planes.centroid[3 * i]),
+                          Vec3(&reference_planes.normal[3 * i]), kReachSpacings * spacing);
+          const std::span<const std::uint32_t> members = cmp_members.of(j);
+          std::vector<std::uint32_t>& over = scratch.found;
+          over.clear();
+          if (partners[j] == 1) {
+            for (std::uint32_t local = 0; local < members.size(); ++local)
+              if (footprint.contains(compared[members[local]])) over.push_back(local);
+          } else {
+            index[j].tree->select([&](const auto& lo, const auto& hi) { return !footprint.may_hold(lo, hi); },
+                                  [&](const double* p) { return footprint.contains(Vec3(p[0], p[1], p[2])); }, over);
+            std::sort(over.begin(), over.end());
+          }
+          if (over.empty()) continue;
+          const Vec3 c2(&compared_planes.centroid[3 * j]), n2(&compared_planes.normal[3 * j]);
+          double sum = 0.0;
+          for (const std::uint32_t local : over) sum += (compared[members[local]] - c2).dot(n2);
+          out.mean_residual[i] = sum / double(over.size());
+          out.points[i] = over.size();
+        }
+      },
+      4);
   return out;
 }
 

@@ -146,7 +146,7 @@ def pbm3c2(reference, compared, *, reference_segments=None, compared_segments=No
                                    {"confidence": opts.confidence, "registration_error": opts.registration_error,
                                     "lod": "auto"})
     misfit = planes.compared_plane_misfit(ref, ref_labels, ref_table, cmp_, cmp_labels, cmp_table, found["compared"],
-                                          radius, threads=opts.threads)
+                                          threads=opts.threads)
     found, changes = _refuse_misfits(found, changes, misfit, cmp_table)
     pairs = _pairs_table(ref_table, cmp_table, found, changes, misfit, probability)
     _warn_if_empty(ref_table, cmp_table, found, ref_status, cmp_status, reference_segments is None)

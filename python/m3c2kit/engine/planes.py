@@ -60,16 +60,14 @@ def overlapping_segments(reference, reference_labels, reference_planes: dict, co
 
 
 def compared_plane_misfit(reference, reference_labels, reference_planes: dict, compared, compared_labels,
-                          compared_planes: dict, compared_of_reference, search_radius: float, *,
-                          threads: int = 0) -> dict:
-    """Per reference row: the mean signed distance to its paired compared plane of the compared
-    points nearest its points (mean_residual, NaN: none) and how many (points)."""
+                          compared_planes: dict, compared_of_reference, *, threads: int = 0) -> dict:
+    """Per reference row: the mean signed distance to its paired compared plane of that segment's
+    points over the reference segment's footprint (mean_residual, NaN: none) and how many (points)."""
     with translated():
         return _core.compared_plane_misfit(
             _points(reference), np.ascontiguousarray(reference_labels, dtype=np.int64), _table(reference_planes),
             _points(compared), np.ascontiguousarray(compared_labels, dtype=np.int64), _table(compared_planes),
-            np.ascontiguousarray(compared_of_reference, dtype=np.int64), float(search_radius),
-            threads=_threads(threads))
+            np.ascontiguousarray(compared_of_reference, dtype=np.int64), threads=_threads(threads))
 
 
 def segment_candidates(reference: dict, compared: dict, search_radius: float) -> dict:

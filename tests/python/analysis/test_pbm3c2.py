@@ -189,6 +189,31 @@ def test_unpaired_reference_segment_has_nan_and_its_status(rule):
 
 
 @pytest.mark.parametrize("rule", RULES)
+def test_a_step_grown_into_one_compared_segment_is_refused_and_a_half_seen_plane_is_not(rule):
+    """The plane misfit (docs/pbm3c2.md): a compared segment that joins a facet moved 1 cm to a level
+    0.5 m higher beside it is no plane over the reference facet (status 5, no distance); a compared
+    facet seen over half the reference one is its true plane, measured."""
+    rng = np.random.default_rng(11)
+
+    def level(x0, z, count, width=2.0):
+        return np.column_stack([rng.uniform(x0, x0 + width, count), rng.uniform(-1, 1, count),
+                                z + rng.normal(0, NOISE, count)])
+
+    ref = np.vstack([level(-2, 0.0, 2000), level(3, 0.0, 2000)])
+    cmp_ = np.vstack([level(-2, 0.01, 2000), level(0, 0.5, 2000), level(4, 0.02, 1000, width=1.0)])
+    ref_ids, cmp_ids = np.repeat([1, 2], 2000), np.repeat([1, 2], [4000, 1000])
+    r = m3c2kit.pbm3c2(ref, cmp_, reference_segments=ref_ids, compared_segments=cmp_ids, correspondence=rule,
+                       search_radius=2.0)
+    p = r.pairs
+    np.testing.assert_array_equal(p["compared_segment"], [1, 2])
+    assert p["status"][0] == _status("off its own points") and r.details["paired"] == 1
+    assert math.isnan(p["distance"][0]) and math.isnan(p["lod"][0]) and p["significant"][0] == 0
+    assert abs(p["plane_misfit"][0]) > 0.04
+    assert p["status"][1] == 0 and abs(p["distance"][1] - 0.02) < 1e-3
+    assert abs(p["plane_misfit"][1]) < 1e-9  # every compared point is over the reference facet
+
+
+@pytest.mark.parametrize("rule", RULES)
 def test_mutual_keeps_only_the_nearer_of_two_reference_segments(rule):
     """Two reference facets, one compared facet on the first (moved 0.1 m along it): without mutual
     both are paired with it; with mutual the second is not (status 3)."""
