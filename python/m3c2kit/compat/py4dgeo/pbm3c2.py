@@ -69,6 +69,7 @@ class PBM3C2:
         self.epoch0_reverse_mapping = self.epoch1_reverse_mapping = None
         self._tables = None
         self._training = None
+        self._rows = None  # the paired (reference rows, compared rows) of the last correspondences (_keep)
 
     @staticmethod
     @translated
