@@ -47,11 +47,11 @@ def qgis_name(row) -> str:
     return NAMES.get(row["name"], row["name"].upper())
 
 
-def title(row) -> str:
-    """The row's label (the parameter table's, in words; its flag is in the help), after its group's
-    name where it has one ("Scales: Normal scale D (diameter)")."""
+def title(row, grouped=False) -> str:
+    """The row's label (the parameter table's, in words; its flag is in the help); `grouped` (the
+    compare dialog): after its group's name ("Scales: Normal scale D (diameter)")."""
     label = row.get("label") or row["name"].replace("_", " ").capitalize()
-    return f"{row['group']}: {label}" if row.get("group") else label
+    return f"{row['group']}: {label}" if grouped and row.get("group") else label
 
 
 def help_text(row) -> str:
@@ -63,9 +63,9 @@ def _is_file(row) -> bool:
     return metavar == "FILE" or metavar.endswith(".json")
 
 
-def definition(row):
-    """The QGIS parameter of one table row."""
-    name, label, kind = qgis_name(row), title(row), row["type"]
+def definition(row, grouped=False):
+    """The QGIS parameter of one table row (`grouped`: its label after its group's name, title())."""
+    name, label, kind = qgis_name(row), title(row, grouped), row["type"]
     if kind == "flag":
         param = QgsProcessingParameterBoolean(name, label, defaultValue=False, optional=True)
     elif kind == "choice":

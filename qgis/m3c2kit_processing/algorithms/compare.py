@@ -44,7 +44,7 @@ class CompareAlgorithm(M3C2Algorithm):
                      "_significant, _n1, _n2, _status beside OUTPUT")
         self.addParameter(grid)
         for row in table.rows("compare"):
-            self.addParameter(table.definition(row))
+            self.addParameter(table.definition(row, grouped=True))
         own = (QgsProcessingParameterFile("CORE_NORMALS", "Core normals file (--core-normals)", behavior=FILE,
                                           optional=True),
                QgsProcessingParameterFile("PARAMS", "CloudCompare qM3C2 parameter file (--params)", behavior=FILE,

@@ -16,8 +16,9 @@ class PBM3C2Algorithm(M3C2Algorithm):
     NAME = "pbm3c2"
     DISPLAY = "PB-M3C2: change between paired planes"
     HELP = ("m3c2 pbm3c2: both clouds cut into planar segments (region growing on normals, or SEGMENTS: a field of "
-            "segment ids), each reference segment paired with the compared segment of the same surface (the nearest "
-            "within a search radius and angle, or a random forest trained on labelled pairs), and the change: the "
+            "segment ids), each reference segment paired with the compared segment of the same surface (by default the "
+            "one its points' nearest compared points mostly lie in; or the nearest within a search radius and angle; "
+            "or a random forest trained on labelled pairs), and the change: the "
             "distance between the two planes with its LOD (eq. 1), far below M3C2's on planar patches. One point per "
             "reference segment, at its centroid; unpaired segments have no distance and a status "
             "(docs/pbm3c2.md). Empty parameters take m3c2's defaults.")
