@@ -86,26 +86,41 @@ void KdTree::ball(const Vec3& centre, double radius, std::vector<std::uint32_t>&
 }
 
 std::uint32_t KdTree::nearest(const Vec3& q, double max_distance) const {
-  // Balls growing by 4 from max_distance / 64: the nearest point within a ball is the nearest of
-  // all, and a small first ball spares most of the tree when the point is close (ICP's pairs
-  // after its first steps, a segment's own surface). In each ball the traversal prunes every box
-  // farther than the best point so far; select() appends each improvement, so the last is the nearest.
-  thread_local std::vector<std::uint32_t> found;
-  for (double radius = max_distance / 64.0;; radius = std::min(4.0 * radius, max_distance)) {
-    double best2 = radius * radius;
-    bool any = false;
-    found.clear();
-    select([&](const auto& lo, const auto& hi) { return box_distance2(lo, hi, q) > best2 * (1.0 + kRelativeMargin); },
-           [&](const double* p) {
-             const double d2 = squared_distance(p, q);
-             if (d2 > best2 || (any && d2 == best2)) return false;
-             best2 = d2, any = true;
-             return true;
-           },
-           found);
-    if (!found.empty()) return found.back();
-    if (radius >= max_distance) return kNone;
+  // Depth first, the nearer child first (by its box's distance), each box pruned when it lies
+  // farther than the best point so far: the first leaves reached are those around q, so the best
+  // distance falls at once and most of the tree is never read. The answer is the point of least
+  // squared distance within max_distance, the lowest slot (tree order) on a tie: whatever order
+  // the leaves are read in, so the same point as any exact search that breaks ties so.
+  if (nodes_.empty()) return kNone;
+  double best2 = max_distance * max_distance;
+  std::uint32_t best = kNone;  // a slot
+  struct Pending {
+    std::uint32_t node;
+    double d2;  // its box's squared distance to q
+  };
+  Pending stack[128];  // two per level: 2 x ceil(log2(2^32 / kLeafSize)) < 128
+  int top = 0;
+  stack[top++] = {0, box_distance2(nodes_[0].lo, nodes_[0].hi, q)};
+  while (top > 0) {
+    const Pending pending = stack[--top];
+    if (pending.d2 > best2 * (1.0 + kRelativeMargin)) continue;
+    const Node& node = nodes_[pending.node];
+    if (node.left == 0) {
+      for (std::uint32_t s = node.begin; s < node.end; ++s) {
+        const double d2 = squared_distance(xyz_.data() + 3 * std::size_t(s), q);
+        if (d2 < best2 || (d2 == best2 && s < best)) best2 = d2, best = s;
+      }
+      continue;
+    }
+    const Pending left{node.left, box_distance2(nodes_[node.left].lo, nodes_[node.left].hi, q)};
+    const Pending right{node.left + 1, box_distance2(nodes_[node.left + 1].lo, nodes_[node.left + 1].hi, q)};
+    // The nearer pushed last, read first.
+    if (right.d2 < left.d2)
+      stack[top++] = left, stack[top++] = right;
+    else
+      stack[top++] = right, stack[top++] = left;
   }
+  return best == kNone ? kNone : index_[best];
 }
 
 }  // namespace m3c2::detail
