@@ -34,7 +34,7 @@ SMALL = {"CORE_SPACING": 20, "NORMAL_SCALE": "16", "PROJECTION_SCALE": 10, "MAX_
 class Recorder(QgsProcessingFeedback):
     def __init__(self):
         super().__init__()
-        self.percents, self.errors, self.commands, self.infos = [], [], [], []
+        self.percents, self.errors, self.commands, self.infos, self.warnings = [], [], [], [], []
 
     def setProgress(self, value):  # noqa: N802 - QGIS's name
         self.percents.append(value)
@@ -42,6 +42,10 @@ class Recorder(QgsProcessingFeedback):
 
     def reportError(self, error, fatalError=False):  # noqa: N802,N803 - QGIS's names
         self.errors.append(error)
+
+    def pushWarning(self, warning):  # noqa: N802 - QGIS's name
+        self.warnings.append(warning)
+        super().pushWarning(warning)
 
     def pushCommandInfo(self, info):  # noqa: N802 - QGIS's name
         self.commands.append(info)
@@ -243,6 +247,53 @@ def test_cancel_leaves_nothing():
             assert not os.path.exists(f"/proc/{seen['pid']}") or open(f"/proc/{seen['pid']}/stat").read().split()[2] == "Z"
     finally:
         del os.environ["M3C2_TEST_SIGNAL_AT"]
+
+
+def test_progress_moves_through_the_compute_and_cancel_ends_the_run_within_a_second():
+    """A run long enough to watch (Toronto at a 1 m core spacing, 29 normal scales: about 15 s):
+    the dialog's percent takes at least 5 distinct values inside the compute phase (between
+    reading's 10 and writing's 95), and Cancel there ends the algorithm within 1 s, nothing left."""
+    with Folder() as d:
+        feedback = Recorder()
+        seen, done = {}, threading.Event()
+
+        def cancel_mid_compute():
+            deadline = time.monotonic() + 120
+            while time.monotonic() < deadline and not done.is_set():
+                inside = {p for p in feedback.percents if 10.0 < p < 95.0}
+                if len(inside) >= 5:
+                    seen["inside"] = sorted(inside)
+                    seen["cancelled_at"] = time.monotonic()
+                    feedback.cancel()
+                    return
+                time.sleep(0.02)
+
+        watcher = threading.Thread(target=cancel_mid_compute)
+        watcher.start()
+        parameters = dict(REFERENCE=REFERENCE, COMPARED=COMPARED, CORE_SPACING=1, NORMAL_SCALE="4:60:2",
+                          PROJECTION_SCALE=10, MAX_DEPTH=30, OUTPUT=os.path.join(d, "long.laz"))
+        results, ok, context, _ = run("compare", parameters, feedback)
+        ended = time.monotonic()
+        done.set()
+        watcher.join()
+        assert "cancelled_at" in seen, f"fewer than 5 percents inside the compute: {feedback.percents}"
+        assert not ok
+        print(f"Cancel took {ended - seen['cancelled_at']:.2f} s", file=sys.stderr)
+        assert ended - seen["cancelled_at"] < 1.0, f"Cancel took {ended - seen['cancelled_at']:.2f} s"
+        assert os.listdir(d) == [], os.listdir(d)
+
+
+def test_scales_absurd_for_the_data_are_warned_in_the_log():
+    """D and d typed 100 times too large (beyond the clouds' 900 m extent): m3c2's warnings, one
+    naming each option, reach the log once each, as warnings."""
+    with Folder() as d:
+        results, ok, context, feedback = run("compare", dict(SMALL, REFERENCE=REFERENCE, COMPARED=COMPARED,
+                                                             NORMAL_SCALE="1600", PROJECTION_SCALE=1000,
+                                                             OUTPUT=os.path.join(d, "absurd.csv")))
+        assert ok, feedback.errors
+        absurd = [w for w in feedback.warnings if "extent" in w]
+        assert len(absurd) == 2, feedback.warnings
+        assert absurd[0].startswith("--normal-scale 1600") and absurd[1].startswith("--projection-scale 1000"), absurd
 
 
 def test_a_vector_layer_is_not_an_input():
