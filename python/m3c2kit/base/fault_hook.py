@@ -25,6 +25,8 @@ from __future__ import annotations
 import os
 import signal
 
+from . import portable
+
 __all__ = ["ENV", "PHASES", "checkpoint"]
 
 ENV = "M3C2_TEST_SIGNAL_AT"
@@ -53,4 +55,4 @@ def checkpoint(phase: str) -> None:
     if number is None:
         return
     _fired.add(phase)
-    os.kill(os.getpid(), number)
+    portable.signal_self(number)

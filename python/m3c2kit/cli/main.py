@@ -9,7 +9,7 @@ import signal
 import sys
 import warnings
 
-from ..base import interrupt
+from ..base import interrupt, portable
 from ..base.errors import M3C2Error, M3C2Warning, UsageError, printable
 from ..base.interrupt import Interrupted  # noqa: F401 - the stop of a run, for callers of main()
 
@@ -39,10 +39,6 @@ def make_parser(command: str | None = EVERY_COMMAND) -> argparse.ArgumentParser:
     return parser
 
 
-_CLEAN_EXIT_SIGNALS = tuple(getattr(signal, name) for name in ("SIGINT", "SIGHUP", "SIGQUIT", "SIGTERM")
-                            if hasattr(signal, name))
-
-
 def _show_warning(message, category, filename, lineno, file=None, line=None):
     """Every warning as one line, `m3c2: warning: ...`: M3C2Warning (e.g. QuantisationWarning) by
     its text, another library's (numpy's RuntimeWarning) with its class, never with Python's
@@ -64,11 +60,12 @@ def main(argv=None) -> int:
     if words == ["--version"]:  # answered before any parser or library is imported
         print(_version_text())
         return 0
-    # SIGINT, SIGHUP, SIGQUIT and SIGTERM end the run: an exception that unwinds through the atomic
-    # writer, which removes its private folders (no partial output, no leftover); one that Python
-    # swallowed is raised again before anything is published (base/interrupt.py). A signal the
-    # caller ignores (nohup, a shell's background job) stays ignored.
-    stops = [s for s in _CLEAN_EXIT_SIGNALS if signal.getsignal(s) is not signal.SIG_IGN]
+    # SIGINT, SIGHUP, SIGQUIT and SIGTERM (Windows: SIGINT, SIGTERM and SIGBREAK; base/portable.py)
+    # end the run: an exception that unwinds through the atomic writer, which removes its private
+    # folders (no partial output, no leftover); one that Python swallowed is raised again before
+    # anything is published (base/interrupt.py). A signal the caller ignores (nohup, a shell's
+    # background job) stays ignored.
+    stops = [s for s in portable.stop_signals() if signal.getsignal(s) is not signal.SIG_IGN]
     with interrupt.handled(stops), warnings.catch_warnings():
         warnings.simplefilter("always", M3C2Warning)
         warnings.showwarning = _show_warning
@@ -78,8 +75,9 @@ def main(argv=None) -> int:
 def _interrupted(stop: BaseException) -> int:
     """A stop (SIGINT, SIGTERM, ...): before any output was published, nothing was written (exit
     1). After one was, the run stops there: what it published is whole (io/atomic.py) and said,
-    and the process ends by the signal itself, as a stopped program does. A stop a step reworded
-    (a series store's: what it kept) is said as it is."""
+    and the process ends by the signal itself, as a stopped program does (without POSIX signals,
+    Windows: exit status 128 + the signal's number, as a shell reports it). A stop a step
+    reworded (a series store's: what it kept) is said as it is."""
     generic = re.fullmatch(r"interrupted by (\w+); no output written", str(stop))
     name = "SIGINT" if isinstance(stop, KeyboardInterrupt) and not str(stop) else generic and generic.group(1)
     written = interrupt.published()
@@ -90,9 +88,10 @@ def _interrupted(stop: BaseException) -> int:
     print(f"m3c2: error: interrupted by {name} after writing {', '.join(map(str, written))} (whole); "
           f"nothing after it was written", file=sys.stderr)
     sys.stderr.flush()
-    number = getattr(signal, name)
-    signal.signal(number, signal.SIG_DFL)
-    os.kill(os.getpid(), number)
+    number = int(getattr(signal, name))
+    portable.end_by_signal(number)
+    if not portable.CAPS.posix_signals:
+        return 128 + number
     return 1  # where the signal does not end the process (a caller that handles it itself)
 
 

@@ -8,6 +8,7 @@ from contextlib import contextmanager
 from pathlib import Path
 from typing import Iterator
 
+from ..base import portable
 from ..base.errors import CloudReadError, CloudWriteError, M3C2Error
 
 __all__ = ["library_message", "read_errors", "write_errors", "available_memory", "format_bytes"]
@@ -95,24 +96,15 @@ def _read_int(path: str) -> int | None:
     return int(text) if text.isdigit() else None  # "max" (no limit) -> None
 
 
-def _meminfo_available() -> int | None:
-    try:
-        with open("/proc/meminfo") as f:
-            for line in f:
-                if line.startswith("MemAvailable:"):
-                    return int(line.split()[1]) * 1024
-    except (OSError, ValueError, IndexError):
-        pass
-    return None
-
-
 def available_memory() -> int | None:
     """Bytes of memory a new allocation can still get, or None when unknown.
 
     ``$M3C2_AVAILABLE_MEMORY`` (bytes) wins when set. Otherwise the system's available memory:
     ``MemAvailable`` of /proc/meminfo (free memory plus reclaimable page cache), else
     ``SC_AVPHYS_PAGES * SC_PAGE_SIZE`` (free pages only), capped by the cgroup's limit minus
-    its usage (``/sys/fs/cgroup/memory.max`` - ``memory.current``, or the cgroup v1 files).
+    its usage (``/sys/fs/cgroup/memory.max`` - ``memory.current``, or the cgroup v1 files: absent
+    outside Linux, and then not read). Both system sources are base/portable.py's; where neither
+    answers (Windows), None: the in-memory check is skipped unless ``$M3C2_AVAILABLE_MEMORY`` says.
     """
     override = os.environ.get(MEMORY_ENV, "").strip()
     if override:
@@ -120,12 +112,9 @@ def available_memory() -> int | None:
             return max(int(float(override)), 0)
         except ValueError:
             pass
-    available = _meminfo_available()
+    available = portable.meminfo_available()
     if available is None:
-        try:
-            available = os.sysconf("SC_AVPHYS_PAGES") * os.sysconf("SC_PAGE_SIZE")
-        except (AttributeError, ValueError, OSError):
-            available = None
+        available = portable.free_pages_bytes()
     for limit_file, usage_file in _CGROUP_FILES:
         limit = _read_int(limit_file)
         if limit is None or limit >= 1 << 60:  # v1 writes a huge number for "no limit"

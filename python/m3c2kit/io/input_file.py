@@ -17,6 +17,7 @@ import stat
 from pathlib import Path
 from typing import Callable
 
+from ..base import portable
 from ..base.errors import M3C2Error, UsageError
 from .guard import format_bytes
 
@@ -66,7 +67,7 @@ def os_error_message(err: OSError) -> str:
 def _open_regular(path, label: str, error: Callable[[str], M3C2Error], directory_note: str) -> int:
     """An open read-only descriptor of `path`, a regular file; else `error` naming `label`."""
     try:
-        fd = os.open(path, os.O_RDONLY | getattr(os, "O_NONBLOCK", 0) | getattr(os, "O_CLOEXEC", 0))
+        fd = os.open(path, os.O_RDONLY | portable.O_NONBLOCK | portable.O_CLOEXEC | portable.O_BINARY)
     except FileNotFoundError:
         raise error(f"{label}: no such file") from None
     except IsADirectoryError:
@@ -83,7 +84,7 @@ def _open_regular(path, label: str, error: Callable[[str], M3C2Error], directory
             raise error(f"{label}: is a directory, {directory_note}")
         if not stat.S_ISREG(mode):  # a FIFO, socket or device: reading could block or never end
             raise error(f"{label}: not a regular file")
-        os.set_blocking(fd, True)  # a regular file: plain reads from here
+        portable.unblock(fd)  # a regular file: plain reads from here
     except BaseException:
         os.close(fd)
         raise

@@ -3,13 +3,13 @@ merge chunk hold, the tile size a memory limit allows, and the in-memory run's o
 engine's index memory per point, engine.INDEX_MEMORY)."""
 from __future__ import annotations
 
-import functools
 import re
 from dataclasses import dataclass
 
 import numpy as np
 
 from .. import engine
+from ..base import portable
 from ..base.errors import M3C2Error, UsageError
 from ..io.arrays import bounds
 from ..io.guard import available_memory, format_bytes
@@ -121,20 +121,10 @@ def plan_memory(limit: int, resident: int, chunk_size: int = DEFAULT_CHUNK) -> M
                       merge_rows=_chunk_rows(budget, MERGE_BYTES_PER_ROW, chunk_size))
 
 
-@functools.lru_cache(maxsize=1)
-def _malloc_trim():
-    """glibc's malloc_trim, or None where there is no glibc."""
-    try:
-        import ctypes
-        return ctypes.CDLL("libc.so.6").malloc_trim
-    except (OSError, AttributeError):
-        return None
-
-
 def release_memory() -> None:
     """Hands the allocator's free pages back to the system between phases (glibc), so that one
     phase's freed buffers do not stay resident under the next phase's peak."""
-    trim = _malloc_trim()
+    trim = portable.malloc_trim()
     if trim is not None:
         trim(0)
 
@@ -143,15 +133,8 @@ def release_memory() -> None:
 
 
 def rss_bytes() -> int:
-    """This process's resident size (VmRSS), 0 where /proc is not there."""
-    try:
-        with open("/proc/self/status") as f:
-            for line in f:
-                if line.startswith("VmRSS:"):
-                    return int(line.split()[1]) * 1024
-    except OSError:
-        pass
-    return 0
+    """This process's resident size (VmRSS), 0 where /proc is not there (base/portable.py)."""
+    return portable.resident_bytes()
 
 
 def density(source: PointSource, chunk_size: int) -> tuple[int, float]:

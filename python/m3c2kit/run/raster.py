@@ -29,6 +29,7 @@ from pathlib import Path
 import numpy as np
 
 from .. import engine
+from ..base import portable
 from ..base.errors import CloudWriteError, M3C2Error, UsageError
 from ..io.arrays import bounds
 from ..io.quantised import as_float32
@@ -249,7 +250,7 @@ def _copy_out(memory, path, target) -> None:
     which may be a temporary (docs/errors.md, "Output")."""
     memory.seek(0)
     try:
-        fd = os.open(path, os.O_WRONLY | os.O_CREAT | os.O_TRUNC | os.O_NOFOLLOW, 0o666)
+        fd = portable.open_nofollow(path, os.O_WRONLY | os.O_CREAT | os.O_TRUNC, 0o666)
         try:
             while True:
                 chunk = memoryview(memory.read(_COPY_CHUNK))
