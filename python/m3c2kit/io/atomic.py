@@ -15,7 +15,9 @@ the umask's default) and fsynced, renamed onto its target from that descriptor t
 folder's, and the target's folder fsynced. A failure removes every private folder (through its
 descriptor) and leaves each target as it was. A private folder a killed run left behind is removed
 by the next run writing there once its lock is free (:func:`remove_stale`): proof that no process,
-in any container or on any NFS client, still writes in it.
+in any container or on any NFS client, still writes in it. Where folders cannot be held as
+descriptors (Windows; base/portable.py), the same steps go by name, each after checking that the
+names still lead to the folders first opened (docs/architecture.md, "Portability").
 """
 from __future__ import annotations
 
@@ -27,7 +29,7 @@ from contextlib import ExitStack, contextmanager
 from pathlib import Path
 from typing import Iterator
 
-from ..base import interrupt
+from ..base import interrupt, portable
 from ..base.errors import CloudWriteError, M3C2Error, UsageError
 from ..base.fault_hook import checkpoint as fault_checkpoint
 from .collisions import refuse_special
@@ -52,33 +54,27 @@ def _umask_mode(bits: int) -> int:
 def _final_mode(folder: PrivateFolder, target: Path) -> int:
     # The replaced file's permissions, else those a plain open() would give (the folder's are 0700).
     try:
-        return os.stat(target.name, dir_fd=folder.parent_fd).st_mode & 0o7777
+        return folder.parent.stat_name(target.name).st_mode & 0o7777
     except OSError:
         return _umask_mode(0o666)
 
 
 def _seal(folder: PrivateFolder, name: str, target: Path) -> None:
     """Final mode and fsync through one descriptor opened in the private folder without following
-    a link; only a regular file is ever renamed onto a target."""
+    a link; only a regular file is ever renamed onto a target. Where the folder is held by name
+    (base/portable.py), read-write: Windows flushes only a descriptor open for writing."""
+    held = folder.folder
     try:
-        fd = os.open(name, os.O_RDONLY | os.O_NOFOLLOW | os.O_CLOEXEC, dir_fd=folder.fd)
+        fd = held.open(name, os.O_RDONLY if held.held else os.O_RDWR)
     except FileNotFoundError:
         raise CloudWriteError(f"{target}: was not written") from None
     try:
         if not stat.S_ISREG(os.fstat(fd).st_mode):
             raise CloudWriteError(f"{target}: was not written as a file")
-        os.fchmod(fd, _final_mode(folder, target))
+        portable.chmod_open(fd, _final_mode(folder, target), os.path.join(held.pinned(), name))
         os.fsync(fd)
     finally:
         os.close(fd)
-
-
-def _fsync_dir(fd: int) -> None:
-    # Makes the rename itself durable; not every filesystem allows fsync on a directory.
-    try:
-        os.fsync(fd)
-    except OSError:
-        pass
 
 
 def _public(text: str, staged: dict[Path, Path], folders: dict[Path, PrivateFolder]) -> str:
@@ -135,8 +131,8 @@ def staged_outputs(targets) -> Iterator[dict[Path, Path]]:
             with interrupt.deferred():  # every target replaced, or none: a stop waits for the last
                 for target, tmp in staged.items():
                     folder = folders[target]
-                    os.replace(tmp.name, target.name, src_dir_fd=folder.fd, dst_dir_fd=folder.parent_fd)
-                    _fsync_dir(folder.parent_fd)
+                    folder.folder.replace(tmp.name, folder.parent, target.name)
+                    folder.parent.fsync()  # the rename itself made durable, where a folder can be fsynced
                 interrupt.note_published(staged)
         except OSError as e:
             target = next((t for t, tmp in staged.items() if e.filename in (str(tmp), tmp, tmp.name)), None)
@@ -176,11 +172,36 @@ def refuse_occupied(target: Path) -> None:
         raise _occupied(target)
 
 
+def _rename_onto(folder: PrivateFolder, target: Path) -> None:
+    """rename(2) of the private folder onto `target`, which replaces an empty folder atomically.
+    Where a rename cannot replace a folder (Windows: EEXIST), an empty one at `target` is removed
+    first (not atomic: a folder another process makes there in between is refused as occupied);
+    POSIX answers EEXIST only for a folder with entries, so there the second try never runs."""
+    try:
+        folder.parent.rename(folder.name, folder.parent, target.name)
+        return
+    except OSError as e:
+        if e.errno != errno.EEXIST or not _empty_folder(folder, target):
+            raise
+    folder.parent.rmdir(target.name)
+    folder.parent.rename(folder.name, folder.parent, target.name)
+
+
+def _empty_folder(folder: PrivateFolder, target: Path) -> bool:
+    try:
+        if not stat.S_ISDIR(folder.parent.lstat(target.name).st_mode):
+            return False
+        with folder.parent.subfolder(target.name) as held:
+            return not held.listdir()
+    except OSError:
+        return False
+
+
 def _publish(folder: PrivateFolder, target: Path) -> None:
     """Renames the private folder onto `target` (absent or an empty folder: rename(2) replaces
     one atomically), its lock file removed, its mode that of a plain mkdir."""
     interrupt.check()  # a stop Python swallowed while the folder was filled: it is not published
-    os.fchmod(folder.fd, _umask_mode(0o777))
+    folder.folder.chmod(_umask_mode(0o777))
     folder.check()
     folder.unlock()
     # A folder is renamed by name (no call renames a descriptor): the name is checked to be ours
@@ -188,13 +209,13 @@ def _publish(folder: PrivateFolder, target: Path) -> None:
     folder.check_name()
     with interrupt.deferred():  # renamed and recorded as published, or not renamed at all
         try:
-            os.rename(folder.name, target.name, src_dir_fd=folder.parent_fd, dst_dir_fd=folder.parent_fd)
+            _rename_onto(folder, target)
         except OSError as e:
             if e.errno in (errno.ENOTEMPTY, errno.EEXIST, errno.ENOTDIR, errno.EISDIR):
                 raise _occupied(target) from None
             raise CloudWriteError(f"{target}: cannot create: {describe(e)}") from None
         folder.published(target.name)
-        _fsync_dir(folder.parent_fd)
+        folder.parent.fsync()
         interrupt.note_published([target])
 
 

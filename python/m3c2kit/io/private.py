@@ -7,22 +7,24 @@ path handed to writers that insist on a path is ``/proc/self/fd/<fd>/...``, whic
 through the held descriptor, so someone who can write in the user's folder and renames ours away
 (or puts a folder of their own with links in it under its name) redirects nothing.
 
-Where ``/proc/self/fd`` does not exist (not Linux), writers get the folder's name, and the folder's
+Where ``/proc/self/fd`` does not exist (macOS), writers get the folder's name, and the folder's
 identity is checked when its files are sealed: a folder whose name no longer leads to our inode
-stops the run with a clear error before anything is renamed onto an output.
+stops the run with a clear error before anything is renamed onto an output. Where folders cannot be
+held as descriptors at all (Windows; base/portable.py), every call goes by name after that same
+identity check (docs/architecture.md, "Portability").
 
 A killed run's folder is removed by the next run writing in that folder, on proof only: every
 private folder holds LOCK_NAME, locked (``fcntl.lockf``, a POSIX record lock: honoured across PID
-namespaces and over NFS, dropped by the kernel when its holder dies, even by SIGKILL) by its live
-writer for the folder's whole life. A folder whose lock this process can take is abandoned; one
-whose lock is held, or that has no lock file (an older version's, or one being made), is left
-alone. Nothing is followed: every open is ``O_NOFOLLOW``. POSIX locks drop when ANY descriptor of
-the file closes in the holding process, so this process never opens the lock file of a folder it
-owns (OWN, by inode).
+namespaces and over NFS, dropped by the kernel when its holder dies, even by SIGKILL; Windows:
+msvcrt's byte lock) by its live writer for the folder's whole life. A folder whose lock this
+process can take is abandoned; one whose lock is held, or that has no lock file (an older
+version's, or one being made), is left alone; where files cannot be locked at all, no folder is
+ever proven abandoned, and none is removed. Nothing is followed: every open is ``O_NOFOLLOW`` (or
+its checked stand-in). POSIX locks drop when ANY descriptor of the file closes in the holding
+process, so this process never opens the lock file of a folder it owns (OWN, by inode).
 """
 from __future__ import annotations
 
-import fcntl
 import os
 import re
 import secrets
@@ -31,33 +33,33 @@ from contextlib import contextmanager
 from pathlib import Path
 from typing import Iterator
 
+from ..base import portable
 from ..base.errors import CloudWriteError, M3C2Error
+from ..base.portable import Folder
 
-__all__ = ["PRIVATE_PREFIX", "LOCK_NAME", "PINNABLE", "PrivateFolder", "private_folder", "pinned_directory",
+__all__ = ["PRIVATE_PREFIX", "LOCK_NAME", "pinnable", "PrivateFolder", "private_folder", "pinned_directory",
            "remove_stale", "remove_tree", "public_name", "renamed", "describe"]
 
 PRIVATE_PREFIX = ".m3c2-tmp-"
 LOCK_NAME = ".m3c2-tmp-lock"
-#: Whether a path can resolve through a held descriptor (Linux's /proc/self/fd).
-PINNABLE = os.path.isdir("/proc/self/fd")
+#: What a live writer's lock file holds where locks are msvcrt's: emptied before the lock is let go,
+#: so a sweep never takes a folder about to be published for an abandoned one (Windows cannot
+#: remove an open file, so the file is removed after its lock is let go, not before).
+_LIVE = b"live"
 
-_DIR_FLAGS = os.O_RDONLY | os.O_DIRECTORY | os.O_CLOEXEC
 _OWN: set[tuple[int, int]] = set()  # (st_dev, st_ino) of the private folders this process holds
 _SHOWN: dict[str, str] = {}  # pinned path -> the user's name of it, while pinned
 
 
-def _identity(st: os.stat_result) -> tuple[int, int]:
-    return st.st_dev, st.st_ino
-
-
-def _pinned_path(fd: int) -> str:
-    return f"/proc/self/fd/{fd}"
+def pinnable() -> bool:
+    """Whether a path can resolve through a held descriptor (Linux's /proc/self/fd)."""
+    return portable.CAPS.fd_paths and portable.CAPS.folder_fds
 
 
 def public_name(text: str) -> str:
     """`text` with every pinned path (/proc/self/fd/N, held now) written as the user's name of it:
     a writer given a pinned path names it in its errors, the user never saw it."""
-    if not _SHOWN or "/proc/self/fd/" not in text:
+    if not _SHOWN or portable.FD_PATH_PREFIX not in text:
         return text
     pattern = "|".join(re.escape(p) for p in sorted(_SHOWN, key=len, reverse=True))
     return re.sub(f"(?:{pattern})(?!\\d)", lambda m: _SHOWN[m.group(0)], text)
@@ -79,106 +81,130 @@ def describe(err: OSError) -> str:
     return err.strerror or str(err)
 
 
-def remove_tree(fd: int) -> None:
-    """Empties the folder open at `fd`, descending through descriptors and never following a link."""
-    for name in os.listdir(fd):
+def remove_tree(folder: Folder) -> None:
+    """Empties the held `folder`, descending through held folders and never following a link."""
+    for name in folder.listdir():
         try:
-            st = os.stat(name, dir_fd=fd, follow_symlinks=False)
+            st = folder.lstat(name)
             if stat.S_ISDIR(st.st_mode):
-                sub = os.open(name, _DIR_FLAGS | os.O_NOFOLLOW, dir_fd=fd)
-                try:
+                with folder.subfolder(name) as sub:
                     remove_tree(sub)
-                finally:
-                    os.close(sub)
-                os.rmdir(name, dir_fd=fd)
+                folder.rmdir(name)
             else:
-                os.unlink(name, dir_fd=fd)
+                folder.unlink(name)
         except OSError:
             pass  # gone already, or not ours to remove: the folder's rmdir then fails and it stays
 
 
-def _rmdir_if_same(parent_fd: int, name: str, identity: tuple[int, int]) -> None:
+def _rmdir_if_same(parent: Folder, name: str, identity: tuple[int, int]) -> None:
     """Removes the (emptied) folder `name` only while that name still is the inode we emptied."""
     try:
-        if _identity(os.stat(name, dir_fd=parent_fd, follow_symlinks=False)) == identity:
-            os.rmdir(name, dir_fd=parent_fd)
+        if portable.identity(parent.lstat(name)) == identity:
+            parent.rmdir(name)
     except OSError:
         pass
 
 
-def _sweep(parent_fd: int) -> None:
-    """Removes the private folders in the folder open at `parent_fd` that are proven abandoned."""
+def _abandoned(lock: int) -> bool:
+    """Whether the lock file open at `lock` proves its folder abandoned: its lock can be taken
+    (and, with msvcrt's locks, it still says its writer was live: an emptied one was let go by a
+    writer about to publish its folder)."""
+    if not stat.S_ISREG(os.fstat(lock).st_mode):
+        return False
+    if not portable.CAPS.record_locks and portable.read_at(lock, len(_LIVE), 0) != _LIVE:
+        return False
     try:
-        names = [n for n in os.listdir(parent_fd) if n.startswith(PRIVATE_PREFIX)]
+        return portable.try_lock(lock)
+    except OSError:
+        return False
+
+
+def _sweep(parent: Folder) -> None:
+    """Removes the private folders in the held `parent` that are proven abandoned. Where files
+    cannot be locked, nothing proves it: nothing is removed."""
+    if not portable.kernel_locks():
+        return
+    try:
+        names = [n for n in parent.listdir() if n.startswith(PRIVATE_PREFIX)]
     except OSError:
         return
     for name in names:
         try:
-            fd = os.open(name, _DIR_FLAGS | os.O_NOFOLLOW, dir_fd=parent_fd)
+            sub = parent.subfolder(name)
         except OSError:
             continue  # a link (ELOOP), not a folder, gone, or not ours to enter
         try:
-            identity = _identity(os.fstat(fd))
-            if identity in _OWN:
-                continue  # ours: opening its lock file would drop our own lock
-            try:
-                lock = os.open(LOCK_NAME, os.O_RDWR | os.O_NOFOLLOW | os.O_CLOEXEC, dir_fd=fd)
-            except OSError:
-                continue  # no lock file: an older version's folder, or one being made
-            try:
-                if not stat.S_ISREG(os.fstat(lock).st_mode):
-                    continue
-                try:
-                    fcntl.lockf(lock, fcntl.LOCK_EX | fcntl.LOCK_NB)
-                except OSError:
-                    continue  # held: its writer is alive (on this host, in a container, over NFS)
-                remove_tree(fd)
-                _rmdir_if_same(parent_fd, name, identity)
-            finally:
-                os.close(lock)
+            if sub.identity not in _OWN:  # ours: opening its lock file would drop our own lock
+                _remove_if_abandoned(parent, name, sub)
         finally:
-            os.close(fd)
+            sub.close()
+
+
+def _remove_if_abandoned(parent: Folder, name: str, sub: Folder) -> None:
+    try:
+        lock = sub.open(LOCK_NAME, os.O_RDWR)
+    except OSError:
+        return  # no lock file: an older version's folder, or one being made
+    try:
+        if not _abandoned(lock):
+            return  # held: its writer is alive (on this host, in a container, over NFS)
+        try:
+            remove_tree(sub)
+        except OSError:
+            pass
+        _rmdir_if_same(parent, name, sub.identity)
+    finally:
+        os.close(lock)
+    if portable.CAPS.record_locks:
+        return
+    try:  # an open file cannot be removed there (Windows): the lock file, then the folder, now
+        sub.unlink(LOCK_NAME)
+    except OSError:
+        return
+    _rmdir_if_same(parent, name, sub.identity)
 
 
 def remove_stale(directory: Path) -> None:
     """Removes the private folders in `directory` that are proven abandoned (their lock is free)."""
     try:
-        parent = os.open(directory, _DIR_FLAGS)
+        parent = Folder(directory)
     except OSError:
         return
     try:
         _sweep(parent)
     finally:
-        os.close(parent)
+        parent.close()
 
 
 class PrivateFolder:
-    """A private folder, held: `parent_fd` (the user's folder), `fd` (ours), `lock_fd` (its lock).
+    """A private folder, held: `parent` (the user's folder), `folder` (ours), `lock_fd` (its lock).
 
-    `path`: where writers write (pinned through `fd` where possible); `directory`: the user's
-    folder, as the user named it (for messages)."""
+    `path`: where writers write (pinned through its descriptor where possible); `directory`: the
+    user's folder, as the user named it (for messages)."""
 
     def __init__(self, directory: Path, label: Path):
         self.directory, self.label = Path(directory), label
-        self.parent_fd = self._open_parent()
-        self.fd = self.lock_fd = -1
+        self.parent = self._open_parent()
+        self.folder: Folder | None = None
+        self.lock_fd = -1
+        self.locked_by_record = portable.CAPS.record_locks  # the lock's kind, as taken
         self.kept = False  # renamed onto its target (staged_directory): never removed then
         try:
-            _sweep(self.parent_fd)
+            _sweep(self.parent)
             self.name = self._make()
             replaced = CloudWriteError(f"{label}: cannot write in {str(self.directory)!r}: its private work folder "
                                        f"was replaced by someone else before it was used")
             try:
-                self.fd = os.open(self.name, _DIR_FLAGS | os.O_NOFOLLOW, dir_fd=self.parent_fd)
+                self.folder = self.parent.subfolder(self.name)
             except OSError:  # a link, a file or nothing under its name: not ours
                 raise replaced from None
-            st = os.fstat(self.fd)
+            st = self.folder.stat()
             # Renamed away and replaced between mkdir and open: that folder is not ours to use.
-            if not stat.S_ISDIR(st.st_mode) or st.st_uid != os.geteuid():
+            if not stat.S_ISDIR(st.st_mode) or not portable.owned(st):
                 raise replaced
             if stat.S_IMODE(st.st_mode) != 0o700:  # a umask that removes owner bits
-                os.fchmod(self.fd, 0o700)
-            self.identity = _identity(st)
+                self.folder.chmod(0o700)
+            self.identity = self.folder.identity
             _OWN.add(self.identity)
             try:
                 self.lock_fd = self._lock()
@@ -187,13 +213,20 @@ class PrivateFolder:
         except BaseException:
             self.close(remove=True)
             raise
-        self.path = Path(_pinned_path(self.fd)) if PINNABLE else self.directory / self.name
-        if PINNABLE:
-            _SHOWN[str(self.path)] = str(self.directory)
+        pinned = self.folder.pinned()
+        self.pinned = pinned != self.folder.path
+        self.path = Path(pinned) if self.pinned else self.directory / self.name
+        if self.pinned:
+            _SHOWN[pinned] = str(self.directory)
 
-    def _open_parent(self) -> int:
+    @property
+    def fd(self) -> int:
+        """The private folder's descriptor, -1 where folders are held by name."""
+        return self.folder.fd if self.folder is not None else -1
+
+    def _open_parent(self) -> Folder:
         try:
-            return os.open(self.directory, _DIR_FLAGS)  # a link the user chose is followed
+            return Folder(self.directory)  # a link the user chose is followed
         except FileNotFoundError:
             raise CloudWriteError(f"{self.label}: cannot write: directory {str(self.directory)!r} "
                                   f"does not exist") from None
@@ -206,7 +239,7 @@ class PrivateFolder:
         for _ in range(100):
             name = PRIVATE_PREFIX + secrets.token_hex(8)
             try:
-                os.mkdir(name, 0o700, dir_fd=self.parent_fd)
+                self.parent.mkdir(name, 0o700)
                 return name
             except FileExistsError:
                 continue
@@ -217,13 +250,29 @@ class PrivateFolder:
                               f"private work folder")
 
     def _lock(self) -> int:
-        # Locked under a name of its own, then renamed to LOCK_NAME: a sweeping process never
-        # finds LOCK_NAME unlocked while this one lives.
-        name = f"{LOCK_NAME}.{secrets.token_hex(4)}"
-        fd = os.open(name, os.O_RDWR | os.O_CREAT | os.O_EXCL | os.O_NOFOLLOW | os.O_CLOEXEC, 0o600, dir_fd=self.fd)
+        exclusive = os.O_RDWR | os.O_CREAT | os.O_EXCL
+        if self.locked_by_record:
+            # Locked under a name of its own, then renamed to LOCK_NAME: a sweeping process never
+            # finds LOCK_NAME unlocked while this one lives.
+            name = f"{LOCK_NAME}.{secrets.token_hex(4)}"
+            fd = self.folder.open(name, exclusive, 0o600)
+            try:
+                if not portable.try_lock(fd):
+                    raise OSError(f"{name}: locked by another process as it was made")
+                self.folder.replace(name, self.folder, LOCK_NAME)
+            except BaseException:
+                os.close(fd)
+                raise
+            return fd
+        # msvcrt's locks (Windows cannot rename an open file): made under its name, then locked and
+        # marked live (_abandoned); a sweep that comes in between finds it unmarked and leaves it.
+        # Without any lock: the file only says what the folder is; no sweep removes it.
+        fd = self.folder.open(LOCK_NAME, exclusive, 0o600)
         try:
-            fcntl.lockf(fd, fcntl.LOCK_EX)
-            os.replace(name, LOCK_NAME, src_dir_fd=self.fd, dst_dir_fd=self.fd)
+            if portable.kernel_locks():
+                if not portable.try_lock(fd):
+                    raise OSError(f"{LOCK_NAME}: locked by another process as it was made")
+                portable.write_at(fd, _LIVE, 0)
         except BaseException:
             os.close(fd)
             raise
@@ -231,14 +280,14 @@ class PrivateFolder:
 
     def _named_ours(self, name: str) -> bool:
         try:
-            return _identity(os.stat(name, dir_fd=self.parent_fd, follow_symlinks=False)) == self.identity
+            return portable.identity(self.parent.lstat(name)) == self.identity
         except OSError:
             return False
 
     def check(self) -> None:
         """Without pinned paths: refuses when the folder's name no longer leads to our folder (with
         them, writes went through the descriptor and the name does not matter)."""
-        if not PINNABLE:
+        if not self.pinned:
             self.check_name()
 
     def check_name(self) -> None:
@@ -255,34 +304,50 @@ class PrivateFolder:
                                   f"swapped by someone else as it was renamed; what is at {self.label} is not this "
                                   f"run's output")
         self.name, self.kept = name, True
+        if self.folder is not None and not self.folder.held:
+            self.folder.path = os.path.join(self.parent.path, name)  # held by name: its name now
 
     def unlock(self) -> None:
-        """Removes the lock file, then lets the lock go (the folder is about to become an output)."""
-        if self.lock_fd >= 0:
-            os.unlink(LOCK_NAME, dir_fd=self.fd)
+        """Removes the lock file and lets the lock go (the folder is about to become an output)."""
+        if self.lock_fd < 0:
+            return
+        if self.locked_by_record:
+            self.folder.unlink(LOCK_NAME)
             os.close(self.lock_fd)
-            self.lock_fd = -1
+        else:  # an open file cannot be removed there: unmarked first, so no sweep takes it meanwhile
+            os.ftruncate(self.lock_fd, 0)
+            os.close(self.lock_fd)
+            self.folder.unlink(LOCK_NAME)
+        self.lock_fd = -1
 
     def close(self, remove: bool) -> None:
         """Closes every descriptor; with `remove`, first removes the folder through them."""
-        if self.fd >= 0:
+        folder = self.folder
+        if folder is not None:
             if remove and not self.kept and hasattr(self, "identity"):  # only a folder proven ours
                 try:
-                    remove_tree(self.fd)
+                    remove_tree(folder)
                 except OSError:
                     pass
-                _rmdir_if_same(self.parent_fd, self.name, self.identity)
-            _SHOWN.pop(_pinned_path(self.fd), None)
-            os.close(self.fd)
-            self.fd = -1
+                if not self.locked_by_record and self.lock_fd >= 0:  # the lock file stayed (open): now
+                    os.close(self.lock_fd)
+                    self.lock_fd = -1
+                    try:
+                        folder.unlink(LOCK_NAME)
+                    except OSError:
+                        pass
+                _rmdir_if_same(self.parent, self.name, self.identity)
+            _SHOWN.pop(folder.pinned(), None)
+            folder.close()
+            self.folder = None
         if self.lock_fd >= 0:
             os.close(self.lock_fd)  # after the folder's removal: the lock proves it alive until then
             self.lock_fd = -1
         if hasattr(self, "identity"):
             _OWN.discard(self.identity)
-        if self.parent_fd >= 0:
-            os.close(self.parent_fd)
-            self.parent_fd = -1
+        if self.parent is not None:
+            self.parent.close()
+            self.parent = None
 
 
 @contextmanager
@@ -303,20 +368,19 @@ def pinned_directory(path) -> Iterator[Path]:
     leads to the directory opened. An error raised inside names `path`, never the pinned path."""
     shown = os.fspath(path)
     try:
-        fd = os.open(shown, _DIR_FLAGS)
+        folder = Folder(shown)
     except FileNotFoundError:
         raise CloudWriteError(f"{shown}: no such directory") from None
     except NotADirectoryError:
         raise CloudWriteError(f"{shown}: is not a directory") from None
     except OSError as e:
         raise CloudWriteError(f"{shown}: cannot open: {describe(e)}") from None
-    pinned = _pinned_path(fd)
+    pinned = folder.pinned()
     try:
-        if not PINNABLE:
-            identity = _identity(os.fstat(fd))
+        if pinned == folder.path:
             yield Path(shown)
             try:
-                same = _identity(os.stat(shown)) == identity
+                same = portable.identity(os.stat(shown)) == folder.identity
             except OSError:
                 same = False
             if not same:
@@ -332,4 +396,4 @@ def pinned_directory(path) -> Iterator[Path]:
             raise public from e.__cause__
     finally:
         _SHOWN.pop(pinned, None)
-        os.close(fd)
+        folder.close()

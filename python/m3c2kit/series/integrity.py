@@ -17,6 +17,8 @@ import shutil
 import stat
 from pathlib import Path
 
+from ..base import portable
+from ..base.portable import Folder
 from . import store as st
 from .store import StoreError
 
@@ -41,16 +43,16 @@ def rerun_command(group, name: str, store: Path) -> str:
 #: neither zarr nor xarray sees it.
 STAGING = ".m3c2-staging"
 
-_STAGED: dict[str, int] = {}  # a store folder -> the descriptor of the staging folder its step made
+_STAGED: dict[str, Folder] = {}  # a store folder -> the staging folder its step made, held
 
 
 def remove_staging(folder: Path) -> None:
     """Removes the staging folder of a step (or an interrupted one's). A link planted at its name
     is removed, never followed: rmtree refuses a link, so a step wrote its arrays through it and
     moved the store's previous variable into the link's target."""
-    fd = _STAGED.pop(os.fspath(folder), None)
-    if fd is not None:
-        os.close(fd)
+    held = _STAGED.pop(os.fspath(folder), None)
+    if held is not None:
+        held.close()
     path = Path(folder) / STAGING
     try:
         kind = os.lstat(path).st_mode
@@ -64,21 +66,21 @@ def remove_staging(folder: Path) -> None:
 
 def make_staging(folder: Path) -> Path:
     """The step's staging folder, made anew (0700) and pinned: the path returned resolves through a
-    descriptor (io.private.PINNABLE), so a folder or link swapped in under its name afterwards
-    receives nothing. staged_name() is the name of an array in it for a rename."""
-    from ..io.private import PINNABLE
+    descriptor (base.portable.Folder.pinned: /proc/self/fd), so a folder or link swapped in under
+    its name afterwards receives nothing (elsewhere its name: a link there is refused as it is
+    opened). staged_name() is the name of an array in it for a rename."""
     remove_staging(folder)
     path = Path(folder) / STAGING
     os.mkdir(path, 0o700)  # exclusive: one planted in between is an error, never used
-    fd = os.open(path, os.O_RDONLY | os.O_DIRECTORY | os.O_NOFOLLOW | os.O_CLOEXEC)
-    _STAGED[os.fspath(folder)] = fd
-    return Path(f"/proc/self/fd/{fd}") if PINNABLE else path
+    held = Folder(path, follow=False)
+    _STAGED[os.fspath(folder)] = held
+    return Path(held.pinned())
 
 
 def staged_name(folder: Path, name: str) -> Path:
     """The staged array `name` of make_staging(folder), by the pinned path while it is held."""
-    fd = _STAGED.get(os.fspath(folder))
-    return Path(f"/proc/self/fd/{fd}" if fd is not None else Path(folder) / STAGING) / name
+    held = _STAGED.get(os.fspath(folder))
+    return Path(held.pinned() if held is not None else Path(folder) / STAGING) / name
 
 
 def own_shape(folder: Path, name: str) -> tuple | None:
@@ -93,14 +95,8 @@ def own_shape(folder: Path, name: str) -> tuple | None:
 def regular_bytes(path: Path) -> bytes:
     """The bytes of `path` when it is a regular file (no link followed), else an OSError: a FIFO
     or a device planted in the store hung the reader that opened it (issue 42)."""
-    fd = os.open(path, os.O_RDONLY | os.O_NOFOLLOW | os.O_NONBLOCK | os.O_CLOEXEC)
-    try:
-        if not stat.S_ISREG(os.fstat(fd).st_mode):
-            raise OSError(f"{path} is not a regular file")
-        with os.fdopen(os.dup(fd), "rb") as f:
-            return f.read()
-    finally:
-        os.close(fd)
+    with os.fdopen(portable.regular_nofollow(path), "rb") as f:
+        return f.read()
 
 
 def _checksummed(group) -> bool:

@@ -17,8 +17,10 @@ import pytest
 
 from m3c2kit.base.errors import CloudWriteError, UsageError
 from m3c2kit.io.atomic import PRIVATE_PREFIX, atomic_output, pinned_directory, staged_directory, staged_outputs
-from m3c2kit.io.private import LOCK_NAME, PINNABLE
+from m3c2kit.base import portable
+from m3c2kit.io.private import LOCK_NAME, pinnable
 from child_env import child_env
+from posix_paths import needs
 
 
 @pytest.mark.slow
@@ -84,6 +86,7 @@ def test_a_failure_leaves_every_target_and_no_folder(tmp_path):
     assert sorted(p.name for p in tmp_path.iterdir()) == ["a.csv"]
 
 
+@needs("kernel_locks", why="a killed run's private folder is never proven abandoned, so it stays")
 def test_a_killed_runs_private_folder_is_removed_by_the_next_run(tmp_path):
     # A child creates its private folder and is killed (SIGKILL: nothing can clean up).
     code = ("import os, sys\nfrom m3c2kit.io.atomic import atomic_output\n"
@@ -121,6 +124,7 @@ def _private(folder: Path) -> list[str]:
     return sorted(p.name for p in folder.iterdir() if p.name.startswith(PRIVATE_PREFIX))
 
 
+@needs("kernel_locks", "folder_fds", why="a live run whose folder is renamed away stops (its writes went by name)")
 def test_a_live_runs_folder_survives_a_sweep_whatever_pid_its_name_holds(tmp_path):
     # The pid an older version put in the name says nothing about a run in another PID namespace
     # or on another NFS client: a name with a pid that is dead here must not condemn a live run.
@@ -138,6 +142,7 @@ def test_a_live_runs_folder_survives_a_sweep_whatever_pid_its_name_holds(tmp_pat
     assert (tmp_path / "live.csv").read_text() == "written by the live run\n"
 
 
+@needs("kernel_locks", why="no folder is proven abandoned, so none is removed")
 def test_an_abandoned_folder_is_removed_without_following_its_links(tmp_path):
     outside = tmp_path / "outside"
     outside.mkdir()
@@ -177,6 +182,7 @@ def test_a_folder_without_a_lock_and_links_named_as_private_folders_are_left_alo
 _LOCK_FREE = "import fcntl, os, sys\nfd = os.open(sys.argv[1], os.O_RDWR)\ntry:\n    fcntl.lockf(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)\nexcept OSError:\n    sys.exit(3)\n"
 
 
+@needs("record_locks", why="there is no lock to drop")
 def test_a_process_never_sweeps_its_own_folder_nor_drops_its_lock(tmp_path):
     # POSIX locks belong to the process: opening and closing its own folder's lock file would
     # drop it (and taking it would succeed), so the inner run must not even look at the outer's.
@@ -251,7 +257,7 @@ def test_staged_directory_leaves_nothing_when_its_body_fails(tmp_path, error):
     assert list(tmp_path.iterdir()) == []
 
 
-@pytest.mark.skipif(not PINNABLE, reason="pinned paths need /proc/self/fd (Linux)")
+@pytest.mark.skipif(not pinnable(), reason="pinned paths need /proc/self/fd (Linux)")
 def test_a_swapped_staging_folder_is_never_published(tmp_path):
     target = tmp_path / "store"
     with pytest.raises(CloudWriteError, match="replaced by someone else"):
@@ -274,11 +280,11 @@ def test_pinned_directory_writes_where_it_was_opened_and_names_the_users_path(tm
             store.mkdir()  # another folder under the name
             (pinned / "chunk").write_text("0")
             raise CloudWriteError(f"{pinned / 'chunk'}: bad chunk")
-    if PINNABLE:
+    if pinnable():
         assert (tmp_path / "moved" / "chunk").exists() and not (store / "chunk").exists()
         assert str(caught.value) == f"{store / 'chunk'}: bad chunk"
-    for missing, problem in ((tmp_path / "none", "no such directory"), (tmp_path / "moved" / "chunk",
-                                                                          "is not a directory")):
+    (tmp_path / "a-file").write_text("x")
+    for missing, problem in ((tmp_path / "none", "no such directory"), (tmp_path / "a-file", "is not a directory")):
         with pytest.raises(CloudWriteError) as caught:
             with pinned_directory(missing):
                 pass
@@ -294,8 +300,7 @@ def test_a_writers_error_names_the_target_never_a_pinned_path(tmp_path):
 
 
 def test_without_pinned_paths_a_swapped_folder_stops_the_run_before_any_rename(tmp_path, monkeypatch):
-    from m3c2kit.io import private
-    monkeypatch.setattr(private, "PINNABLE", False)  # as where /proc/self/fd does not exist
+    monkeypatch.setattr(portable, "CAPS", portable.CAPS._replace(fd_paths=False))  # as on macOS: no /proc/self/fd
     target = tmp_path / "out.csv"
     target.write_text("older")
     with pytest.raises(CloudWriteError) as caught:
