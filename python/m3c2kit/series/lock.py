@@ -13,12 +13,19 @@ The lock is held twice, and a writer needs both:
   (the documented fallback).
 The kernel releases both when the holder dies, even by SIGKILL, so a stale lock never needs
 removing. The file holds the holder's host, pid, step, UTC start and command, for the message
-of a refused writer. Zarr and xarray ignore it: it is no array or group (no zarr.json)."""
+of a refused writer. Zarr and xarray ignore it: it is no array or group (no zarr.json).
+
+Elsewhere (base/portable.py; docs/architecture.md, "Portability"): Windows has no flock, and
+msvcrt's byte lock on LOCK_NAME stands in for lockf (also dropped when the holder dies; Windows
+itself refuses to remove a file another process holds open, which the folder's lock guards
+against here). Where files cannot be locked at all (M3C2_PORTABLE_FALLBACKS=1), the lock is the
+file EXCLUSIVE_NAME, created exclusively (O_EXCL) and removed at release: a second writer is
+refused all the same, but a killed writer's file stays, and the next writer is refused until
+the user removes it (the message says so)."""
 from __future__ import annotations
 
 import datetime as dt
 import errno
-import fcntl
 import os
 import socket
 import stat
@@ -26,9 +33,12 @@ import sys
 import threading
 from pathlib import Path
 
+from ..base import portable
 from .store import StoreError
 
 LOCK_NAME = ".m3c2-lock"
+#: The lock file where files cannot be locked (base/portable.kernel_locks()): its existence is the lock.
+EXCLUSIVE_NAME = ".m3c2-lock-exclusive"
 #: (st_dev, st_ino) of the lock files this process holds -> their holder text. POSIX locks are the
 #: process's: a second acquire in this process (two API calls, two threads) would be granted, and
 #: its release, closing a descriptor of the file, would drop the first writer's lock too.
@@ -39,23 +49,29 @@ _HELD_GUARD = threading.Lock()
 class StoreLock:
     """The lock held on a store (acquire()); release() or leaving the `with` block lets it go."""
 
-    def __init__(self, fd: int, key: tuple[int, int], folder_fd: int = -1):
-        self.fd, self.key, self.folder_fd = fd, key, folder_fd
+    def __init__(self, fd: int, key: tuple[int, int], folder: "portable.Folder | None" = None,
+                 exclusive: Path | None = None):
+        self.fd, self.key, self.folder, self.exclusive = fd, key, folder, exclusive
 
     def release(self) -> None:
         if self.fd < 0:
             return
         with _HELD_GUARD:
             _HELD.pop(self.key, None)
+        if self.exclusive is not None:
+            os.close(self.fd)  # first: an open file cannot be removed on Windows
+            self.fd = -1
+            _remove_if_ours(self.exclusive, self.key)
+            return
         try:
             os.ftruncate(self.fd, 0)  # no holder any more: a stale text would mislead a reader
         except OSError:
             pass  # a full disk cannot refuse truncation, a read-only one is no reason to fail here
         os.close(self.fd)  # closing releases the lockf lock
         self.fd = -1
-        if self.folder_fd >= 0:
-            os.close(self.folder_fd)  # and this the folder's flock
-            self.folder_fd = -1
+        if self.folder is not None:
+            self.folder.close()  # and this the folder's flock
+            self.folder = None
 
     def __enter__(self):
         return self
@@ -71,49 +87,69 @@ def holder_text(step: str) -> str:
     return f"host {socket.gethostname()}, pid {os.getpid()}, step {step}, since {start} UTC, command: {command}"
 
 
+def lock_name() -> str:
+    """The name of the store's lock file here: LOCK_NAME where files can be locked, else EXCLUSIVE_NAME."""
+    return LOCK_NAME if portable.kernel_locks() else EXCLUSIVE_NAME
+
+
+def moves_with_folder() -> bool:
+    """Whether a lock taken inside a private folder stays held when the folder is renamed onto
+    its target (series create): POSIX locks do; Windows cannot rename a folder holding an open
+    file, so there (and in the forced fallbacks, which stand for it) the lock is taken after."""
+    return portable.CAPS.record_locks
+
+
 def acquire(folder: Path, step: str, shown: Path | None = None) -> StoreLock:
     """Locks the store at `folder` for `step`, or a StoreError naming the holder. `shown`: the
     store's path in messages (`folder` may be a pinned /proc/self/fd path)."""
     shown = folder if shown is None else shown
-    path = Path(folder) / LOCK_NAME
+    path = Path(folder) / lock_name()
     with _HELD_GUARD:
         return _acquire(path, step, shown)
 
 
-#: flock's answers where the file system cannot lock a folder (NFS, some FUSE): the file's lockf holds alone.
-_NO_FOLDER_LOCK = {errno.ENOLCK, errno.EBADF, errno.EINVAL, errno.EOPNOTSUPP, errno.ENOSYS}
+def _refused(shown, step: str, holder: str) -> StoreError:
+    return StoreError(f"{shown}: another m3c2 is writing this store ({holder or 'holder unknown'}); "
+                      f"run {step} again when it has finished")
 
 
-def _lock_folder(folder: Path, step: str, shown) -> int:
-    """The store folder's descriptor, flock-ed; -1 where the file system cannot lock a folder; a
-    StoreError naming the holder when another writer holds it."""
+def _lock_folder(folder: Path, step: str, shown) -> "portable.Folder | None":
+    """The store folder, held and flock-ed; None where a folder cannot be locked (no flock, or a
+    file system that refuses it); a StoreError naming the holder when another writer holds it."""
+    if not portable.CAPS.folder_locks:
+        return None
     try:
-        fd = os.open(folder, os.O_RDONLY | os.O_DIRECTORY | os.O_CLOEXEC)
+        held = portable.Folder(folder)
     except OSError as e:
         raise StoreError(f"{shown}: cannot open the store folder to lock it: {e.strerror}") from None
     try:
-        fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        taken = portable.lock_folder(held)
     except OSError as e:
-        os.close(fd)
-        if e.errno in _NO_FOLDER_LOCK:
-            return -1
-        if e.errno in (errno.EWOULDBLOCK, errno.EACCES):
-            raise StoreError(f"{shown}: another m3c2 is writing this store ({_holder(folder) or 'holder unknown'}); "
-                             f"run {step} again when it has finished") from None
+        held.close()
         raise StoreError(f"{shown}: cannot lock the store: {e.strerror}") from None
-    return fd
+    if not taken:
+        held.close()
+        if taken is None:
+            return None
+        raise _refused(shown, step, _holder(folder)) from None
+    return held
 
 
 def _holder(folder: Path) -> str:
     """The holder text of the store's lock file, '' when it cannot be read (removed, not a file)."""
     try:
-        fd = os.open(Path(folder) / LOCK_NAME, os.O_RDONLY | os.O_NOFOLLOW | os.O_NONBLOCK | os.O_CLOEXEC)
+        fd = portable.open_nofollow(Path(folder) / lock_name(), os.O_RDONLY | portable.O_NONBLOCK)
     except OSError:
         return ""
     try:
         return _read(fd) if stat.S_ISREG(os.fstat(fd).st_mode) else ""
     finally:
         os.close(fd)
+
+
+def _planted(shown, step: str, name: str) -> str:
+    return (f"{shown}: its lock file {name} is {{}}, which m3c2 never makes: nothing was written "
+            f"through it; move it away (it holds no data of the store) and run {step} again")
 
 
 def _acquire(path: Path, step: str, shown) -> StoreLock:
@@ -124,24 +160,25 @@ def _acquire(path: Path, step: str, shown) -> StoreLock:
     if existing is not None and (existing.st_dev, existing.st_ino) in _HELD:  # never opened: see _HELD
         raise StoreError(f"{shown}: another writing step of this process is writing this store "
                          f"({_HELD[existing.st_dev, existing.st_ino]}); run {step} again when it has finished")
-    folder_fd = _lock_folder(path.parent, step, shown)
+    if not portable.kernel_locks():
+        return _acquire_exclusive(path, step, shown, existing)
+    folder = _lock_folder(path.parent, step, shown)
     try:
-        return _acquire_file(path, step, shown, folder_fd)
+        return _acquire_file(path, step, shown, folder)
     except BaseException:
-        if folder_fd >= 0:
-            os.close(folder_fd)
+        if folder is not None:
+            folder.close()
         raise
 
 
-def _acquire_file(path: Path, step: str, shown, folder_fd: int) -> StoreLock:
-    planted = (f"{shown}: its lock file {LOCK_NAME} is {{}}, which m3c2 never makes: nothing was written "
-               f"through it; move it away (it holds no data of the store) and run {step} again")
+def _acquire_file(path: Path, step: str, shown, folder: "portable.Folder | None") -> StoreLock:
+    planted = _planted(shown, step, LOCK_NAME)
     try:
         # O_NOFOLLOW, O_NONBLOCK and the fstat below: the holder text truncates and rewrites the
         # file, so a link planted at its name (`.m3c2-lock -> /root/victim`) emptied its target.
-        fd = os.open(path, os.O_RDWR | os.O_CREAT | os.O_NOFOLLOW | os.O_NONBLOCK | os.O_CLOEXEC, 0o644)
+        fd = portable.open_nofollow(path, os.O_RDWR | os.O_CREAT | portable.O_NONBLOCK, 0o644)
     except OSError as e:
-        if e.errno == errno.ELOOP:
+        if e.errno == portable.ELOOP:
             raise StoreError(planted.format("a symbolic link")) from None
         raise StoreError(f"{shown}: cannot open its lock file {LOCK_NAME}: {e.strerror}") from None
     info = os.fstat(fd)
@@ -150,26 +187,70 @@ def _acquire_file(path: Path, step: str, shown, folder_fd: int) -> StoreLock:
         raise StoreError(planted.format("not a regular file" if not stat.S_ISREG(info.st_mode)
                                         else f"a hard link to another file ({info.st_nlink} names)"))
     try:
-        fcntl.lockf(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        taken = portable.try_lock(fd)
     except OSError as e:
+        os.close(fd)
+        raise StoreError(f"{shown}: cannot lock the store: {e.strerror}") from None
+    if not taken:
         holder = _read(fd)
         os.close(fd)
-        if e.errno in (errno.EACCES, errno.EAGAIN):
-            raise StoreError(f"{shown}: another m3c2 is writing this store ({holder or 'holder unknown'}); "
-                             f"run {step} again when it has finished") from None
-        raise StoreError(f"{shown}: cannot lock the store: {e.strerror}") from None
+        raise _refused(shown, step, holder)
     text = holder_text(step)
     try:
         os.ftruncate(fd, 0)
-        os.pwrite(fd, text.encode("utf-8", "replace"), 0)
+        portable.write_at(fd, text.encode("utf-8", "replace"), 0)
     except OSError:
         pass  # a full disk: the lock holds all the same, its holder text is only for messages
     _HELD[info.st_dev, info.st_ino] = text
-    return StoreLock(fd, (info.st_dev, info.st_ino), folder_fd)
+    return StoreLock(fd, (info.st_dev, info.st_ino), folder)
+
+
+def _acquire_exclusive(path: Path, step: str, shown, existing) -> StoreLock:
+    """The lock where files cannot be locked: EXCLUSIVE_NAME created exclusively (O_EXCL: never
+    through a link, never over another writer's file), the holder text in it."""
+    planted = _planted(shown, step, EXCLUSIVE_NAME)
+    try:
+        fd = portable.open_nofollow(path, os.O_RDWR | os.O_CREAT | os.O_EXCL, 0o644)
+    except FileExistsError:
+        try:
+            kind = os.lstat(path)
+        except OSError:
+            kind = None
+        if kind is not None and stat.S_ISLNK(kind.st_mode):
+            raise StoreError(planted.format("a symbolic link")) from None
+        if kind is not None and not stat.S_ISREG(kind.st_mode):
+            raise StoreError(planted.format("not a regular file")) from None
+        if kind is not None and kind.st_nlink != 1:
+            raise StoreError(planted.format(f"a hard link to another file ({kind.st_nlink} names)")) from None
+        raise StoreError(f"{shown}: another m3c2 is writing this store ({_holder(path.parent) or 'holder unknown'}); "
+                         f"run {step} again when it has finished; if none is (a writer was killed: this system "
+                         f"cannot lock files), remove {path} first") from None
+    except OSError as e:
+        if e.errno == portable.ELOOP:
+            raise StoreError(planted.format("a symbolic link")) from None
+        raise StoreError(f"{shown}: cannot create its lock file {EXCLUSIVE_NAME}: {e.strerror}") from None
+    info = os.fstat(fd)
+    text = holder_text(step)
+    try:
+        portable.write_at(fd, text.encode("utf-8", "replace"), 0)
+    except OSError:
+        pass  # a full disk: the file holds the lock all the same, its text is only for messages
+    _HELD[info.st_dev, info.st_ino] = text
+    return StoreLock(fd, (info.st_dev, info.st_ino), exclusive=path)
+
+
+def _remove_if_ours(path: Path, key: tuple[int, int]) -> None:
+    """Removes the exclusive lock file `path` while it still is the file this writer made."""
+    try:
+        st = os.lstat(path)
+        if (st.st_dev, st.st_ino) == key:
+            os.unlink(path)
+    except OSError:
+        pass
 
 
 def _read(fd: int) -> str:
     try:
-        return os.pread(fd, 4096, 0).decode("utf-8", "replace").strip()
+        return portable.read_at(fd, 4096, 0).decode("utf-8", "replace").strip()
     except OSError:
         return ""

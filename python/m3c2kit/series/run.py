@@ -72,12 +72,17 @@ def create(reference_path: Path, epoch_args, store: Path, settings: dict, *, cor
     # The empty store is built in a private folder and appears at -o whole, its lock already held
     # (lockf locks the file, which the rename moves along), so no other writer comes in between;
     # its epochs are then committed into it as `add` commits them, so a kill keeps those committed.
+    # Where the lock cannot move with the folder (Windows: base/portable.py), it is taken just after
+    # the store appears, and a writer that came first refuses create with the usual message.
     held = None
     try:
         with staged_directory(store) as folder:
             st.create(Path(folder), prepared.core, prepared.comparison.normals(), attrs, core_chunk=layout.core_chunk,
                       epoch_chunk=layout.epoch_chunk, core_normals_input=prepared.normals_input)
-            held = lock_mod.acquire(Path(folder), "create", store)
+            if lock_mod.moves_with_folder():
+                held = lock_mod.acquire(Path(folder), "create", store)
+        if held is None:
+            held = lock_mod.acquire(store, "create", store)
     except BaseException:
         if held is not None:
             held.release()
