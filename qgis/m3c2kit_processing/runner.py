@@ -1,8 +1,8 @@
 """Runs the installed `m3c2` command for an algorithm: found through the provider's setting or
 PATH, its command line logged (shlex-quoted, to rerun it in a shell), its progress bars turned
-into the feedback's percent, Cancel turned into SIGTERM (m3c2 unwinds through its atomic writer:
-no output, no temporary left; docs/errors.md, "Interruption"), its error message into the
-Processing log and a QgsProcessingException.
+into the feedback's percent, Cancel turned into SIGTERM (Windows: Ctrl-Break; portable.py) (m3c2
+unwinds through its atomic writer: no output, no temporary left; docs/errors.md, "Interruption"),
+its error message into the Processing log and a QgsProcessingException.
 
 QGIS's Python and m3c2kit's environment stay apart: nothing here imports m3c2kit."""
 import json
@@ -16,6 +16,8 @@ import threading
 import time
 
 from qgis.core import QgsProcessingException
+
+from . import portable
 
 SETTING = "M3C2_EXECUTABLE"
 NOT_FOUND = ("m3c2 not found: install m3c2kit (the plugin's help, help/qgis.md in its folder, says how) or set its "
@@ -164,7 +166,7 @@ class Run:
             self.feedback.pushCommandInfo(quoted(self.command))
         try:
             child = subprocess.Popen(self.command, stdin=subprocess.DEVNULL, stdout=subprocess.PIPE,
-                                     stderr=subprocess.PIPE)
+                                     stderr=subprocess.PIPE, **portable.popen_options())
         except OSError as e:
             raise QgsProcessingException(f"cannot run {self.command[0]}: {e.strerror or e}") from None
         out, err = _Stream(child.stdout, self._stdout), _Stream(child.stderr, self._stderr)
@@ -175,12 +177,7 @@ class Run:
         while child.poll() is None:
             if cancelled_at is None and self.feedback is not None and self.feedback.isCanceled():
                 cancelled_at = time.monotonic()
-                child.terminate()  # SIGTERM: m3c2 turns it into a clean exit without outputs (cli/main.py)
-                if hasattr(signal, "SIGCONT"):  # a stopped child would never see the TERM
-                    try:
-                        os.kill(child.pid, signal.SIGCONT)
-                    except OSError:
-                        pass
+                portable.stop(child)  # SIGTERM: m3c2 turns it into a clean exit without outputs (cli/main.py)
             elif cancelled_at is not None and not killed and time.monotonic() - cancelled_at > KILL_AFTER_S:
                 killed = True
                 child.kill()  # it ignored the TERM: QGIS is never held by a child that does not stop
@@ -190,8 +187,8 @@ class Run:
             if not stream.is_alive():  # else a grandchild holds it: the (daemon) reader is left to it
                 pipe.close()
         if cancelled_at is not None:
-            how = "killed (it ignored SIGTERM; it may have left a temporary file)" if killed else \
-                "stopped (SIGTERM) and wrote no output"
+            how = f"killed (it ignored {portable.STOP_NAME}; it may have left a temporary file)" if killed else \
+                f"stopped ({portable.STOP_NAME}) and wrote no output"
             raise QgsProcessingException(f"cancelled: m3c2 was {how}")
         if child.returncode != 0:
             raise QgsProcessingException("; ".join(self.errors) or self._failure(child.returncode))
