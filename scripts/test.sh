@@ -45,6 +45,13 @@ step "Python tests"
 repo=$(pwd)
 (cd /tmp && python -m pytest -q -p no:cacheprovider "$repo/tests/python")
 
+# Windows' and macOS's fallbacks on Linux (python/m3c2kit/base/portable.py, docs/architecture.md
+# "Portability"): the layers that use a POSIX path, with every POSIX path off.
+step "Python tests with the POSIX paths off (M3C2_PORTABLE_FALLBACKS=1)"
+(cd /tmp && M3C2_PORTABLE_FALLBACKS=1 python -m pytest -q -p no:cacheprovider \
+  "$repo/tests/python/base" "$repo/tests/python/io" "$repo/tests/python/series" "$repo/tests/python/cli" \
+  "$repo/tests/python/qgis_runner")
+
 # The QGIS Processing provider headless with Debian's QGIS (docs/qgis.md): installs qgis and
 # python3-qgis when missing, then runs tests/qgis against the m3c2 just installed.
 step "QGIS provider, headless"
