@@ -46,9 +46,10 @@ repo=$(pwd)
 (cd /tmp && python -m pytest -q -p no:cacheprovider "$repo/tests/python")
 
 # Windows' and macOS's fallbacks on Linux (python/m3c2kit/base/portable.py, docs/architecture.md
-# "Portability"): the layers that use a POSIX path, with every POSIX path off.
+# "Portability"): the layers that use a POSIX path, with every POSIX path off; their fast tests
+# only (their slow ones, a subprocess per case, real surveys, would add about 20 minutes to CI).
 step "Python tests with the POSIX paths off (M3C2_PORTABLE_FALLBACKS=1)"
-(cd /tmp && M3C2_PORTABLE_FALLBACKS=1 python -m pytest -q -p no:cacheprovider \
+(cd /tmp && M3C2_PORTABLE_FALLBACKS=1 python -m pytest -q -p no:cacheprovider -m "not slow" \
   "$repo/tests/python/base" "$repo/tests/python/io" "$repo/tests/python/series" "$repo/tests/python/cli" \
   "$repo/tests/python/qgis_runner")
 
