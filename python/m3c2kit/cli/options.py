@@ -27,8 +27,8 @@ from ..settings.groups import GROUPS, group_of, group_rank
 from ..settings.table import Parameter
 from .integers import SEED_MAX, integer
 
-__all__ = ["Option", "OPTIONS", "add", "add_table_option", "add_table_options", "argument_sections", "add_verbosity_options",
-           "add_progress_option", "table_type", "table_help"]
+__all__ = ["Option", "OPTIONS", "add", "add_table_option", "add_table_options", "argument_sections",
+           "add_verbosity_options", "add_progress_option", "table_type", "table_help"]
 
 
 @dataclass(frozen=True)

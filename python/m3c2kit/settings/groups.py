@@ -8,7 +8,8 @@ from __future__ import annotations
 
 __all__ = ["GROUPS", "group_of", "group_rank"]
 
-#: (title, the parameter table's rows in it), in the order a dialog shows them.
+#: (title, the parameter table's rows in it), the groups in the order a dialog shows them (within a
+#: group, the rows keep the table's order).
 GROUPS: tuple[tuple[str, tuple[str, ...]], ...] = (
     ("Scales", ("normal_scale", "projection_scale", "max_depth", "core_spacing", "depth_search", "first_pass_depth",
                 "positive_search_only")),
