@@ -47,7 +47,7 @@ repo=$(pwd)
 
 # Windows' and macOS's fallbacks on Linux (python/m3c2kit/base/portable.py, docs/architecture.md
 # "Portability"): the layers that use a POSIX path, with every POSIX path off; their fast tests
-# only (their slow ones, a subprocess per case, real surveys, would add about 20 minutes to CI).
+# only (with their slow ones, a subprocess per case, this pass took 6 minutes in a clean-clone run).
 step "Python tests with the POSIX paths off (M3C2_PORTABLE_FALLBACKS=1)"
 (cd /tmp && M3C2_PORTABLE_FALLBACKS=1 python -m pytest -q -p no:cacheprovider -m "not slow" \
   "$repo/tests/python/base" "$repo/tests/python/io" "$repo/tests/python/series" "$repo/tests/python/cli" \
